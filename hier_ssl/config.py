@@ -1,0 +1,161 @@
+"""Configs are YAML data validated into typed objects; every key is a constructor argument.
+
+An unknown, mistyped or out-of-range key is a ``ConfigError`` whose message names the key's full path
+(e.g. ``env.frame_skip``). Loading never mutates what the caller passed in.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from hier_ssl.policies.sac import SACConfig
+from hier_ssl.world.field import FIELDS
+
+
+class ConfigError(ValueError):
+    """A config that cannot be used; the message names the offending key."""
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class ObstacleConfig(Strict):
+    """One scripted obstacle robot: how it moves (world/obstacles.py) and where it starts."""
+
+    behaviour: Literal["stationary", "random_walk", "public_code"] = "public_code"
+    options: dict[str, Any] = Field(default_factory=dict)
+    # "midpoint": between robot and target (public code); "uniform": anywhere clear of both.
+    placement: Literal["midpoint", "uniform"] = "midpoint"
+
+
+class EnvConfig(Strict):
+    """One learning environment of the paper (SPEC.md), over N fields."""
+
+    task: Literal["baseline", "proposed", "obstacle"] = "proposed"
+    field: str = "hardware_challenge"
+    obstacles: list[ObstacleConfig] = Field(default_factory=list)
+    action_form: Literal["pose4", "pose6"] = "pose4"
+    frame_skip: int = Field(1, ge=1)
+    frame_skip_reward: Literal["sum", "last"] = "sum"
+    max_steps: int = Field(1200, ge=1)
+    success_mode: Literal["add", "replace"] = "add"
+    hit_mode: Literal["add", "replace"] = "add"
+    worker: str = "paper"
+    expose_worker: bool = False
+    expose_obstacles: bool = False
+    dt: float = Field(0.025, gt=0)
+    substeps: int = Field(2, ge=1)
+    d_th: float = Field(0.05, gt=0)
+    theta_th_deg: float = Field(5.0, gt=0)
+    speed_th: float = Field(0.05, gt=0)
+    collision_distance: float = Field(0.2, gt=0)
+    min_start_distance: float = Field(0.2, ge=0)
+    spawn_margin: float = Field(0.1, ge=0)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> EnvConfig:
+        if self.field not in FIELDS:
+            raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
+        if self.task == "obstacle" and not self.obstacles:
+            raise ValueError("obstacles: the 'obstacle' task needs at least one obstacle")
+        if any(o.placement == "midpoint" for o in self.obstacles):
+            if self.min_start_distance < 2 * self.collision_distance:
+                raise ValueError(
+                    f"min_start_distance: {self.min_start_distance} m puts a midpoint obstacle inside the "
+                    f"collision distance at reset; use >= {2 * self.collision_distance}"
+                )
+        return self
+
+
+class PPOConfig(Strict):
+    """rsl-rl-lib's OnPolicyRunner settings that this project exposes."""
+
+    num_steps_per_env: int = Field(24, ge=1)
+    learning_rate: float = Field(1e-3, gt=0)
+    num_learning_epochs: int = Field(5, ge=1)
+    num_mini_batches: int = Field(4, ge=1)
+    gamma: float = Field(0.99, gt=0, le=1)
+    lam: float = Field(0.95, gt=0, le=1)
+    entropy_coef: float = Field(0.005, ge=0)
+    clip_param: float = Field(0.2, gt=0)
+    hidden: tuple[int, ...] = (256, 256)
+    init_noise_std: float = Field(1.0, gt=0)
+
+
+class TrainConfig(Strict):
+    """A training run: the environment, the learner, and how long."""
+
+    name: str = "run"
+    env: EnvConfig = Field(default_factory=EnvConfig)
+    algo: Literal["sac", "ppo"] = "sac"
+    sac: SACConfig = Field(default_factory=SACConfig)
+    ppo: PPOConfig = Field(default_factory=PPOConfig)
+    num_envs: int = Field(16, ge=1)
+    total_steps: int = Field(150_000, ge=1)  # vector-env steps (manager decisions per env)
+    eval_episodes: int = Field(200, ge=1)
+    eval_interval: int = Field(5_000, ge=1)
+    seed: int = 0
+    device: str = "cpu"
+    threads: int = Field(2, ge=1)
+
+
+def _format(err: ValidationError, root: str) -> str:
+    first = err.errors()[0]
+    path = ".".join(str(p) for p in (root, *first["loc"]) if p != "")
+    extra = "" if len(err.errors()) == 1 else f" (+{len(err.errors()) - 1} more)"
+    return f"{path}: {first['msg']}{extra}"
+
+
+def parse_config(data: dict[str, Any], model: type[BaseModel] = TrainConfig, root: str = "") -> Any:
+    """Validate a plain dict into ``model``; raises ConfigError naming the first bad key."""
+    try:
+        return model.model_validate(copy.deepcopy(data))
+    except ValidationError as err:
+        raise ConfigError(_format(err, root)) from None
+
+
+def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """``key.sub=value`` strings applied to a copy of ``data``; values are parsed as YAML scalars."""
+    data = copy.deepcopy(data)
+    for item in overrides:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--set {item!r}: expected key=value")
+        node = data
+        *parents, leaf = key.split(".")
+        for part in parents:
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise ConfigError(f"--set {key}: {part!r} is not a section")
+            node = child
+        node[leaf] = yaml.safe_load(raw)
+    return data
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"config file not found: {path}")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{path}: not valid YAML ({err})") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: top level must be a mapping, got {type(data).__name__}")
+    return data
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None) -> TrainConfig:
+    """A TrainConfig from a YAML file with optional ``key=value`` overrides."""
+    return parse_config(apply_overrides(load_yaml(path), overrides or []))
+
+
+def dump_config(config: BaseModel) -> str:
+    """The fully resolved config as YAML, written next to checkpoints."""
+    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)

@@ -1,0 +1,135 @@
+"""The manager's observation: target, robot and obstacles as one normalised vector per field.
+
+Layout (SPEC "Manager observation"), 13 values then 5 per obstacle::
+
+    0-1   target x, y            / max_pos
+    2-3   sin, cos of target angle
+    4-5   target vx, vy          / max_v
+    6-7   robot x, y             / max_pos
+    8-9   sin, cos of robot angle
+    10-11 robot vx, vy           / max_v   (field frame)
+    12    robot angular velocity / max_w   (rad/s)
+    13+5k obstacle k: x, y / max_pos, vx, vy / max_v, w / max_w
+
+Every value is clipped to [-clip, clip]. The paper's text lists cos before sin; its code and
+the SPEC put sin first, as here. Read observations through `MANAGER_OBS_SLICES`
+and `obstacle_obs_slice`, not by bare column numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+MANAGER_OBS_BASE_DIM = 13
+OBSTACLE_OBS_DIM = 5
+
+MANAGER_OBS_SLICES: dict[str, slice] = {
+    "target_pos": slice(0, 2),
+    "target_sincos": slice(2, 4),
+    "target_vel": slice(4, 6),
+    "robot_pos": slice(6, 8),
+    "robot_sincos": slice(8, 10),
+    "robot_vel": slice(10, 12),
+    "robot_ang_vel": slice(12, 13),
+}
+
+# Offsets inside one obstacle's block; `obstacle_obs_slice` gives the block itself.
+OBSTACLE_OBS_SLICES: dict[str, slice] = {
+    "pos": slice(0, 2),
+    "vel": slice(2, 4),
+    "ang_vel": slice(4, 5),
+}
+
+
+def check_array(name: str, value: ArrayLike, shape: tuple[int | None, ...]) -> np.ndarray:
+    """Return `value` as a float64 array, or raise ValueError naming it if its shape does not match.
+
+    `shape` lists the expected size of every axis; None accepts any size. Shared by the
+    manager's modules so that every public function rejects bad input the same way.
+    """
+    array = np.asarray(value, dtype=np.float64)
+    if array.ndim != len(shape) or any(
+        want is not None and want != got for want, got in zip(shape, array.shape, strict=True)
+    ):
+        expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name} must have shape {expected}, got {array.shape}")
+    return array
+
+
+def manager_obs_dim(num_obstacles: int) -> int:
+    """Length of the manager observation with `num_obstacles` obstacles."""
+    if num_obstacles < 0:
+        raise ValueError(f"num_obstacles must be >= 0, got {num_obstacles}")
+    return MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * num_obstacles
+
+
+def obstacle_obs_slice(k: int) -> slice:
+    """Columns of obstacle `k` (0-based) in the manager observation."""
+    if k < 0:
+        raise ValueError(f"obstacle index must be >= 0, got {k}")
+    start = MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k
+    return slice(start, start + OBSTACLE_OBS_DIM)
+
+
+def manager_observation(
+    target: ArrayLike,
+    pos: ArrayLike,
+    angle: ArrayLike,
+    vel: ArrayLike,
+    ang_vel: ArrayLike,
+    obs_pos: ArrayLike,
+    obs_vel: ArrayLike,
+    obs_ang_vel: ArrayLike,
+    *,
+    max_pos: float = 3.8,
+    max_v: float = 2.5,
+    max_w: float = 10.0,
+    clip: float = 1.2,
+) -> np.ndarray:
+    """Build the manager observation of N fields.
+
+    Args:
+        target: (N, 5) target pose x, y, theta, vx, vy (m, rad, m/s).
+        pos: (N, 2) robot position (m). angle: (N,) robot heading (rad).
+        vel: (N, 2) robot velocity in the field frame (m/s). ang_vel: (N,) (rad/s).
+        obs_pos: (N, K, 2), obs_vel: (N, K, 2), obs_ang_vel: (N, K) obstacles, K >= 0.
+        max_pos, max_v, max_w: normalisers (m, m/s, rad/s); clip: bound of every value.
+
+    Returns:
+        (N, 13 + 5K) float32, laid out as in the module docstring.
+    """
+    for name, scale in (("max_pos", max_pos), ("max_v", max_v), ("max_w", max_w), ("clip", clip)):
+        if not scale > 0:
+            raise ValueError(f"{name} must be > 0, got {scale}")
+    target = check_array("target", target, (None, 5))
+    n = target.shape[0]
+    pos = check_array("pos", pos, (n, 2))
+    angle = check_array("angle", angle, (n,))
+    vel = check_array("vel", vel, (n, 2))
+    ang_vel = check_array("ang_vel", ang_vel, (n,))
+    obs_pos = check_array("obs_pos", obs_pos, (n, None, 2))
+    k = obs_pos.shape[1]
+    obs_vel = check_array("obs_vel", obs_vel, (n, k, 2))
+    obs_ang_vel = check_array("obs_ang_vel", obs_ang_vel, (n, k))
+
+    theta = target[:, 2]
+    obstacles = np.concatenate(
+        [obs_pos / max_pos, obs_vel / max_v, obs_ang_vel[:, :, None] / max_w], axis=2
+    ).reshape(n, OBSTACLE_OBS_DIM * k)
+    obs = np.concatenate(
+        [
+            target[:, 0:2] / max_pos,
+            np.sin(theta)[:, None],
+            np.cos(theta)[:, None],
+            target[:, 3:5] / max_v,
+            pos / max_pos,
+            np.sin(angle)[:, None],
+            np.cos(angle)[:, None],
+            vel / max_v,
+            ang_vel[:, None] / max_w,
+            obstacles,
+        ],
+        axis=1,
+    )
+    return np.clip(obs, -clip, clip).astype(np.float32)

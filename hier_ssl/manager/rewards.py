@@ -1,0 +1,177 @@
+"""The manager's reward terms (paper section 3, SPEC "Rewards") as vectorised pure functions.
+
+R = R_d + R_theta + R_t (+ R_obst + R_hit in the obstacle task), with d and delta the
+distance and angle difference to the target, measured on the robot (Baseline) or on the
+manager's sub-goal (Proposed, Obstacle: "action-centric").
+
+The paper prints R_t = 1000 "if dist > D_th and delta > theta_th", an evident sign slip:
+R_t is paid on the success step, whose predicate lives in `hier_ssl.manager.success`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hier_ssl.manager.observation import check_array
+
+DIST_THRESHOLD = 0.05  # D_th, m
+ANGLE_THRESHOLD = math.radians(5.0)  # theta_th, rad
+DIST_BONUS = 10.0  # R_d inside D_th
+ANGLE_BONUS = 1.0  # R_theta inside theta_th
+SUCCESS_REWARD = 1000.0
+HIT_REWARD = -1000.0
+
+TASKS = ("baseline", "proposed", "obstacle")
+SUCCESS_MODES = ("add", "replace")
+HIT_MODES = ("add", "replace")
+REWARD_TERMS = ("distance", "angle", "success", "obstacle", "hit")
+
+
+def wrap_angle(angle: ArrayLike) -> np.ndarray:
+    """Angles (any shape, rad) wrapped into [-pi, pi)."""
+    return np.mod(np.asarray(angle, dtype=np.float64) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def _check_pose(name: str, value: ArrayLike, n: int | None) -> np.ndarray:
+    pose = np.asarray(value, dtype=np.float64)
+    if pose.ndim != 2 or pose.shape[1] not in (3, 5) or (n is not None and pose.shape[0] != n):
+        expected = "(N, 3) or (N, 5)" if n is None else f"({n}, 3) or ({n}, 5)"
+        raise ValueError(f"{name} must have shape {expected}, got {pose.shape}")
+    return pose
+
+
+def pose_errors(pose_a: ArrayLike, pose_b: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Distance and absolute angle difference between two batches of poses.
+
+    Args:
+        pose_a, pose_b: (N, 3) x, y, theta or (N, 5) x, y, theta, vx, vy; only x, y, theta
+            are read, so sub-goals and targets can be passed as they are.
+
+    Returns:
+        distance (N,) in m and delta (N,) in [0, pi] rad.
+    """
+    pose_a = _check_pose("pose_a", pose_a, None)
+    pose_b = _check_pose("pose_b", pose_b, pose_a.shape[0])
+    distance = np.linalg.norm(pose_a[:, 0:2] - pose_b[:, 0:2], axis=1)
+    delta = np.abs(wrap_angle(pose_a[:, 2] - pose_b[:, 2]))
+    return distance, delta
+
+
+def nearest_obstacle_distance(point: ArrayLike, obs_pos: ArrayLike) -> np.ndarray:
+    """Centre distance from each field's point to its nearest obstacle.
+
+    Args:
+        point: (N, 2) m. obs_pos: (N, K, 2) m, K >= 0.
+
+    Returns:
+        (N,) m; +inf where K = 0, so thresholds and Gaussians of it read "no obstacle".
+    """
+    point = check_array("point", point, (None, 2))
+    obs_pos = check_array("obs_pos", obs_pos, (point.shape[0], None, 2))
+    distances = np.linalg.norm(obs_pos - point[:, None, :], axis=2)
+    return np.min(distances, axis=1, initial=np.inf)
+
+
+def distance_reward(d: ArrayLike, d_th: float = DIST_THRESHOLD) -> np.ndarray:
+    """R_d: -d where d > d_th, else +10. d: any shape, m."""
+    d = np.asarray(d, dtype=np.float64)
+    return np.where(d > d_th, -d, DIST_BONUS)
+
+
+def angle_reward(delta: ArrayLike, theta_th: float = ANGLE_THRESHOLD) -> np.ndarray:
+    """R_theta: -delta / pi where delta > theta_th, else +1. delta: any shape, rad in [0, pi]."""
+    delta = np.asarray(delta, dtype=np.float64)
+    return np.where(delta > theta_th, -delta / np.pi, ANGLE_BONUS)
+
+
+def obstacle_reward(o: ArrayLike) -> np.ndarray:
+    """R_obst = -N(o; 0, 1) = -exp(-o^2 / 2) / sqrt(2 pi). o: any shape, m (may be +inf)."""
+    o = np.asarray(o, dtype=np.float64)
+    return -np.exp(-0.5 * o**2) / math.sqrt(2.0 * math.pi)
+
+
+def _check_mask(name: str, value: ArrayLike, n: int) -> np.ndarray:
+    mask = np.asarray(value)
+    if mask.shape != (n,) or mask.dtype != np.bool_:
+        raise ValueError(f"{name} must be a bool array of shape ({n},), got {mask.dtype} {mask.shape}")
+    return mask
+
+
+def task_reward(
+    task: str,
+    target: ArrayLike,
+    robot_pos: ArrayLike,
+    robot_angle: ArrayLike,
+    subgoal: ArrayLike,
+    success: ArrayLike,
+    *,
+    obs_pos: ArrayLike | None = None,
+    hit: ArrayLike | None = None,
+    success_mode: str = "add",
+    hit_mode: str = "add",
+    d_th: float = DIST_THRESHOLD,
+    theta_th: float = ANGLE_THRESHOLD,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Reward of one control step in N fields for the Baseline, Proposed or Obstacle task.
+
+    Args:
+        task: "baseline" (d, delta of the robot), "proposed" (d, delta of the sub-goal) or
+            "obstacle" (proposed, plus R_obst on the sub-goal's distance to the nearest
+            obstacle and R_hit).
+        target: (N, 5) target pose. robot_pos: (N, 2). robot_angle: (N,) rad.
+        subgoal: (N, 5) the manager's decoded sub-goal.
+        success: (N,) bool, this step reached the task's success predicate.
+        obs_pos: (N, K, 2) obstacle positions; required by, and only accepted for, "obstacle".
+        hit: (N,) bool, the robot collided this step; same rule as obs_pos.
+        success_mode: "add" (paper text: R_d + R_theta + 1000 on success) or "replace"
+            (public code: 1000 instead of R_d + R_theta on success; R_obst still added).
+        hit_mode: "add" (paper text: R_hit = -1000 added to the other terms) or "replace"
+            (public code: the step's reward is -1000 alone).
+        d_th, theta_th: thresholds of R_d (m) and R_theta (rad).
+
+    Returns:
+        total (N,) and a dict of the (N,) terms named in REWARD_TERMS, zero where a term does
+        not apply, so that the terms always sum to the total and can be logged as they are.
+    """
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
+    if success_mode not in SUCCESS_MODES:
+        raise ValueError(f"unknown success_mode {success_mode!r}; expected one of {SUCCESS_MODES}")
+    if hit_mode not in HIT_MODES:
+        raise ValueError(f"unknown hit_mode {hit_mode!r}; expected one of {HIT_MODES}")
+    target = check_array("target", target, (None, 5))
+    n = target.shape[0]
+    robot_pos = check_array("robot_pos", robot_pos, (n, 2))
+    robot_angle = check_array("robot_angle", robot_angle, (n,))
+    subgoal = check_array("subgoal", subgoal, (n, 5))
+    success = _check_mask("success", success, n)
+    if task == "obstacle":
+        if obs_pos is None or hit is None:
+            raise ValueError("task 'obstacle' needs obs_pos and hit")
+        hit = _check_mask("hit", hit, n)
+    elif obs_pos is not None or hit is not None:
+        raise ValueError(f"obs_pos and hit are only used by task 'obstacle', not {task!r}")
+
+    measured = np.column_stack([robot_pos, robot_angle]) if task == "baseline" else subgoal
+    d, delta = pose_errors(measured, target)
+    terms = {
+        "distance": distance_reward(d, d_th),
+        "angle": angle_reward(delta, theta_th),
+        "success": np.where(success, SUCCESS_REWARD, 0.0),
+        "obstacle": np.zeros(n),
+        "hit": np.zeros(n),
+    }
+    if success_mode == "replace":
+        for name in ("distance", "angle"):
+            terms[name] = np.where(success, 0.0, terms[name])
+    if task == "obstacle":
+        terms["obstacle"] = obstacle_reward(nearest_obstacle_distance(subgoal[:, 0:2], obs_pos))
+        terms["hit"] = np.where(hit, HIT_REWARD, 0.0)
+        if hit_mode == "replace":
+            for name in ("distance", "angle", "success", "obstacle"):
+                terms[name] = np.where(hit, 0.0, terms[name])
+    total = np.sum([terms[name] for name in REWARD_TERMS], axis=0)
+    return total, terms

@@ -1,0 +1,255 @@
+"""Soft Actor-Critic with optional CAPS smoothness regularisation.
+
+Follows CleanRL's ``sac_continuous_action.py`` (whose defaults the paper's public code uses) with two
+changes for speed: both critics live in one batched module (``TwinQ``), and the Polyak update and Adam
+run on foreach kernels. CAPS (Mysore et al. 2021) adds a temporal and a spatial smoothness term to the
+actor loss, computed on the deterministic actions tanh(mean).
+
+Rule: with ``caps=True`` the entropy coefficient alpha is fixed at ``SACConfig.alpha`` and not learned,
+as in the paper (section 5: a learned alpha works against the smoothness loss).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Callable
+
+import torch
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from hier_ssl.policies.networks import SquashedGaussianActor, TwinQ
+from hier_ssl.policies.replay import ReplayBuffer
+
+
+class SACConfig(BaseModel):
+    """Hyper-parameters; the defaults are those of the paper's public code (SPEC "SAC settings")."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    hidden: tuple[int, ...] = (256, 256)
+    actor_lr: float = Field(3e-4, gt=0)
+    critic_lr: float = Field(1e-3, gt=0)
+    alpha_lr: float = Field(1e-3, gt=0)
+    gamma: float = Field(0.99, ge=0, le=1)
+    tau: float = Field(0.005, gt=0, le=1)
+    batch_size: int = Field(256, ge=1)
+    buffer_size: int = Field(1_000_000, ge=1)
+    learning_starts: int = Field(5000, ge=0, description="transitions of uniform random actions before updates")
+    policy_frequency: int = Field(
+        2, ge=1, description="every policy_frequency-th update runs policy_frequency actor steps (CleanRL)"
+    )
+    alpha: float = Field(0.2, gt=0, description="entropy coefficient: fixed value, or start value when learned")
+    autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
+    target_entropy: float | None = Field(None, description="None means -act_dim")
+    caps: bool = False
+    caps_lambda_t: float = Field(1.0, ge=0)
+    caps_lambda_s: float = Field(5.0, ge=0)
+    caps_sigma: float = Field(0.05, ge=0)
+    updates_per_step: float = Field(1.0, gt=0, description="gradient updates per vector env step")
+
+    @field_validator("hidden")
+    @classmethod
+    def _hidden_positive(cls, hidden: tuple[int, ...]) -> tuple[int, ...]:
+        if not hidden or min(hidden) < 1:
+            raise ValueError(f"hidden must be a non-empty sequence of positive layer sizes, got {hidden}")
+        return hidden
+
+    @model_validator(mode="after")
+    def _caps_fixes_alpha(self) -> SACConfig:
+        if self.caps and self.autotune_alpha:
+            raise ValueError("autotune_alpha=True conflicts with caps=True: CAPS runs with a fixed alpha")
+        return self
+
+    @property
+    def learns_alpha(self) -> bool:
+        """Whether alpha is learned: ``autotune_alpha`` if given, else not ``caps``."""
+        return self.autotune_alpha if self.autotune_alpha is not None else not self.caps
+
+
+def caps_loss(
+    actor_mean_fn: Callable[[torch.Tensor], torch.Tensor],
+    obs: torch.Tensor,
+    next_obs: torch.Tensor,
+    lambda_t: float,
+    lambda_s: float,
+    sigma: float,
+    generator: torch.Generator | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """CAPS temporal and spatial smoothness terms, already weighted by their lambdas.
+
+    temporal = lambda_t * mean_b ||mu(s'_b) - mu(s_b)||_2
+    spatial  = lambda_s * mean_b ||mu(s_bar_b) - mu(s_b)||_2,  s_bar ~ N(s, sigma^2 I)
+
+    Shapes: obs, next_obs (B, obs_dim); ``actor_mean_fn`` maps (N, obs_dim) -> (N, act_dim). Returns two
+    scalars. The three policy evaluations share one call of ``actor_mean_fn`` on 3B rows.
+    """
+    obs_bar = obs + sigma * torch.randn(obs.shape, generator=generator, device=obs.device, dtype=obs.dtype)
+    mu, mu_next, mu_bar = actor_mean_fn(torch.cat([obs, next_obs, obs_bar])).chunk(3)
+    temporal = lambda_t * torch.linalg.vector_norm(mu_next - mu, dim=-1).mean()
+    spatial = lambda_s * torch.linalg.vector_norm(mu_bar - mu, dim=-1).mean()
+    return temporal, spatial
+
+
+class SAC:
+    """SAC agent: networks, optimisers and the replay buffer it learns from.
+
+    ``act`` picks actions, ``process_env_step`` stores transitions, ``update`` runs one gradient update.
+    All randomness (exploration noise, replay sampling, CAPS noise) comes from ``self.generator``, which
+    is checkpointed, so a resumed run continues the same random stream.
+    """
+
+    def __init__(
+        self,
+        num_obs: int,
+        num_actions: int,
+        config: SACConfig | None = None,
+        device: torch.device | str = "cpu",
+        seed: int = 0,
+    ) -> None:
+        self.config = cfg = (config or SACConfig()).model_copy(deep=True)
+        self.device = torch.device(device)
+        self.generator = torch.Generator(device=self.device)
+        self.generator.manual_seed(seed)
+        # Initialise weights from `seed` without disturbing the caller's global RNG.
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            self.actor = SquashedGaussianActor(num_obs, num_actions, cfg.hidden).to(self.device)
+            self.qf = TwinQ(num_obs, num_actions, cfg.hidden).to(self.device)
+        self.qf_target = copy.deepcopy(self.qf).requires_grad_(False)
+        self._actor_params = list(self.actor.parameters())
+        self._qf_params = list(self.qf.parameters())
+        self._qf_target_params = list(self.qf_target.parameters())
+        self.actor_optimizer = torch.optim.Adam(self._actor_params, lr=cfg.actor_lr, fused=True)
+        self.q_optimizer = torch.optim.Adam(self._qf_params, lr=cfg.critic_lr, fused=True)
+
+        self.target_entropy = cfg.target_entropy if cfg.target_entropy is not None else -float(num_actions)
+        self.log_alpha = torch.full((), math.log(cfg.alpha), device=self.device, requires_grad=cfg.learns_alpha)
+        self.alpha_optimizer = (
+            torch.optim.Adam([self.log_alpha], lr=cfg.alpha_lr, fused=True) if cfg.learns_alpha else None
+        )
+
+        self.replay = ReplayBuffer(cfg.buffer_size, num_obs, num_actions, self.device)
+        self.num_updates = 0
+        # Latest actor-side losses, kept as tensors so logging them costs no sync until `update` returns.
+        self._actor_loss = torch.zeros((), device=self.device)
+        self._alpha_loss = torch.zeros((), device=self.device)
+        self._caps_temporal = torch.zeros((), device=self.device)
+        self._caps_spatial = torch.zeros((), device=self.device)
+
+    @torch.no_grad()
+    def act(self, obs: torch.Tensor, deterministic: bool = False) -> torch.Tensor:
+        """Actions for a batch of observations. Shapes: obs (N, num_obs) -> (N, num_actions) in [-1, 1]."""
+        if deterministic:
+            return self.actor.deterministic(obs)
+        return self.actor(obs, self.generator)[0]
+
+    def process_env_step(
+        self,
+        obs: torch.Tensor,
+        actions: torch.Tensor,
+        rewards: torch.Tensor,
+        next_obs: torch.Tensor,
+        terminated: torch.Tensor,
+    ) -> None:
+        """Store one vector step. Shapes: obs, next_obs (N, num_obs); actions (N, num_actions); rewards,
+        terminated (N,). ``next_obs`` must be the true last observation of finished episodes."""
+        self.replay.add(obs, actions, rewards, next_obs, terminated)
+
+    def update(self) -> dict[str, float]:
+        """One critic update, the actor (and alpha) updates when due, and the Polyak step."""
+        cfg = self.config
+        data = self.replay.sample(cfg.batch_size, self.generator)
+        alpha = self.log_alpha.detach().exp()
+
+        # Critic: soft Bellman target from the target critics, bootstrapped only through non-terminal ends.
+        with torch.no_grad():
+            next_state_actions, next_state_log_pi = self.actor(data.next_obs, self.generator)
+            qf_next_target = self.qf_target(data.next_obs, next_state_actions).min(dim=0).values
+            min_qf_next_target = qf_next_target - alpha * next_state_log_pi
+            target_q = data.rewards + (1.0 - data.terminated) * cfg.gamma * min_qf_next_target
+        qf_a_values = self.qf(data.obs, data.actions)  # (2, B)
+        qf_loss = (qf_a_values - target_q).pow(2).mean(dim=1).sum()  # qf1_loss + qf2_loss
+        self.q_optimizer.zero_grad(set_to_none=True)
+        qf_loss.backward()
+        self.q_optimizer.step()
+
+        # Actor: delayed like TD3, but CleanRL-style it then takes policy_frequency steps to keep the count.
+        if self.num_updates % cfg.policy_frequency == 0:
+            for _ in range(cfg.policy_frequency):
+                pi, log_pi = self.actor(data.obs, self.generator)
+                min_qf_pi = self.qf(data.obs, pi).min(dim=0).values
+                actor_loss = (alpha * log_pi - min_qf_pi).mean()
+                if cfg.caps:
+                    caps_temporal, caps_spatial = caps_loss(
+                        self.actor.deterministic,
+                        data.obs,
+                        data.next_obs,
+                        cfg.caps_lambda_t,
+                        cfg.caps_lambda_s,
+                        cfg.caps_sigma,
+                        self.generator,
+                    )
+                    actor_loss = actor_loss + caps_temporal + caps_spatial
+                    self._caps_temporal, self._caps_spatial = caps_temporal.detach(), caps_spatial.detach()
+                self.actor_optimizer.zero_grad(set_to_none=True)
+                # `inputs` restricts backward to the actor: the critic's weight gradients are never computed.
+                actor_loss.backward(inputs=self._actor_params)
+                self.actor_optimizer.step()
+                self._actor_loss = actor_loss.detach()
+
+                if self.alpha_optimizer is not None:
+                    alpha_loss = (-self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
+                    self.alpha_optimizer.zero_grad(set_to_none=True)
+                    alpha_loss.backward()
+                    self.alpha_optimizer.step()
+                    alpha = self.log_alpha.detach().exp()
+                    self._alpha_loss = alpha_loss.detach()
+
+        # Target critics: Polyak averaging, one foreach kernel over all parameters.
+        torch._foreach_lerp_(self._qf_target_params, self._qf_params, cfg.tau)
+        self.num_updates += 1
+
+        # One host sync per update for all logged values.
+        logged = {
+            "qf_loss": qf_loss.detach(),
+            "qf_values": qf_a_values.detach().mean(),
+            "actor_loss": self._actor_loss,
+            "alpha": alpha,
+        }
+        if self.alpha_optimizer is not None:
+            logged["alpha_loss"] = self._alpha_loss
+        if cfg.caps:
+            logged["caps_temporal"] = self._caps_temporal
+            logged["caps_spatial"] = self._caps_spatial
+        return dict(zip(logged, torch.stack(list(logged.values())).tolist()))
+
+    def state_dict(self) -> dict[str, object]:
+        """Everything needed to resume learning except the replay buffer (``self.replay.state_dict()``)."""
+        return {
+            "actor": self.actor.state_dict(),
+            "qf": self.qf.state_dict(),
+            "qf_target": self.qf_target.state_dict(),
+            "actor_optimizer": self.actor_optimizer.state_dict(),
+            "q_optimizer": self.q_optimizer.state_dict(),
+            "alpha_optimizer": self.alpha_optimizer.state_dict() if self.alpha_optimizer is not None else None,
+            "log_alpha": self.log_alpha.detach().clone(),
+            "num_updates": self.num_updates,
+            "generator": self.generator.get_state(),
+        }
+
+    def load_state_dict(self, state: dict[str, object]) -> None:
+        """Inverse of ``state_dict``; the config (network sizes, alpha rule) must match the saved one."""
+        self.actor.load_state_dict(state["actor"])
+        self.qf.load_state_dict(state["qf"])
+        self.qf_target.load_state_dict(state["qf_target"])
+        self.actor_optimizer.load_state_dict(state["actor_optimizer"])
+        self.q_optimizer.load_state_dict(state["q_optimizer"])
+        if (self.alpha_optimizer is None) != (state["alpha_optimizer"] is None):
+            raise ValueError("checkpoint and config disagree on whether alpha is learned")
+        if self.alpha_optimizer is not None:
+            self.alpha_optimizer.load_state_dict(state["alpha_optimizer"])
+        with torch.no_grad():
+            self.log_alpha.copy_(state["log_alpha"])
+        self.num_updates = int(state["num_updates"])
+        self.generator.set_state(state["generator"])

@@ -1,0 +1,92 @@
+"""Scripted obstacle behaviours: random agents that move obstacle robots.
+
+A behaviour drives one obstacle robot in every field: ``reset(fields, rng)`` when episodes start and
+``__call__(state, rng) -> (N, 3)`` each control step, a robot-frame (vx, vy, w) command, given the
+obstacle's own state (a RobotState whose robot axis has length 1 squeezed away: pos (N, 2) ...).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hier_ssl.world.physics import to_robot_frame
+
+
+@dataclass
+class Stationary:
+    """Stands still (the obstacle of the paper's real-robot experiment)."""
+
+    def reset(self, fields: np.ndarray, rng: np.random.Generator) -> None:
+        """Stateless."""
+
+    def __call__(self, pos: np.ndarray, angle: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        return np.zeros((len(angle), 3))
+
+
+@dataclass
+class RandomWalk:
+    """Paper text: a random direction each step, speed drawn uniformly in ``speed`` (m/s), no spin."""
+
+    speed: tuple[float, float] = (0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        lo, hi = self.speed
+        if not 0 <= lo <= hi:
+            raise ValueError(f"RandomWalk speed range must satisfy 0 <= low <= high, got {self.speed!r}")
+
+    def reset(self, fields: np.ndarray, rng: np.random.Generator) -> None:
+        """Stateless: a new draw every step."""
+
+    def __call__(self, pos: np.ndarray, angle: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        n = len(angle)
+        heading = rng.uniform(-np.pi, np.pi, n)
+        speed = rng.uniform(*self.speed, n)
+        vel = np.stack([speed * np.cos(heading), speed * np.sin(heading)], axis=-1)
+        return np.concatenate([to_robot_frame(vel, angle), np.zeros((n, 1))], axis=-1)
+
+
+@dataclass
+class PublicCodeRandom:
+    """The paper's public code: per episode, with probability ``p_still`` the obstacle stays still;
+    otherwise every step it draws vx, vy ~ U(-max_speed, max_speed) and w ~ U(-max_spin, max_spin)."""
+
+    p_still: float = 0.5
+    max_speed: float = 2.5
+    max_spin: float = np.pi
+    num_fields: int = 1
+    _still: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.p_still <= 1:
+            raise ValueError(f"PublicCodeRandom p_still must be in [0, 1], got {self.p_still!r}")
+        self._still = np.ones(self.num_fields, dtype=bool)
+
+    def reset(self, fields: np.ndarray, rng: np.random.Generator) -> None:
+        self._still[fields] = rng.random(len(fields)) < self.p_still
+
+    def __call__(self, pos: np.ndarray, angle: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        n = len(angle)
+        cmd = np.concatenate(
+            [rng.uniform(-self.max_speed, self.max_speed, (n, 2)), rng.uniform(-self.max_spin, self.max_spin, (n, 1))],
+            axis=-1,
+        )
+        cmd[self._still] = 0.0
+        return cmd
+
+
+OBSTACLES = {"stationary": Stationary, "random_walk": RandomWalk, "public_code": PublicCodeRandom}
+
+
+def make_obstacle(name: str, num_fields: int, **options: object) -> Stationary | RandomWalk | PublicCodeRandom:
+    """A behaviour by name; ``options`` are its fields. Unknown names or options raise ValueError."""
+    if name not in OBSTACLES:
+        raise ValueError(f"unknown obstacle behaviour {name!r}; known: {sorted(OBSTACLES)}")
+    cls = OBSTACLES[name]
+    if cls is PublicCodeRandom:
+        options = {**options, "num_fields": num_fields}
+    try:
+        return cls(**options)
+    except TypeError as err:
+        raise ValueError(f"obstacle behaviour {name!r}: {err}") from None

@@ -1,0 +1,133 @@
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hier_ssl.manager.rewards import (
+    HIT_REWARD,
+    REWARD_TERMS,
+    SUCCESS_REWARD,
+    angle_reward,
+    distance_reward,
+    obstacle_reward,
+    pose_errors,
+    task_reward,
+    wrap_angle,
+)
+
+GAUSS_0 = 1 / math.sqrt(2 * math.pi)  # 0.398942: N(0; 0, 1)
+GAUSS_1 = math.exp(-0.5) / math.sqrt(2 * math.pi)  # 0.241971: N(1; 0, 1)
+
+
+def test_distance_reward_around_threshold() -> None:
+    np.testing.assert_allclose(distance_reward([0.0, 0.05, 0.0501, 1.3]), [10.0, 10.0, -0.0501, -1.3])
+
+
+def test_angle_reward_around_threshold() -> None:
+    five_deg = math.radians(5)
+    got = angle_reward([0.0, five_deg, five_deg + 1e-6, math.pi / 2, math.pi])
+    np.testing.assert_allclose(got, [1.0, 1.0, -(five_deg + 1e-6) / math.pi, -0.5, -1.0])
+
+
+def test_obstacle_reward_is_a_negative_standard_gaussian() -> None:
+    np.testing.assert_allclose(obstacle_reward([0.0, 1.0, -1.0, np.inf]), [-GAUSS_0, -GAUSS_1, -GAUSS_1, 0.0])
+
+
+def test_wrap_angle_and_pose_errors() -> None:
+    np.testing.assert_allclose(
+        wrap_angle([3 * math.pi / 2, -3 * math.pi / 2, 0.25]), [-math.pi / 2, math.pi / 2, 0.25]
+    )
+    # 170 deg and -170 deg are 20 deg apart across the +-180 seam; (0, 0) to (3, 4) is 5 m
+    pose = np.array([[0.0, 0.0, math.radians(170)]])
+    pose5 = np.array([[3.0, 4.0, math.radians(-170), 9.0, 9.0]])
+    d, delta = pose_errors(pose, pose5)
+    np.testing.assert_allclose([d[0], delta[0]], [5.0, math.radians(20)])
+    with pytest.raises(ValueError, match="pose_b"):
+        pose_errors(pose, np.zeros((1, 4)))
+
+
+def _scene() -> dict[str, np.ndarray]:
+    # Target at (1, 0) facing 0. The robot is 3 cm and 0.02 rad off it (inside both thresholds);
+    # the sub-goal sits 3 m away facing backwards (outside both).
+    return {
+        "target": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]]),
+        "robot_pos": np.array([[1.0, 0.03]]),
+        "robot_angle": np.array([0.02]),
+        "subgoal": np.array([[-2.0, 0.0, math.pi, 0.0, 0.0]]),
+        "success": np.array([False]),
+    }
+
+
+def test_baseline_measures_the_robot_and_proposed_the_subgoal() -> None:
+    total, terms = task_reward("baseline", **_scene())
+    np.testing.assert_allclose(total, [11.0])  # +10 + 1
+    total, terms = task_reward("proposed", **_scene())
+    np.testing.assert_allclose(total, [-4.0])  # -3 m - pi / pi
+    np.testing.assert_allclose([terms["distance"][0], terms["angle"][0]], [-3.0, -1.0])
+
+
+def test_success_step_add_and_replace() -> None:
+    scene = _scene() | {"success": np.array([True])}
+    total, terms = task_reward("baseline", **scene, success_mode="add")
+    np.testing.assert_allclose(total, [10.0 + 1.0 + SUCCESS_REWARD])
+    total, terms = task_reward("baseline", **scene, success_mode="replace")
+    np.testing.assert_allclose(total, [SUCCESS_REWARD])
+    assert terms["distance"][0] == 0.0 and terms["success"][0] == SUCCESS_REWARD
+
+
+def test_obstacle_terms_per_field_and_hit_modes() -> None:
+    # Field 0: sub-goal on the target, nearest obstacle 1 m away (the other 3 m), no hit.
+    # Field 1: same, but the robot hit an obstacle.
+    scene = {
+        "target": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]] * 2),
+        "robot_pos": np.zeros((2, 2)),
+        "robot_angle": np.zeros(2),
+        "subgoal": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]] * 2),
+        "success": np.array([False, False]),
+        "obs_pos": np.array([[[1.0, 1.0], [4.0, 0.0]]] * 2),
+        "hit": np.array([False, True]),
+    }
+    total, terms = task_reward("obstacle", **scene)
+    np.testing.assert_allclose(terms["obstacle"], [-GAUSS_1, -GAUSS_1])
+    np.testing.assert_allclose(total, [11.0 - GAUSS_1, 11.0 - GAUSS_1 + HIT_REWARD])
+    total, _ = task_reward("obstacle", **scene, hit_mode="replace")
+    np.testing.assert_allclose(total, [11.0 - GAUSS_1, HIT_REWARD])
+    no_obstacle = scene | {"obs_pos": np.zeros((2, 0, 2))}
+    _, terms = task_reward("obstacle", **no_obstacle)
+    np.testing.assert_array_equal(terms["obstacle"], [0.0, 0.0])
+
+
+def test_terms_always_sum_to_total() -> None:
+    rng = np.random.default_rng(2)
+    n = 32
+    for success_mode in ("add", "replace"):
+        for hit_mode in ("add", "replace"):
+            total, terms = task_reward(
+                "obstacle",
+                target=rng.uniform(-1, 1, (n, 5)),
+                robot_pos=rng.uniform(-1, 1, (n, 2)),
+                robot_angle=rng.uniform(-3, 3, n),
+                subgoal=rng.uniform(-1, 1, (n, 5)),
+                success=rng.random(n) < 0.5,
+                obs_pos=rng.uniform(-1, 1, (n, 2, 2)),
+                hit=rng.random(n) < 0.5,
+                success_mode=success_mode,
+                hit_mode=hit_mode,
+            )
+            assert set(terms) == set(REWARD_TERMS)
+            np.testing.assert_allclose(sum(terms.values()), total)
+
+
+def test_bad_options_raise() -> None:
+    with pytest.raises(ValueError, match="obs_pos"):
+        task_reward("obstacle", **_scene())
+    with pytest.raises(ValueError, match="'proposed'"):
+        task_reward("proposed", **_scene(), hit=np.array([False]), obs_pos=np.zeros((1, 1, 2)))
+    with pytest.raises(ValueError, match="walk"):
+        task_reward("walk", **_scene())
+    with pytest.raises(ValueError, match="'sum'"):
+        task_reward("baseline", **_scene(), success_mode="sum")
+    with pytest.raises(ValueError, match="success"):
+        task_reward("baseline", **(_scene() | {"success": np.array([1.0])}))

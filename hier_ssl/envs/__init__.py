@@ -32,8 +32,9 @@ def env_config(config: str | Path | EnvConfig | None = None, **settings: Any) ->
         raise
 
 
-def parallel_env(config: str | Path | EnvConfig | None = None, render_mode: str | None = None,
-                 **settings: Any) -> HierarchicalSSLEnv:
+def parallel_env(
+    config: str | Path | EnvConfig | None = None, render_mode: str | None = None, **settings: Any
+) -> HierarchicalSSLEnv:
     """The PettingZoo ParallelEnv, e.g. ``parallel_env(task="proposed", frame_skip=16)``."""
     return HierarchicalSSLEnv(env_config(config, **settings), render_mode=render_mode)
 
@@ -43,19 +44,29 @@ def env(config: str | Path | EnvConfig | None = None, render_mode: str | None = 
     return parallel_to_aec(parallel_env(config, render_mode=render_mode, **settings))
 
 
-def vector_env(config: str | Path | EnvConfig | None = None, num_envs: int = 16, device: str = "cpu",
-               **settings: Any) -> VectorEnv:
+def vector_env(
+    config: str | Path | EnvConfig | None = None, num_envs: int = 16, device: str = "cpu", **settings: Any
+) -> VectorEnv:
     """The batched torch view over ``num_envs`` fields."""
     return VectorEnv(env_config(config, **settings), num_envs, device)
 
 
-def manager_env(config: str | Path | EnvConfig | None = None, render_mode: str | None = None,
-                **settings: Any) -> ManagerEnv:
+def manager_env(
+    config: str | Path | EnvConfig | None = None, render_mode: str | None = None, **settings: Any
+) -> ManagerEnv:
     """A single-agent Gymnasium env of the manager (worker and obstacles scripted)."""
     return ManagerEnv(env_config(config, **settings), render_mode=render_mode)
 
 
 __all__ = [
-    "HierarchicalCore", "HierarchicalSSLEnv", "ManagerEnv", "RslRlVecEnv", "VectorEnv", "env",
-    "env_config", "manager_env", "parallel_env", "vector_env",
+    "HierarchicalCore",
+    "HierarchicalSSLEnv",
+    "ManagerEnv",
+    "RslRlVecEnv",
+    "VectorEnv",
+    "env",
+    "env_config",
+    "manager_env",
+    "parallel_env",
+    "vector_env",
 ]

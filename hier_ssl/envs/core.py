@@ -64,7 +64,9 @@ class HierarchicalCore:
         self.num_fields = num_fields
         self.num_obstacles = len(config.obstacles)
         self.autoreset = autoreset
-        self.world = World(num_fields, 1 + self.num_obstacles, config.field, dt=config.dt, substeps=config.substeps)
+        self.world = World(
+            num_fields, 1 + self.num_obstacles, config.field, dt=config.dt, substeps=config.substeps
+        )
         self.field, self.robot = self.world.field, self.world.robot
         self.worker = make_worker(config.worker, self.robot, config.dt)
         self.obstacles = [make_obstacle(o.behaviour, num_fields, **o.options) for o in config.obstacles]
@@ -151,16 +153,30 @@ class HierarchicalCore:
         """Manager observations (N, 13 + 5K) float32."""
         s = self.state
         return manager_observation(
-            self.target, s.pos[:, 0], s.angle[:, 0], s.vel[:, 0], s.ang_vel[:, 0],
-            s.pos[:, 1:], s.vel[:, 1:], s.ang_vel[:, 1:], max_pos=self.field.max_pos,
-            max_v=self.robot.max_speed, max_w=self.robot.max_ang_speed,
+            self.target,
+            s.pos[:, 0],
+            s.angle[:, 0],
+            s.vel[:, 0],
+            s.ang_vel[:, 0],
+            s.pos[:, 1:],
+            s.vel[:, 1:],
+            s.ang_vel[:, 1:],
+            max_pos=self.field.max_pos,
+            max_v=self.robot.max_speed,
+            max_w=self.robot.max_ang_speed,
         )
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, 9) float32."""
         s = self.state
         return worker_observation(
-            s.pos[:, 0], s.angle[:, 0], s.vel[:, 0], s.ang_vel[:, 0], self.subgoal, self.robot, self.field.max_pos
+            s.pos[:, 0],
+            s.angle[:, 0],
+            s.vel[:, 0],
+            s.ang_vel[:, 0],
+            self.subgoal,
+            self.robot,
+            self.field.max_pos,
         )
 
     def observe_obstacle(self, j: int) -> np.ndarray:
@@ -180,18 +196,22 @@ class HierarchicalCore:
 
     # -- acting --------------------------------------------------------------------------------------------
 
-    def set_subgoal(self, action: np.ndarray, fields: np.ndarray | None = None) -> np.ndarray:
-        """Decode manager actions (N, act_dim) into held sub-goals for ``fields`` (default all).
+    def set_subgoal(self, action: np.ndarray, fields: np.ndarray) -> np.ndarray:
+        """Decode manager actions (N, act_dim) into held sub-goals for ``fields`` (M,) ints.
 
         Values outside [-1, 1] are clipped; returns how many were clipped per field (N,).
         """
         action = check_action("manager", action, (self.num_fields, self.act_dim))
         clipped = np.count_nonzero(np.abs(action) > 1.0, axis=1)
         subgoal = decode_subgoal(
-            np.clip(action, -1.0, 1.0), self.config.action_form, self.field.half_length,
-            self.field.half_width, self.robot.max_speed, zero_velocity=self.config.task != "baseline",
+            np.clip(action, -1.0, 1.0),
+            self.config.action_form,
+            self.field.half_length,
+            self.field.half_width,
+            self.robot.max_speed,
+            zero_velocity=self.config.task != "baseline",
         )
-        fields = np.arange(self.num_fields) if fields is None else fields
+        clipped = np.where(np.isin(np.arange(self.num_fields), fields), clipped, 0)
         moved = cpad_increment(self.subgoal[fields, 0:2], subgoal[fields, 0:2])
         self.ep_cpad[fields] += np.where(self.decisions[fields] > 0, moved, 0.0)
         self.subgoal[fields] = subgoal[fields]
@@ -227,12 +247,25 @@ class HierarchicalCore:
 
         cfg, pos, angle, vel = self.config, s.pos[:, 0], s.angle[:, 0], s.vel[:, 0]
         thresholds = {"d_th": cfg.d_th, "theta_th": self.theta_th}
-        success = task_success(cfg.task, self.target, self.subgoal, pos, angle, vel, speed_th=cfg.speed_th,
-                               **thresholds)
-        hit = collided(pos, s.pos[:, 1:], cfg.collision_distance) | self.world.robot_contacts[:, 0, 1:].any(axis=1)
+        success = task_success(
+            cfg.task, self.target, self.subgoal, pos, angle, vel, speed_th=cfg.speed_th, **thresholds
+        )
+        hit = collided(pos, s.pos[:, 1:], cfg.collision_distance) | self.world.robot_contacts[:, 0, 1:].any(
+            axis=1
+        )
         extra = {"obs_pos": s.pos[:, 1:], "hit": hit} if cfg.task == "obstacle" else {}
-        reward, terms = task_reward(cfg.task, self.target, pos, angle, self.subgoal, success,
-                                    success_mode=cfg.success_mode, hit_mode=cfg.hit_mode, **extra, **thresholds)
+        reward, terms = task_reward(
+            cfg.task,
+            self.target,
+            pos,
+            angle,
+            self.subgoal,
+            success,
+            success_mode=cfg.success_mode,
+            hit_mode=cfg.hit_mode,
+            **extra,
+            **thresholds,
+        )
         timeout = self.steps >= cfg.max_steps
         return reward, success & live, hit & live, timeout & live, terms
 
@@ -240,19 +273,24 @@ class HierarchicalCore:
         """One manager decision in every field: hold the sub-goal for ``frame_skip`` control steps.
 
         Rewards are summed over the held steps ("sum") or taken from the last one ("last", the public
-        code). A field whose episode ends inside the period stops scoring there.
+        code). A field whose episode ends inside the period stops scoring there; without auto-reset a
+        finished field holds still until ``reset`` (so evaluation can run one episode per field).
         """
-        clipped = self.set_subgoal(action)
         n, cfg = self.num_fields, self.config
         live = ~self.done
-        if not live.all():
-            raise RuntimeError("step() on a finished episode: call reset() first")
+        if not live.any():
+            raise RuntimeError("step() with every episode finished: call reset() first")
+        clipped = self.set_subgoal(action, np.flatnonzero(live))
         reward = np.zeros(n)
         success, failure, timeout = (np.zeros(n, dtype=bool) for _ in range(3))
         elapsed = np.zeros(n, dtype=np.int64)
         for _ in range(cfg.frame_skip):
             r, succ, hit, out, _ = self.control_step(live)
-            reward = reward + np.where(live, r, 0.0) if cfg.frame_skip_reward == "sum" else np.where(live, r, reward)
+            reward = (
+                reward + np.where(live, r, 0.0)
+                if cfg.frame_skip_reward == "sum"
+                else np.where(live, r, reward)
+            )
             elapsed += live
             success |= succ
             failure |= hit & ~succ
@@ -263,8 +301,14 @@ class HierarchicalCore:
         return self._finish(reward, success | failure, timeout, success, failure, elapsed, clipped)
 
     def _finish(
-        self, reward: np.ndarray, terminated: np.ndarray, truncated: np.ndarray, success: np.ndarray,
-        collision: np.ndarray, elapsed: np.ndarray, clipped: np.ndarray,
+        self,
+        reward: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+        success: np.ndarray,
+        collision: np.ndarray,
+        elapsed: np.ndarray,
+        clipped: np.ndarray,
     ) -> StepResult:
         """Book-keeping after a decision period: returns, episode statistics, auto-reset."""
         self.ep_return += reward

@@ -36,7 +36,9 @@ class HierarchicalSSLEnv(ParallelEnv):
         self.core = HierarchicalCore(self.config, 1, autoreset=False)
         k = self.core.num_obstacles
         self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if self.config.expose_obstacles else []
-        self.possible_agents = [MANAGER] + ([WORKER] if self.config.expose_worker else []) + self.obstacle_agents
+        self.possible_agents = (
+            [MANAGER] + ([WORKER] if self.config.expose_worker else []) + self.obstacle_agents
+        )
         self.per_control_step = self.config.expose_worker or self.config.expose_obstacles
         self.metadata = {**self.metadata, "render_fps": round(1 / self.config.dt)}
         box = functools.partial(spaces.Box, dtype=np.float32)
@@ -93,9 +95,15 @@ class HierarchicalSSLEnv(ParallelEnv):
         self._trail.append(self.core.state.pos[0, 0].copy())
 
         terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
-        info = {key: value[0] for key, value in result.info.items() if key in ("control_steps", "action_clipped")}
-        info.update(subgoal=self.core.subgoal[0].copy(), success=bool(result.info["success"][0]),
-                    collision=bool(result.info["collision"][0]), decision=result.info.get("decision", True))
+        info = {
+            key: value[0] for key, value in result.info.items() if key in ("control_steps", "action_clipped")
+        }
+        info.update(
+            subgoal=self.core.subgoal[0].copy(),
+            success=bool(result.info["success"][0]),
+            collision=bool(result.info["collision"][0]),
+            decision=result.info.get("decision", True),
+        )
         if terminated or truncated:
             info["episode"] = {k: v[0] for k, v in result.info["episode"].items() if k != "field"}
         rewards = {agent: 0.0 for agent in self.agents}
@@ -117,17 +125,28 @@ class HierarchicalSSLEnv(ParallelEnv):
         """One control step with exposed agents; the manager acts on decision steps only."""
         core = self.core
         decision = core.steps[0] % self.config.frame_skip == 0
-        clipped = core.set_subgoal(manager_action) if decision else np.zeros(1, dtype=np.int64)
+        clipped = core.set_subgoal(manager_action, np.arange(1)) if decision else np.zeros(1, dtype=np.int64)
         worker = actions[WORKER][None] if WORKER in actions else None
-        obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None] if self.obstacle_agents else None
+        obstacles = (
+            np.stack([actions[a] for a in self.obstacle_agents])[None] if self.obstacle_agents else None
+        )
         live = np.ones(1, dtype=bool)
         reward, success, hit, timeout, _ = core.control_step(live, worker, obstacles)
         s = core.state
         d, delta = pose_errors(np.column_stack([s.pos[:, 0], s.angle[:, 0]]), core.subgoal)
-        result = core._finish(reward, success | (hit & ~success), timeout & ~success & ~hit, success,
-                              hit & ~success, np.ones(1, dtype=np.int64), clipped)
+        result = core._finish(
+            reward,
+            success | (hit & ~success),
+            timeout & ~success & ~hit,
+            success,
+            hit & ~success,
+            np.ones(1, dtype=np.int64),
+            clipped,
+        )
         result.info["decision"] = bool(decision)
-        result.info["worker_reward"] = distance_reward(d, self.config.d_th) + angle_reward(delta, core.theta_th)
+        result.info["worker_reward"] = distance_reward(d, self.config.d_th) + angle_reward(
+            delta, core.theta_th
+        )
         return result
 
     def render(self) -> np.ndarray | None:
@@ -137,7 +156,10 @@ class HierarchicalSSLEnv(ParallelEnv):
         from hier_ssl.world.render import render_fields
 
         frame = render_fields(
-            self.core.field, self.core.state, targets=self.core.target, subgoals=self.core.subgoal,
+            self.core.field,
+            self.core.state,
+            targets=self.core.target,
+            subgoals=self.core.subgoal,
             trails=[np.array(self._trail)],
         )
         if self.render_mode == "human":
@@ -170,7 +192,9 @@ class ManagerEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"]}
 
     def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None) -> None:
-        config = (config or EnvConfig()).model_copy(update={"expose_worker": False, "expose_obstacles": False})
+        config = (config or EnvConfig()).model_copy(
+            update={"expose_worker": False, "expose_obstacles": False}
+        )
         self.env = HierarchicalSSLEnv(config, render_mode=render_mode)
         self.render_mode = render_mode
         self.observation_space = self.env.observation_space(MANAGER)

@@ -39,7 +39,9 @@ class VectorEnv:
     def observe(self) -> torch.Tensor:
         return self._tensor(self.core.observe())
 
-    def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict]:
+    def step(
+        self, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict]:
         result = self.core.step(actions.detach().to("cpu", torch.float64).numpy())
         info = result.info
         episode = {k: self._tensor(v, torch.float32) for k, v in info["episode"].items() if k != "field"}

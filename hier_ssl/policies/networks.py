@@ -15,14 +15,16 @@ _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 _LOG_2 = math.log(2.0)
 
 
-def mlp(in_dim: int, hidden: Sequence[int], out_dim: int, activation: type[nn.Module] = nn.ReLU) -> nn.Sequential:
+def mlp(
+    in_dim: int, hidden: Sequence[int], out_dim: int, activation: type[nn.Module] = nn.ReLU
+) -> nn.Sequential:
     """Fully connected network ``in_dim -> hidden... -> out_dim`` with ``activation`` between layers.
 
     The output layer is linear (no activation).
     """
     dims = [in_dim, *hidden]
     layers: list[nn.Module] = []
-    for fan_in, fan_out in zip(dims[:-1], dims[1:]):
+    for fan_in, fan_out in zip(dims[:-1], dims[1:], strict=True):
         layers += [nn.Linear(fan_in, fan_out), activation()]
     layers.append(nn.Linear(dims[-1], out_dim))
     return nn.Sequential(*layers)
@@ -84,7 +86,8 @@ class TwinQ(nn.Module):
         super().__init__()
         dims = [obs_dim + act_dim, *hidden, 1]
         self.weights = nn.ParameterList(
-            nn.Parameter(torch.empty(num_critics, fan_in, fan_out)) for fan_in, fan_out in zip(dims[:-1], dims[1:])
+            nn.Parameter(torch.empty(num_critics, fan_in, fan_out))
+            for fan_in, fan_out in zip(dims[:-1], dims[1:], strict=True)
         )
         self.biases = nn.ParameterList(
             nn.Parameter(torch.empty(num_critics, 1, fan_out)) for fan_out in dims[1:]
@@ -93,7 +96,7 @@ class TwinQ(nn.Module):
 
     def reset_parameters(self) -> None:
         """Same distribution as ``nn.Linear``'s default: U(-1/sqrt(fan_in), 1/sqrt(fan_in))."""
-        for weight, bias in zip(self.weights, self.biases):
+        for weight, bias in zip(self.weights, self.biases, strict=True):
             bound = 1.0 / math.sqrt(weight.shape[1])
             nn.init.uniform_(weight, -bound, bound)
             nn.init.uniform_(bias, -bound, bound)
@@ -102,7 +105,7 @@ class TwinQ(nn.Module):
         """Q values of every critic. Shapes: obs (B, obs_dim), action (B, act_dim) -> (num_critics, B)."""
         x = torch.cat([obs, action], dim=-1).expand(self.weights[0].shape[0], -1, -1)
         last = len(self.weights) - 1
-        for i, (weight, bias) in enumerate(zip(self.weights, self.biases)):
+        for i, (weight, bias) in enumerate(zip(self.weights, self.biases, strict=True)):
             x = torch.baddbmm(bias, x, weight)
             if i < last:
                 x = torch.relu(x)

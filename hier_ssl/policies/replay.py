@@ -63,7 +63,7 @@ class ReplayBuffer:
             )
             n = self.capacity
         first = min(n, self.capacity - self.pos)  # rows before the wrap
-        for name, src in zip(self._FIELDS, (obs, actions, rewards, next_obs, terminated)):
+        for name, src in zip(self._FIELDS, (obs, actions, rewards, next_obs, terminated), strict=True):
             dst = getattr(self, name)
             dst[self.pos : self.pos + first] = src[:first]
             dst[: n - first] = src[first:]

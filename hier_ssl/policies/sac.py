@@ -35,11 +35,11 @@ class SACConfig(BaseModel):
     tau: float = Field(0.005, gt=0, le=1)
     batch_size: int = Field(256, ge=1)
     buffer_size: int = Field(1_000_000, ge=1)
-    learning_starts: int = Field(5000, ge=0, description="transitions of uniform random actions before updates")
+    learning_starts: int = Field(5000, ge=0, description="transitions of random actions before updates")
     policy_frequency: int = Field(
         2, ge=1, description="every policy_frequency-th update runs policy_frequency actor steps (CleanRL)"
     )
-    alpha: float = Field(0.2, gt=0, description="entropy coefficient: fixed value, or start value when learned")
+    alpha: float = Field(0.2, gt=0, description="entropy coefficient: fixed, or the start value if learned")
     autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
     target_entropy: float | None = Field(None, description="None means -act_dim")
     caps: bool = False
@@ -124,18 +124,15 @@ class SAC:
         self.q_optimizer = torch.optim.Adam(self._qf_params, lr=cfg.critic_lr, fused=True)
 
         self.target_entropy = cfg.target_entropy if cfg.target_entropy is not None else -float(num_actions)
-        self.log_alpha = torch.full((), math.log(cfg.alpha), device=self.device, requires_grad=cfg.learns_alpha)
+        self.log_alpha = torch.full(
+            (), math.log(cfg.alpha), device=self.device, requires_grad=cfg.learns_alpha
+        )
         self.alpha_optimizer = (
             torch.optim.Adam([self.log_alpha], lr=cfg.alpha_lr, fused=True) if cfg.learns_alpha else None
         )
 
         self.replay = ReplayBuffer(cfg.buffer_size, num_obs, num_actions, self.device)
         self.num_updates = 0
-        # Latest actor-side losses, kept as tensors so logging them costs no sync until `update` returns.
-        self._actor_loss = torch.zeros((), device=self.device)
-        self._alpha_loss = torch.zeros((), device=self.device)
-        self._caps_temporal = torch.zeros((), device=self.device)
-        self._caps_spatial = torch.zeros((), device=self.device)
 
     @torch.no_grad()
     def act(self, obs: torch.Tensor, deterministic: bool = False) -> torch.Tensor:
@@ -157,7 +154,12 @@ class SAC:
         self.replay.add(obs, actions, rewards, next_obs, terminated)
 
     def update(self) -> dict[str, float]:
-        """One critic update, the actor (and alpha) updates when due, and the Polyak step."""
+        """One critic update, the actor (and alpha) updates when due, and the Polyak step.
+
+        Returns qf_loss, qf_values (mean Q of the batch) and alpha; on updates that step the actor also
+        actor_loss, alpha_loss (when alpha is learned) and caps_temporal, caps_spatial (with CAPS), each
+        from the last of the ``policy_frequency`` actor steps.
+        """
         cfg = self.config
         data = self.replay.sample(cfg.batch_size, self.generator)
         alpha = self.log_alpha.detach().exp()
@@ -173,6 +175,8 @@ class SAC:
         self.q_optimizer.zero_grad(set_to_none=True)
         qf_loss.backward()
         self.q_optimizer.step()
+        # Kept as tensors so that logging costs one host sync, when `update` returns.
+        logged = {"qf_loss": qf_loss.detach(), "qf_values": qf_a_values.detach().mean()}
 
         # Actor: delayed like TD3, but CleanRL-style it then takes policy_frequency steps to keep the count.
         if self.num_updates % cfg.policy_frequency == 0:
@@ -191,12 +195,13 @@ class SAC:
                         self.generator,
                     )
                     actor_loss = actor_loss + caps_temporal + caps_spatial
-                    self._caps_temporal, self._caps_spatial = caps_temporal.detach(), caps_spatial.detach()
+                    logged["caps_temporal"] = caps_temporal.detach()
+                    logged["caps_spatial"] = caps_spatial.detach()
                 self.actor_optimizer.zero_grad(set_to_none=True)
                 # `inputs` restricts backward to the actor: the critic's weight gradients are never computed.
                 actor_loss.backward(inputs=self._actor_params)
                 self.actor_optimizer.step()
-                self._actor_loss = actor_loss.detach()
+                logged["actor_loss"] = actor_loss.detach()
 
                 if self.alpha_optimizer is not None:
                     alpha_loss = (-self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
@@ -204,35 +209,25 @@ class SAC:
                     alpha_loss.backward()
                     self.alpha_optimizer.step()
                     alpha = self.log_alpha.detach().exp()
-                    self._alpha_loss = alpha_loss.detach()
+                    logged["alpha_loss"] = alpha_loss.detach()
 
         # Target critics: Polyak averaging, one foreach kernel over all parameters.
         torch._foreach_lerp_(self._qf_target_params, self._qf_params, cfg.tau)
         self.num_updates += 1
 
-        # One host sync per update for all logged values.
-        logged = {
-            "qf_loss": qf_loss.detach(),
-            "qf_values": qf_a_values.detach().mean(),
-            "actor_loss": self._actor_loss,
-            "alpha": alpha,
-        }
-        if self.alpha_optimizer is not None:
-            logged["alpha_loss"] = self._alpha_loss
-        if cfg.caps:
-            logged["caps_temporal"] = self._caps_temporal
-            logged["caps_spatial"] = self._caps_spatial
-        return dict(zip(logged, torch.stack(list(logged.values())).tolist()))
+        logged["alpha"] = alpha
+        return dict(zip(logged, torch.stack(list(logged.values())).tolist(), strict=True))
 
     def state_dict(self) -> dict[str, object]:
         """Everything needed to resume learning except the replay buffer (``self.replay.state_dict()``)."""
+        alpha_optimizer = self.alpha_optimizer
         return {
             "actor": self.actor.state_dict(),
             "qf": self.qf.state_dict(),
             "qf_target": self.qf_target.state_dict(),
             "actor_optimizer": self.actor_optimizer.state_dict(),
             "q_optimizer": self.q_optimizer.state_dict(),
-            "alpha_optimizer": self.alpha_optimizer.state_dict() if self.alpha_optimizer is not None else None,
+            "alpha_optimizer": alpha_optimizer.state_dict() if alpha_optimizer is not None else None,
             "log_alpha": self.log_alpha.detach().clone(),
             "num_updates": self.num_updates,
             "generator": self.generator.get_state(),

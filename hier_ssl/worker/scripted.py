@@ -2,35 +2,69 @@
 
 A sub-goal is (x, y, theta, vx, vy) in the field frame, shape (N, R, 5); a command is (vx, vy, w) in the
 robot's own frame, shape (N, R, 3), which is what an SSL robot's firmware takes.
+
+Both workers run once per control step for every field, so at one field their cost is numpy's per-call
+overhead, not arithmetic: 2-D vectors are complex numbers (a rotation is one multiply or divide),
+constants are 0-d arrays (a Python float operand is converted on every call), operands share one dtype,
+and results are new arrays (numpy's overlap check makes an in-place update of a one-element array slower).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
-from hier_ssl.world.physics import RobotState, to_robot_frame, wrap_angle
+from hier_ssl.world.physics import RobotState, as_complex, heading
+
+_COMPLEX = np.dtype(np.complex128)
 
 
-def _goal_frame(state: RobotState, subgoal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Distance to the sub-goal (N, R) and the unit axes (N, R, 2) pointing to it and 90 deg to its left.
+def _constants(**values: complex) -> SimpleNamespace:
+    return SimpleNamespace(**{name: np.array(value) for name, value in values.items()})
 
-    At the sub-goal itself the axes fall back to the field's x and y, so nothing divides by zero.
+
+_K = _constants(zero=0.0, one=1.0, nudge=1e-12 + 0j, pi=np.pi, two_pi=2 * np.pi)
+
+
+def _goal_axes(
+    state: RobotState, subgoal: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The sub-goal seen along the line to it.
+
+    Returns dist (N, R), the unit vector ``ex`` (N, R) complex pointing to the sub-goal, and the robot's
+    and the sub-goal's velocities in the (along, across) frame of that line, as complex (N, R): real part
+    along ``ex``, imaginary part 90 deg to its left.
     """
-    delta = subgoal[..., :2] - state.pos
-    dist = np.sqrt(np.einsum("...i,...i->...", delta, delta))
-    safe = dist > 1e-9
-    ex = np.where(safe[..., None], delta / np.where(safe, dist, 1.0)[..., None], [1.0, 0.0])
-    ey = np.stack([-ex[..., 1], ex[..., 0]], axis=-1)
-    return dist, ex, ey
+    delta = as_complex(subgoal[..., 0:2] - state.pos)
+    dist = np.abs(delta)
+    # sign(z) is z / |z|. The 1e-12 m nudge along x makes the axis the field's x axis at the sub-goal
+    # itself instead of 0, and turns it by at most 1e-12 / dist rad elsewhere.
+    ex = np.sign(delta + _K.nudge)
+    # Dividing by a unit complex number rotates by minus its angle: into the (along, across) frame.
+    return dist, ex, as_complex(state.vel) / ex, as_complex(subgoal[..., 3:5]) / ex
 
 
-def _command(state: RobotState, vel_field: np.ndarray, spin: np.ndarray) -> np.ndarray:
-    return np.concatenate([to_robot_frame(vel_field, state.angle), spin[..., None]], axis=-1)
+def _heading_error(state: RobotState, subgoal: np.ndarray) -> np.ndarray:
+    """Sub-goal heading minus robot heading, wrapped to [-pi, pi). Shape (N, R)."""
+    return (subgoal[..., 2] - state.angle + _K.pi) % _K.two_pi - _K.pi
 
 
-@dataclass
+def _capped(vel: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Complex velocities ``vel`` (N, R) scaled down to speed ``limit`` where faster, direction kept."""
+    return vel / np.maximum(np.abs(vel) / limit, _K.one).astype(_COMPLEX)
+
+
+def _command(state: RobotState, vel: np.ndarray, spin: np.ndarray) -> np.ndarray:
+    """Field-frame velocities ``vel`` (N, R) complex and spins (N, R) as robot-frame commands (N, R, 3)."""
+    out = np.empty(spin.shape + (3,))
+    np.divide(vel, heading(state.angle), out=out[..., 0:2].view(_COMPLEX)[..., 0])
+    out[..., 2] = spin
+    return out
+
+
+@dataclass(frozen=True)
 class PaperGoToPoint:
     """The paper's scripted controller (SPEC.md "Scripted goToPoint controller of the public code").
 
@@ -46,36 +80,53 @@ class PaperGoToPoint:
     brake_accel: float = 1.0
     max_speed: float = 2.2
     angle_gain: float = 2.0
-    angle_deadband: float = np.deg2rad(2.5)
+    angle_deadband: float = float(np.deg2rad(2.5))
+
+    def __post_init__(self) -> None:
+        k = _constants(
+            dt=self.dt,
+            dv=self.dv,
+            minus_dv=-self.dv,
+            two_brake_accel=2 * self.brake_accel,
+            max_speed=self.max_speed,
+            angle_gain=self.angle_gain,
+            angle_deadband=self.angle_deadband,
+        )
+        object.__setattr__(self, "_k", k)
 
     def reset(self, fields: np.ndarray) -> None:
         """Stateless: nothing to forget."""
 
     def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
-        dist, ex, ey = _goal_frame(state, subgoal)
-        axes = np.stack([ex, ey], axis=-2)  # (N, R, 2 axes, 2)
-        v = np.einsum("...ai,...i->...a", axes, state.vel)
-        v_goal = np.einsum("...ai,...i->...a", axes, subgoal[..., 3:5])
-        delta = np.stack([dist, np.zeros_like(dist)], axis=-1)
+        """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
+        k = self._k
+        subgoal = np.asarray(subgoal, dtype=np.float64)
+        dist, ex, v, goal_v = _goal_axes(state, subgoal)
+        v_along, goal_along = v.real, goal_v.real
 
-        away = v * delta < 0
-        at_goal_axis = delta == 0
-        braking = np.abs(v**2 - v_goal**2) / (2 * self.brake_accel)
-        brake = away | at_goal_axis | (np.abs(delta) <= braking)
-        desired = np.where(brake, v_goal, np.sign(delta) * self.max_speed)
-        v_new = v + np.clip(desired - v, -self.dv, self.dv)
-        v_new[..., 0] = np.minimum(v_new[..., 0], dist / self.dt + np.maximum(v_goal[..., 0], 0.0))
+        # Both axes move towards the sub-goal's velocity, except that along the line the robot heads for the
+        # sub-goal at full speed unless moving away from it or within braking distance |v^2 - v_goal^2| /
+        # (2 a) (v * dist < 0 is v < 0 for dist > 0, and dist = 0 is always within braking distance).
+        change = goal_v - v
+        braking = np.abs(change.real * (v_along + goal_along)) / k.two_brake_accel
+        drive = (dist > braking) & (v_along >= _K.zero)
+        # The last step lands on the sub-goal rather than past it.
+        reach = np.maximum(goal_along, _K.zero) + dist / k.dt
+        np.copyto(change.real, k.max_speed - v_along, where=drive)
 
-        vel = np.einsum("...a,...ai->...i", v_new, axes)
-        speed = np.sqrt(np.einsum("...i,...i->...", vel, vel))
-        vel *= np.minimum(1.0, self.max_speed / np.maximum(speed, 1e-12))[..., None]
+        # +-dv per axis, both axes in one call on the (along, across) float pairs.
+        change = np.maximum(np.minimum(change.view(np.float64), k.dv), k.minus_dv)
+        v_new = v + change.view(_COMPLEX)
+        v_new.real = np.minimum(v_new.real, reach)
+        vel = _capped(v_new * ex, k.max_speed)
 
-        dtheta = wrap_angle(subgoal[..., 2] - state.angle)
-        spin = np.where(np.abs(dtheta) >= self.angle_deadband, self.angle_gain * dtheta, 0.0)
+        error = _heading_error(state, subgoal)
+        spin = error * k.angle_gain
+        np.copyto(spin, _K.zero, where=np.abs(error) < k.angle_deadband)
         return _command(state, vel, spin)
 
 
-@dataclass
+@dataclass(frozen=True)
 class BangBangGoToPoint:
     """Time-optimal (bang-bang, trapezoidal) goToPoint, as SSL teams run it.
 
@@ -94,28 +145,49 @@ class BangBangGoToPoint:
     max_ang_accel: float = 60.0
     margin: float = 0.9
 
+    def __post_init__(self) -> None:
+        step = self.max_accel * self.dt
+        spin_step = self.max_ang_accel * self.dt
+        k = _constants(
+            dt=self.dt,
+            step=step,
+            minus_step=-step,
+            step_sq=step**2,
+            two_brake=2 * self.margin * self.max_accel,
+            max_speed=self.max_speed,
+            two_ang_brake=2 * self.margin * self.max_ang_accel,
+            max_ang_speed=self.max_ang_speed,
+            spin_step=spin_step,
+            minus_spin_step=-spin_step,
+        )
+        object.__setattr__(self, "_k", k)
+
     def reset(self, fields: np.ndarray) -> None:
         """Stateless: nothing to forget."""
 
     def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
-        dist, ex, ey = _goal_frame(state, subgoal)
-        v_along = np.einsum("...i,...i->...", state.vel, ex)
-        v_across = np.einsum("...i,...i->...", state.vel, ey)
-        goal_along = np.einsum("...i,...i->...", subgoal[..., 3:5], ex)
-        goal_across = np.einsum("...i,...i->...", subgoal[..., 3:5], ey)
+        """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
+        k = self._k
+        subgoal = np.asarray(subgoal, dtype=np.float64)
+        dist, ex, v, goal_v = _goal_axes(state, subgoal)
+        goal_along = goal_v.real
 
-        step = self.max_accel * self.dt
-        dv_across = np.clip(goal_across - v_across, -step, step)
-        step_along = np.sqrt(np.maximum(step**2 - dv_across**2, 0.0))
-        brake = self.margin * self.max_accel
-        desired = np.minimum(np.sqrt(goal_along**2 + 2 * brake * dist), self.max_speed)
-        desired = np.minimum(desired, dist / self.dt + np.maximum(goal_along, 0.0))
-        dv_along = np.clip(desired - v_along, -step_along, step_along)
-        vel = (v_along + dv_along)[..., None] * ex + (v_across + dv_across)[..., None] * ey
+        # Across first: as much of this step's velocity change as it needs, the rest is left for along.
+        dv_across = np.maximum(np.minimum(goal_v.imag - v.imag, k.step), k.minus_step)
+        step_along = np.sqrt(np.maximum(k.step_sq - np.square(dv_across), _K.zero))
 
-        dtheta = wrap_angle(subgoal[..., 2] - state.angle)
-        turn = np.minimum(np.sqrt(2 * self.margin * self.max_ang_accel * np.abs(dtheta)), self.max_ang_speed)
-        turn = np.minimum(turn, np.abs(dtheta) / self.dt)
-        spin_step = self.max_ang_accel * self.dt
-        spin = state.ang_vel + np.clip(np.sign(dtheta) * turn - state.ang_vel, -spin_step, spin_step)
-        return _command(state, vel, spin)
+        # Along: the braking curve, the speed limit, and landing on the sub-goal in the last step.
+        desired = np.minimum(np.sqrt(np.square(goal_along) + dist * k.two_brake), k.max_speed)
+        desired = np.minimum(desired, np.maximum(goal_along, _K.zero) + dist / k.dt)
+        dv_along = np.maximum(np.minimum(desired - v.real, step_along), -step_along)
+        v_new = np.empty_like(v)
+        v_new.real = v.real + dv_along
+        v_new.imag = v.imag + dv_across
+        vel = v_new * ex
+
+        error = _heading_error(state, subgoal)
+        size = np.abs(error)
+        turn = np.minimum(np.sqrt(size * k.two_ang_brake), k.max_ang_speed)
+        turn = np.copysign(np.minimum(turn, size / k.dt), error)
+        change = np.maximum(np.minimum(turn - state.ang_vel, k.spin_step), k.minus_spin_step)
+        return _command(state, vel, state.ang_vel + change)

@@ -69,7 +69,10 @@ class PublicCodeRandom:
     def __call__(self, pos: np.ndarray, angle: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         n = len(angle)
         cmd = np.concatenate(
-            [rng.uniform(-self.max_speed, self.max_speed, (n, 2)), rng.uniform(-self.max_spin, self.max_spin, (n, 1))],
+            [
+                rng.uniform(-self.max_speed, self.max_speed, (n, 2)),
+                rng.uniform(-self.max_spin, self.max_spin, (n, 1)),
+            ],
             axis=-1,
         )
         cmd[self._still] = 0.0
@@ -79,7 +82,9 @@ class PublicCodeRandom:
 OBSTACLES = {"stationary": Stationary, "random_walk": RandomWalk, "public_code": PublicCodeRandom}
 
 
-def make_obstacle(name: str, num_fields: int, **options: object) -> Stationary | RandomWalk | PublicCodeRandom:
+def make_obstacle(
+    name: str, num_fields: int, **options: object
+) -> Stationary | RandomWalk | PublicCodeRandom:
     """A behaviour by name; ``options`` are its fields. Unknown names or options raise ValueError."""
     if name not in OBSTACLES:
         raise ValueError(f"unknown obstacle behaviour {name!r}; known: {sorted(OBSTACLES)}")

@@ -1,0 +1,156 @@
+"""PPO through rsl-rl-lib 5.x: our typed ``PPOConfig`` as rsl-rl's nested ``train_cfg``, a runner over the
+batched vector env, and the trained actor as a numpy policy for ``hier_ssl.evaluate``.
+
+rsl-rl owns the loop, the update, logging and checkpoints (``runner.learn``, ``runner.save``). Two of
+its habits matter here:
+
+- ``OnPolicyRunner.load`` calls ``torch.load(weights_only=False)``, which unpickles arbitrary objects.
+  Its checkpoints hold only tensors, numbers and ``None``, so ``load_ppo`` reads them with
+  ``weights_only=True`` and hands the dict to the algorithm's own ``load``.
+- The runner writes resolved fields (``obs_groups``, ``multi_gpu``) into the train_cfg it is given, so
+  every call of ``ppo_train_cfg`` returns a fresh dict and ``make_ppo_runner`` never shares one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from rsl_rl.runners import OnPolicyRunner
+from tensordict import TensorDict
+
+from hier_ssl.config import PPOConfig
+from hier_ssl.envs.vector import RslRlVecEnv, VectorEnv
+
+NumpyPolicy = Callable[[np.ndarray], np.ndarray]
+"""Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
+
+
+def ppo_train_cfg(
+    cfg: PPOConfig,
+    *,
+    save_interval: int = 50,
+    activation: str = "elu",
+    schedule: str = "adaptive",
+    desired_kl: float = 0.01,
+    max_grad_norm: float = 1.0,
+    value_loss_coef: float = 1.0,
+    clip_value_loss: bool = True,
+    run_name: str = "",
+) -> dict[str, Any]:
+    """rsl-rl-lib 5.x ``train_cfg`` for ``OnPolicyRunner`` from ``cfg``.
+
+    The keyword arguments are rsl-rl settings that ``PPOConfig`` does not carry; their defaults are
+    rsl-rl's own. Actor and critic are ``MLPModel``s over the "policy" observation group with a
+    state-independent Gaussian head (std initialised to ``cfg.init_noise_std``, learned). Empirical
+    observation normalisation is off: the manager's observations are already scaled to about [-1, 1]
+    (SPEC "Manager observation"), and a running normaliser would drift the deterministic policy
+    between evaluations.
+    """
+    hidden = list(cfg.hidden)
+    return {
+        "num_steps_per_env": cfg.num_steps_per_env,
+        "save_interval": save_interval,
+        "run_name": run_name,
+        "logger": "tensorboard",
+        "check_for_nan": True,
+        "obs_groups": {"actor": ["policy"], "critic": ["policy"]},
+        "algorithm": {
+            "class_name": "rsl_rl.algorithms:PPO",
+            "num_learning_epochs": cfg.num_learning_epochs,
+            "num_mini_batches": cfg.num_mini_batches,
+            "clip_param": cfg.clip_param,
+            "gamma": cfg.gamma,
+            "lam": cfg.lam,
+            "value_loss_coef": value_loss_coef,
+            "entropy_coef": cfg.entropy_coef,
+            "learning_rate": cfg.learning_rate,
+            "max_grad_norm": max_grad_norm,
+            "optimizer": "adam",
+            "use_clipped_value_loss": clip_value_loss,
+            "schedule": schedule,
+            "desired_kl": desired_kl,
+            "normalize_advantage_per_mini_batch": False,
+            "rnd_cfg": None,
+            "symmetry_cfg": None,
+        },
+        "actor": {
+            "class_name": "rsl_rl.models:MLPModel",
+            "hidden_dims": hidden,
+            "activation": activation,
+            "obs_normalization": False,
+            "distribution_cfg": {
+                "class_name": "rsl_rl.modules:GaussianDistribution",
+                "init_std": cfg.init_noise_std,
+                "std_type": "scalar",
+            },
+        },
+        "critic": {
+            "class_name": "rsl_rl.models:MLPModel",
+            "hidden_dims": hidden,
+            "activation": activation,
+            "obs_normalization": False,
+        },
+    }
+
+
+def make_ppo_runner(
+    env: VectorEnv,
+    cfg: PPOConfig,
+    log_dir: str | Path | None = None,
+    device: str | torch.device = "cpu",
+    **train_cfg_settings: Any,
+) -> OnPolicyRunner:
+    """An ``OnPolicyRunner`` training on ``env`` (wrapped in ``RslRlVecEnv``).
+
+    ``log_dir=None`` writes nothing: no TensorBoard, no console log, no checkpoints from ``learn``.
+    ``train_cfg_settings`` go to ``ppo_train_cfg``. Train with ``runner.learn(iterations)``; each
+    iteration collects ``cfg.num_steps_per_env`` decisions from every field.
+    """
+    train_cfg = ppo_train_cfg(cfg, **train_cfg_settings)
+    return OnPolicyRunner(RslRlVecEnv(env), train_cfg, None if log_dir is None else str(log_dir), str(device))
+
+
+def ppo_policy(runner: OnPolicyRunner) -> NumpyPolicy:
+    """The runner's actor as a deterministic numpy policy: the Gaussian mean, clipped to [-1, 1].
+
+    A live view, not a copy: it acts with the actor's current weights, so one policy serves every
+    evaluation during training. Each call runs in eval mode under ``torch.inference_mode`` and then
+    restores the actor's previous mode. Input (N, obs_dim), output (N, num_actions) float32.
+    """
+    actor = runner.alg.get_policy()
+    device = runner.device
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        was_training = actor.training
+        actor.eval()
+        try:
+            with torch.inference_mode():
+                x = torch.as_tensor(obs, dtype=torch.float32, device=device)
+                group = TensorDict({"policy": x}, batch_size=[x.shape[0]], device=device)
+                return actor(group).clamp(-1.0, 1.0).cpu().numpy()
+        finally:
+            actor.train(was_training)
+
+    return policy
+
+
+def load_ppo(runner: OnPolicyRunner, path: str | Path, map_location: str | None = None) -> None:
+    """Restore actor, critic, optimizer and iteration from ``runner.save(path)``'s file.
+
+    Same effect as ``runner.load(path)`` but with ``torch.load(weights_only=True)``, which refuses to
+    run pickled code (rsl-rl's ``load`` passes ``weights_only=False``). Raises FileNotFoundError
+    naming the path when it is missing.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"PPO checkpoint not found: {path}")
+    loaded = torch.load(path, weights_only=True, map_location=map_location)
+    if runner.alg.load(loaded, None, strict=True):
+        runner.current_learning_iteration = loaded["iter"]
+
+
+__all__ = ["NumpyPolicy", "load_ppo", "make_ppo_runner", "ppo_policy", "ppo_train_cfg"]

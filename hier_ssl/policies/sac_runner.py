@@ -1,0 +1,259 @@
+"""Off-policy training loop for SAC over a batched vector env: collect, store, update, log, save."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, Protocol
+
+import torch
+from torch.utils.tensorboard import SummaryWriter
+from tqdm import tqdm
+
+from hier_ssl.policies.sac import SAC, SACConfig
+
+MODEL_FILE = "model.pt"
+REPLAY_FILE = "replay.pt"
+
+
+class VectorEnv(Protocol):
+    """Batched environment consumed by ``SACRunner``; every env auto-resets when its episode ends."""
+
+    num_envs: int
+    num_obs: int
+    num_actions: int
+    device: torch.device
+
+    def reset(self, seed: int | None = None) -> torch.Tensor:
+        """Reset all envs. Returns obs, shape (num_envs, num_obs) float32."""
+        ...
+
+    def step(
+        self, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
+        """Advance all envs by one step.
+
+        actions: (num_envs, num_actions) in [-1, 1].
+        Returns obs (num_envs, num_obs), already the reset observation where an episode finished;
+        reward (num_envs,) float32; terminated, truncated (num_envs,) bool; info with
+        ``info["final_obs"]`` (num_envs, num_obs), the true last observation (equal to obs where nothing
+        finished), and ``info["episode"]``, a dict of 1-D tensors with one entry per episode that ended
+        this step (e.g. "return", "length", "success"), possibly empty.
+        """
+        ...
+
+
+EvalCallback = Callable[["SACRunner"], Mapping[str, float] | None]
+
+
+def atomic_save(obj: object, path: Path) -> None:
+    """``torch.save`` to a temporary file in the same folder, then rename over ``path``.
+
+    A run killed mid-write leaves the previous file intact instead of a truncated one.
+    """
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            torch.save(obj, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+class SACRunner:
+    """Owns the SAC training loop over a ``VectorEnv``.
+
+    Step counts are vector steps (one call of ``env.step``, ``num_envs`` transitions); ``learning_starts``
+    in the config counts transitions. The run directory receives TensorBoard events, ``model.pt``
+    (plain state dicts, loadable with ``torch.load(weights_only=True)``) and ``replay.pt``.
+
+    Args:
+        env: the vector env.
+        config: SAC hyper-parameters.
+        run_dir: folder for logs and checkpoints (created if missing).
+        seed: seeds the networks, SAC's generator and the first ``env.reset``.
+        log_interval: vector steps between TensorBoard writes.
+        save_interval: vector steps between checkpoints (one is always written when ``learn`` returns).
+        eval_interval: vector steps between calls of ``eval_callback``.
+        eval_callback: called with the runner; a returned mapping is logged under ``eval/``. Its time is
+            not counted in ``train_time_s``.
+        progress: show a tqdm progress bar.
+    """
+
+    def __init__(
+        self,
+        env: VectorEnv,
+        config: SACConfig,
+        run_dir: str | os.PathLike[str],
+        *,
+        seed: int = 0,
+        log_interval: int = 100,
+        save_interval: int = 10_000,
+        eval_interval: int | None = None,
+        eval_callback: EvalCallback | None = None,
+        progress: bool = True,
+    ) -> None:
+        for name, value in (("log_interval", log_interval), ("save_interval", save_interval)):
+            if value < 1:
+                raise ValueError(f"{name} must be >= 1, got {value}")
+        if (eval_interval is None) != (eval_callback is None):
+            raise ValueError("eval_interval and eval_callback must be given together")
+        if eval_interval is not None and eval_interval < 1:
+            raise ValueError(f"eval_interval must be >= 1, got {eval_interval}")
+        self.env = env
+        self.seed = seed
+        self.sac = SAC(env.num_obs, env.num_actions, config, device=env.device, seed=seed)
+        self.run_dir = Path(run_dir)
+        self.log_interval = log_interval
+        self.save_interval = save_interval
+        self.eval_interval = eval_interval
+        self.eval_callback = eval_callback
+        self.progress = progress
+        self.step = 0  # vector steps taken
+        self.train_time_s = 0.0  # wall time spent collecting and learning, summed over resumes
+        self._update_debt = 0.0  # fractional updates owed when updates_per_step is not an integer
+        self._obs: torch.Tensor | None = None
+        self._writer: SummaryWriter | None = None
+
+    @property
+    def num_transitions(self) -> int:
+        """Transitions collected so far (vector steps x num_envs)."""
+        return self.step * self.env.num_envs
+
+    def learn(self, total_steps: int) -> None:
+        """Train until ``self.step == total_steps`` vector steps (a resumed run continues to the same end)."""
+        cfg = self.sac.config
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        if self._writer is None:
+            # purge_step drops events a killed run wrote after its last checkpoint.
+            self._writer = SummaryWriter(self.run_dir, purge_step=self.step)
+        if self._obs is None:
+            self._obs = self.env.reset(seed=self.seed + self.step)
+        update_stats: dict[str, list[float]] = defaultdict(list)
+        episode_stats: dict[str, list[torch.Tensor]] = defaultdict(list)
+        bar = tqdm(
+            total=total_steps, initial=self.step, disable=not self.progress, unit="step", dynamic_ncols=True
+        )
+        try:
+            while self.step < total_steps:
+                step_start = time.perf_counter()
+                # Act: uniform random during warm-up, then the stochastic policy.
+                if self.num_transitions < cfg.learning_starts:
+                    actions = self._random_actions()
+                else:
+                    actions = self.sac.act(self._obs)
+                # Step and store; the true last observation is the next_obs of finished episodes.
+                next_obs, rewards, terminated, _truncated, info = self.env.step(actions)
+                self.sac.process_env_step(self._obs, actions, rewards, info["final_obs"], terminated)
+                self._obs = next_obs
+                self.step += 1
+                for key, values in info["episode"].items():
+                    if values.numel():
+                        episode_stats[key].append(values.detach())
+                # Learn: updates_per_step gradient updates per vector step, once warm-up data is in.
+                if self.num_transitions >= cfg.learning_starts:
+                    self._update_debt += cfg.updates_per_step
+                    while self._update_debt >= 1.0:
+                        for key, value in self.sac.update().items():
+                            update_stats[key].append(value)
+                        self._update_debt -= 1.0
+                self.train_time_s += time.perf_counter() - step_start
+                bar.update(1)
+                # Log, evaluate and save on their intervals; the evaluation's time is not training time.
+                if self.step % self.log_interval == 0 or self.step == total_steps:
+                    self._log(update_stats, episode_stats, bar)
+                    update_stats.clear()
+                    episode_stats.clear()
+                if self.eval_interval is not None and self.step % self.eval_interval == 0:
+                    self._evaluate()
+                if self.step % self.save_interval == 0:
+                    self.save()
+            self.save()
+        finally:
+            bar.close()
+            self._writer.flush()
+
+    def _random_actions(self) -> torch.Tensor:
+        """Uniform actions in [-1, 1], shape (num_envs, num_actions), from SAC's checkpointed generator."""
+        shape = (self.env.num_envs, self.env.num_actions)
+        return torch.rand(shape, generator=self.sac.generator, device=self.env.device) * 2.0 - 1.0
+
+    def _log(
+        self,
+        update_stats: Mapping[str, list[float]],
+        episode_stats: Mapping[str, list[torch.Tensor]],
+        bar: tqdm,
+    ) -> None:
+        """Write means since the last log: losses over the updates that reported them, episode stats over
+        finished episodes."""
+        assert self._writer is not None
+        for key, values in update_stats.items():
+            self._writer.add_scalar(f"losses/{key}", sum(values) / len(values), self.step)
+        postfix = {}
+        for key, chunks in episode_stats.items():
+            mean = torch.cat(chunks).float().mean().item()
+            self._writer.add_scalar(f"episode/{key}", mean, self.step)
+            postfix[key] = f"{mean:.3g}"
+        self._writer.add_scalar("charts/transitions", self.num_transitions, self.step)
+        self._writer.add_scalar("charts/train_time_s", self.train_time_s, self.step)
+        if postfix:
+            bar.set_postfix(postfix, refresh=False)
+
+    def _evaluate(self) -> None:
+        """Run the callback and log what it returns under ``eval/``."""
+        assert self.eval_callback is not None and self._writer is not None
+        metrics = self.eval_callback(self)
+        for key, value in (metrics or {}).items():
+            self._writer.add_scalar(f"eval/{key}", value, self.step)
+
+    def save(self) -> None:
+        """Write ``replay.pt`` then ``model.pt`` into the run directory, each atomically.
+
+        The replay is written first so that ``model.pt``, which holds the step counter, never runs ahead of
+        the replay content it was saved with.
+        """
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        atomic_save(self.sac.replay.state_dict(), self.run_dir / REPLAY_FILE)
+        atomic_save(
+            {
+                "sac": self.sac.state_dict(),
+                "config": self.sac.config.model_dump(),
+                "step": self.step,
+                "train_time_s": self.train_time_s,
+                "update_debt": self._update_debt,
+            },
+            self.run_dir / MODEL_FILE,
+        )
+
+    def load(self, run_dir: str | os.PathLike[str]) -> None:
+        """Resume from a run directory written by ``save``: networks, optimisers, replay, step counter.
+
+        The env's in-progress episodes are not saved: the next ``learn`` starts from a fresh reset.
+        """
+        run_dir = Path(run_dir)
+        # On CPU: the generator state must stay there; load_state_dict moves the rest to the env's device.
+        model = torch.load(run_dir / MODEL_FILE, weights_only=True, map_location="cpu")
+        if SACConfig(**model["config"]) != self.sac.config:
+            raise ValueError(f"config in {run_dir / MODEL_FILE} differs from this runner's config")
+        self.sac.load_state_dict(model["sac"])
+        self.sac.replay.load_state_dict(
+            torch.load(run_dir / REPLAY_FILE, weights_only=True, map_location="cpu")
+        )
+        self.step = int(model["step"])
+        self.train_time_s = float(model["train_time_s"])
+        self._update_debt = float(model["update_debt"])
+        self._obs = None
+        self.close()
+
+    def close(self) -> None:
+        """Close the TensorBoard writer; a later ``learn`` opens a new one."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None

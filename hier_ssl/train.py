@@ -1,0 +1,175 @@
+"""Train a manager against a frozen worker, keep the best policy, evaluate it on held-out episodes.
+
+A run directory holds: ``config.yaml`` (the full resolved config), TensorBoard events, ``model.pt`` and
+``replay.pt`` (SAC, for ``--resume``) or ``model_*.pt`` (PPO), ``best_actor.pt`` (the actor that scored
+best on the selection episodes), ``curve.csv`` (success rate against training wall time) and
+``eval.json`` (the final evaluation, on episodes the selection never saw).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml, parse_config
+from hier_ssl.envs.vector import VectorEnv
+from hier_ssl.evaluate import Policy, evaluate
+from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
+
+CONFIG_FILE, BEST_FILE, CURVE_FILE, EVAL_FILE = "config.yaml", "best_actor.pt", "curve.csv", "eval.json"
+# Model selection and the final evaluation draw their episodes from different seeds, so the reported
+# figures are not biased by having picked the checkpoint on them.
+SELECTION_SEED, EVALUATION_SEED = 10_000, 20_000
+
+
+def atomic_write_text(text: str, path: Path) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def sac_policy(actor: torch.nn.Module) -> Policy:
+    """The actor's deterministic action (tanh of the mean) as a numpy policy."""
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return actor.deterministic(torch.as_tensor(obs, dtype=torch.float32)).numpy()
+
+    return policy
+
+
+def resume_config(run_dir: Path) -> TrainConfig:
+    """The config a run was started with; errors name the missing file."""
+    for name in (CONFIG_FILE, MODEL_FILE):
+        if not (run_dir / name).is_file():
+            raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / name}")
+    return parse_config(load_yaml(run_dir / CONFIG_FILE))
+
+
+class _Selection:
+    """Evaluation hook: record the learning curve and keep the best actor."""
+
+    def __init__(self, config: TrainConfig, run_dir: Path) -> None:
+        self.config, self.run_dir = config, run_dir
+        self.best: tuple[float, float] | None = None
+        curve = run_dir / CURVE_FILE
+        if curve.is_file():
+            rows = list(csv.DictReader(curve.open()))
+            if rows:
+                self.best = max((float(r["success_rate"]), -float(r["cpad_median"])) for r in rows)
+
+    def __call__(self, runner: SACRunner) -> dict[str, float]:
+        cfg = self.config
+        result = evaluate(sac_policy(runner.sac.actor), cfg.env, cfg.eval_episodes, SELECTION_SEED + cfg.seed)
+        row = {
+            "step": runner.step,
+            "transitions": runner.num_transitions,
+            "train_time_s": round(runner.train_time_s, 2),
+            "success_rate": result["success_rate"],
+            "collision_rate": result["collision_rate"],
+            "episode_length_median": result["episode_length"]["median"],
+            "cpad_median": result["cpad"]["median"],
+        }
+        curve = self.run_dir / CURVE_FILE
+        new = not curve.is_file()
+        with curve.open("a", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(row))
+            if new:
+                writer.writeheader()
+            writer.writerow(row)
+        score = (row["success_rate"], -row["cpad_median"])
+        if self.best is None or score > self.best:
+            self.best = score
+            atomic_save(
+                {"actor": runner.sac.actor.state_dict(), "step": runner.step}, self.run_dir / BEST_FILE
+            )
+        return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
+
+
+def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bool = True) -> dict[str, Any]:
+    """Train as ``config`` says into ``run_dir`` (or continue it), then evaluate; returns eval.json's dict."""
+    torch.set_num_threads(config.threads)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
+    env = VectorEnv(config.env, config.num_envs, config.device)
+    if config.algo == "sac":
+        policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress)
+    else:
+        policy, train_wall_s = _train_ppo(config, env, run_dir, resume)
+    result = evaluate(policy, config.env, config.eval_episodes, EVALUATION_SEED + config.seed)
+    summary = {
+        "success_rate": result["success_rate"],
+        "episode_length_median": result["episode_length"]["median"],
+        "cpad_median": result["cpad"]["median"],
+        "collision_rate": result["collision_rate"],
+        "episodes": result["episodes"],
+        "train_wall_s": round(train_wall_s, 1),
+        "episode_length": result["episode_length"],
+        "cpad": result["cpad"],
+        "optimal_ratio_median": result["optimal_ratio_median"],
+        "task": config.env.task,
+        "worker": config.env.worker,
+    }
+    atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
+    return summary
+
+
+def _train_sac(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool, progress: bool):
+    selection = _Selection(config, run_dir)
+    runner = SACRunner(
+        env,
+        config.sac,
+        run_dir,
+        seed=config.seed,
+        eval_interval=config.eval_interval,
+        eval_callback=selection,
+        progress=progress,
+        save_interval=config.save_interval,
+    )
+    if resume:
+        runner.load(run_dir)
+    runner.learn(config.total_steps)
+    runner.close()
+    if (run_dir / BEST_FILE).is_file():
+        runner.sac.actor.load_state_dict(torch.load(run_dir / BEST_FILE, weights_only=True)["actor"])
+    return sac_policy(runner.sac.actor), runner.train_time_s
+
+
+def _train_ppo(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool):
+    import time
+
+    from hier_ssl.policies.ppo import latest_checkpoint, load_ppo, make_ppo_runner, ppo_policy
+
+    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device)
+    if resume:
+        load_ppo(runner, latest_checkpoint(run_dir))
+    iterations = max(1, config.total_steps // config.ppo.num_steps_per_env)
+    start = time.perf_counter()
+    runner.learn(max(0, iterations - runner.current_learning_iteration))
+    return ppo_policy(runner), time.perf_counter() - start
+
+
+def print_summary(summary: dict[str, Any]) -> None:
+    length, cpad = summary["episode_length"], summary["cpad"]
+    where = f"{summary['episodes']} episodes, task {summary['task']}, worker {summary['worker']}"
+    print(f"| metric ({where}) | value |")
+    print("|---|---|")
+    print(f"| success rate | {100 * summary['success_rate']:.1f} % |")
+    print(f"| collision rate | {100 * summary['collision_rate']:.1f} % |")
+    quartiles = f"{length['median']:.0f} ({length['q1']:.0f} - {length['q3']:.0f})"
+    print(f"| episode length, median (Q1 - Q3) | {quartiles} |")
+    print(f"| CPAD m, median (Q1 - Q3) | {cpad['median']:.3f} ({cpad['q1']:.3f} - {cpad['q3']:.3f}) |")
+    print(f"| training wall time | {summary['train_wall_s']:.0f} s |")

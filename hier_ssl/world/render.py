@@ -1,0 +1,174 @@
+"""One field of a World as an RGB image: field markings, walls, robots with headings, targets, sub-goals
+and trails, drawn with matplotlib's Agg canvas (headless, no pyplot state)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection, PatchCollection
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Rectangle
+
+from hier_ssl.world.field import Field
+from hier_ssl.world.physics import RobotSpec, RobotState
+
+CARPET, LINE, WALL, GOAL = "#2e7d3b", "#f4f4f4", "#3a3a3a", "#111111"
+# Team 0: the controlled robots (SSL blue), team 1: obstacles (SSL yellow); further teams cycle.
+TEAM_COLORS = ("#1d4ed8", "#f5c400", "#d9480f", "#7048e8")
+TARGET, SUBGOAL = "#e03131", "#ff922b"
+_LINE_WIDTH_M = 0.02  # SSL field lines are 10 mm wide; drawn a little wider so they survive small images
+_GOAL_DEPTH_M = 0.18
+_CENTRE_RADIUS_M = 0.5
+
+
+def render_fields(
+    field: Field,
+    state: RobotState,
+    *,
+    targets: np.ndarray | None = None,
+    subgoals: np.ndarray | None = None,
+    trails: Sequence[np.ndarray] | None = None,
+    field_index: int = 0,
+    size: tuple[int, int] = (660, 460),
+    team: Sequence[int] | None = None,
+    trail_team: Sequence[int] | None = None,
+    robot: RobotSpec | None = None,
+) -> np.ndarray:
+    """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
+
+    ``state`` holds every field (pos (N, R, 2) ...). ``targets`` and ``subgoals`` are per field, (N, K) for
+    one each or (N, M, K) for several, with columns x, y and optionally theta (drawn as a heading tick);
+    sub-goals are drawn as dots. ``trails`` are polylines (T, 2) of this field in the field frame, drawn in
+    the colours of the teams ``trail_team`` (default: the i-th trail in robot i's colour). ``team`` (R,)
+    gives each robot's team (0 controlled, 1 obstacle, ...); by default robot 0 is controlled and the
+    others are obstacles. ``robot`` gives the disc radius (default: ``RobotSpec()``).
+    """
+    num_fields, num_robots = state.angle.shape
+    if not 0 <= field_index < num_fields:
+        raise ValueError(f"field_index {field_index} out of range [0, {num_fields})")
+    width, height = size
+    if not all(isinstance(v, int | np.integer) and v > 0 for v in (width, height)):
+        raise ValueError(f"size must be two positive integers (W, H), got {size!r}")
+    teams = np.asarray([0] + [1] * (num_robots - 1) if team is None else team, dtype=int)
+    if teams.shape != (num_robots,):
+        raise ValueError(f"team has shape {teams.shape}, expected ({num_robots},)")
+    radius = (robot or RobotSpec()).radius
+
+    dpi = 100
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=WALL)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.set_axis_off()
+    # The walled area plus a margin, centred, at one scale in x and y whatever the image's aspect.
+    hx, hy = field.wall_half_extent
+    metres_per_px = max(2 * (hx + 0.05) / width, 2 * (hy + 0.05) / height)
+    ax.set_xlim(-width * metres_per_px / 2, width * metres_per_px / 2)
+    ax.set_ylim(-height * metres_per_px / 2, height * metres_per_px / 2)
+    # Line widths in points for a width in metres.
+    line_pt = _LINE_WIDTH_M / metres_per_px * 72 / dpi
+
+    _draw_field(ax, field, line_pt)
+    if trails is not None:
+        if trail_team is None:
+            trail_team = [teams[min(i, num_robots - 1)] for i in range(len(trails))]
+        if len(trail_team) != len(trails):
+            raise ValueError(f"trail_team has {len(trail_team)} entries for {len(trails)} trails")
+        for trail, trail_of in zip(trails, trail_team, strict=True):
+            trail = np.asarray(trail, dtype=float).reshape(-1, 2)
+            color = TEAM_COLORS[trail_of % len(TEAM_COLORS)]
+            ax.plot(
+                trail[:, 0],
+                trail[:, 1],
+                color=color,
+                lw=1.2 * line_pt,
+                alpha=0.85,
+                zorder=3,
+                solid_capstyle="round",
+            )
+    if subgoals is not None:
+        points = _per_field(subgoals, field_index, "subgoals")
+        ax.scatter(
+            points[:, 0], points[:, 1], s=(2.2 * line_pt) ** 2, color=SUBGOAL, edgecolors="none", zorder=5
+        )
+    if targets is not None:
+        points = _per_field(targets, field_index, "targets")
+        ax.scatter(
+            points[:, 0],
+            points[:, 1],
+            s=(9 * line_pt) ** 2,
+            facecolors="none",
+            edgecolors=TARGET,
+            linewidths=1.2 * line_pt,
+            zorder=4,
+        )
+        ax.scatter(points[:, 0], points[:, 1], s=(1.6 * line_pt) ** 2, color=TARGET, zorder=4)
+        if points.shape[1] >= 3:
+            ax.add_collection(_ticks(points[:, 0:2], points[:, 2], 2 * radius, TARGET, 1.2 * line_pt))
+
+    pos, angle = state.pos[field_index], state.angle[field_index]
+    colors = [TEAM_COLORS[t % len(TEAM_COLORS)] for t in teams]
+    discs = PatchCollection(
+        [Circle(tuple(p), radius) for p in pos],
+        facecolors=colors,
+        edgecolors="#101010",
+        linewidths=0.6 * line_pt,
+        zorder=6,
+    )
+    ax.add_collection(discs)
+    ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
+
+    canvas.draw()
+    image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    if image.shape != (height, width, 3):
+        raise RuntimeError(f"matplotlib drew {image.shape}, expected {(height, width, 3)}")
+    return image
+
+
+def _per_field(points: np.ndarray, field_index: int, name: str) -> np.ndarray:
+    """Rows (M, K >= 2) of ``points`` (N, K) or (N, M, K) for one field."""
+    points = np.asarray(points, dtype=float)
+    if points.ndim not in (2, 3) or points.shape[-1] < 2:
+        raise ValueError(f"{name} must have shape (N, K) or (N, M, K) with K >= 2, got {points.shape}")
+    return np.atleast_2d(points[field_index])
+
+
+def _ticks(
+    pos: np.ndarray, angle: np.ndarray, length: float, color: str, width: float, zorder: int = 4
+) -> LineCollection:
+    """Heading ticks: segments from each point ``length`` metres along its angle."""
+    tip = pos + length * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    return LineCollection(
+        np.stack([pos, tip], axis=1), colors=color, linewidths=width, zorder=zorder, capstyle="round"
+    )
+
+
+def _draw_field(ax: object, field: Field, line_pt: float) -> None:
+    """Carpet, walls, field lines, centre circle, penalty (defense) areas and goals."""
+    hx, hy = field.wall_half_extent
+    half_l, half_w = field.half_length, field.half_width
+    ax.add_patch(
+        Rectangle((-hx, -hy), 2 * hx, 2 * hy, facecolor=CARPET, edgecolor=WALL, lw=3 * line_pt, zorder=0)
+    )
+    line = {"color": LINE, "lw": line_pt, "zorder": 1, "solid_capstyle": "butt"}
+    ax.add_patch(
+        Rectangle(
+            (-half_l, -half_w), 2 * half_l, 2 * half_w, fill=False, edgecolor=LINE, lw=line_pt, zorder=1
+        )
+    )
+    ax.plot([0, 0], [-half_w, half_w], **line)
+    ax.add_patch(Circle((0, 0), _CENTRE_RADIUS_M, fill=False, edgecolor=LINE, lw=line_pt, zorder=1))
+    for side in (-1, 1):
+        x_line, x_inner = side * half_l, side * (half_l - field.penalty_depth)
+        py = field.penalty_width / 2
+        ax.plot([x_line, x_inner, x_inner, x_line], [-py, -py, py, py], **line)
+        x_back, gy = side * (half_l + _GOAL_DEPTH_M), field.goal_width / 2
+        ax.plot(
+            [x_line, x_back, x_back, x_line],
+            [-gy, -gy, gy, gy],
+            color=GOAL,
+            lw=1.5 * line_pt,
+            zorder=2,
+            solid_joinstyle="miter",
+        )

@@ -1,0 +1,112 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hier_ssl.config import EnvConfig, ObstacleConfig
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.manager import encode_subgoal, task_reward
+
+
+def _core(num_fields: int = 8, **settings: object) -> HierarchicalCore:
+    return HierarchicalCore(EnvConfig(**settings), num_fields)
+
+
+def _direct(core: HierarchicalCore) -> np.ndarray:
+    """Actions that name the target itself: the trivial planner of an empty field."""
+    return encode_subgoal(core.target, "pose4", core.field.half_length, core.field.half_width)
+
+
+def test_reset_sampling_respects_spec() -> None:
+    core = _core(256)
+    core.reset(seed=0)
+    s = core.state
+    assert np.all(np.abs(core.target[:, 0]) <= 2.9) and np.all(np.abs(core.target[:, 1]) <= 1.9)
+    assert np.all(np.linalg.norm(s.pos[:, 0] - core.target[:, :2], axis=1) >= 0.2)
+    np.testing.assert_array_equal(core.target[:, 3:], 0.0)
+
+
+def test_midpoint_obstacle_starts_between_robot_and_target() -> None:
+    core = _core(
+        32, task="obstacle", obstacles=[ObstacleConfig(behaviour="stationary")], min_start_distance=0.6
+    )
+    core.reset(seed=0)
+    s = core.state
+    np.testing.assert_allclose(s.pos[:, 1], (s.pos[:, 0] + core.target[:, :2]) / 2)
+
+
+def test_direct_planner_solves_proposed_and_episode_stats_are_reported() -> None:
+    core = _core(16, frame_skip=16)
+    core.reset(seed=1)
+    lengths, successes, cpads = [], [], []
+    for _ in range(30):
+        result = core.step(_direct(core))
+        episode = result.info["episode"]
+        lengths += list(episode["length"])
+        successes += list(episode["success"])
+        cpads += list(episode["cpad"])
+    assert len(lengths) >= 16
+    assert np.mean(successes) == 1.0
+    # The sub-goal never moves within an episode, so CPAD is exactly zero.
+    assert np.max(cpads) == 0.0
+    assert 40 < np.median(lengths) < 150
+
+
+def test_frame_skip_sum_and_last_rewards() -> None:
+    rewards = {}
+    for mode in ("sum", "last"):
+        core = _core(4, frame_skip=4, frame_skip_reward=mode)
+        core.reset(seed=2)
+        action = np.tile([0.1, 0.1, 0.0, 1.0], (4, 1))
+        rewards[mode] = core.step(action).reward
+    # Proposed reward depends only on the held sub-goal, so 4 held steps sum to 4x the last one.
+    np.testing.assert_allclose(rewards["sum"], 4 * rewards["last"], rtol=1e-6)
+
+
+def test_reward_is_the_pure_function_of_the_step() -> None:
+    core = _core(4, task="baseline")
+    core.reset(seed=3)
+    action = np.tile([0.2, -0.3, 0.0, 1.0], (4, 1))
+    result = core.step(action)
+    s = core.state
+    expected, _ = task_reward(
+        "baseline", core.target, s.pos[:, 0], s.angle[:, 0], core.subgoal, result.info["success"]
+    )
+    np.testing.assert_allclose(result.reward, expected, rtol=1e-6)
+
+
+def test_same_seed_same_episode_bit_for_bit() -> None:
+    def run() -> np.ndarray:
+        core = _core(4, task="obstacle", obstacles=[ObstacleConfig()], min_start_distance=0.6, frame_skip=2)
+        obs = [core.reset(seed=7)]
+        rng = np.random.default_rng(0)
+        for _ in range(40):
+            obs.append(core.step(rng.uniform(-1, 1, (4, 4))).obs)
+        return np.stack(obs)
+
+    np.testing.assert_array_equal(run(), run())
+
+
+def test_collision_ends_obstacle_episode_as_failure() -> None:
+    core = _core(
+        8,
+        task="obstacle",
+        obstacles=[ObstacleConfig(behaviour="stationary")],
+        min_start_distance=0.6,
+        frame_skip=16,
+    )
+    core.reset(seed=4)
+    collisions = 0
+    for _ in range(20):
+        result = core.step(_direct(core))
+        collisions += int(result.info["episode"]["collision"].sum())
+        assert not (result.info["success"] & result.info["collision"]).any()
+    # Driving straight at a target with a still obstacle on the midpoint always hits it.
+    assert collisions >= 8
+
+
+def test_bad_config_key_names_it() -> None:
+    with pytest.raises(ValueError, match="frame_skp"):
+        EnvConfig(frame_skp=4)
+    with pytest.raises(ValueError, match="frame_skip"):
+        EnvConfig(frame_skip=0)

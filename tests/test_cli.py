@@ -1,0 +1,67 @@
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from hier_ssl import bench, cli
+from hier_ssl.demo import run_demo
+
+
+def test_demo_writes_a_png_of_the_paths(tmp_path: object) -> None:
+    result = run_demo(tmp_path / "figs" / "demo.png", seed=1, worker="bangbang", targets=2, size=(330, 230))
+    assert result.path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = imread(result.path)
+    assert image.shape[:2] == (230, 330) and np.ptp(image) > 0
+    assert result.reached == 2 and result.targets == 2 and 0 < result.steps <= 2 * 400
+
+
+def test_demo_command_prints_where_it_wrote(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "demo.png"
+    assert cli.main(["demo", "--out", str(out), "--targets", "1", "--worker", "paper"]) == 0
+    assert out.is_file()
+    assert capsys.readouterr().out.startswith(f"wrote {out} (paper worker: 1/1 targets reached")
+
+
+def test_bench_world_json_lines_parse(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Pinning would tie the rest of the test session to one core.
+    monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
+    assert cli.main(["bench", "world", "--json", "--steps", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    records = [json.loads(line) for line in lines]
+    assert [r["n_fields"] for r in records] == list(bench.WORLD_SIZES)
+    for record in records:
+        assert set(record) == {"bench", "n_fields", "robots_per_field", "steps_per_s"}
+        assert record["bench"] == "world" and record["robots_per_field"] == 2 and record["steps_per_s"] > 0
+
+
+def test_bench_world_text_output(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(bench, "WORLD_SIZES", (1, 4))
+    monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
+    assert cli.main(["bench", "world", "--steps", "3"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 3 and "field-steps/s" in lines[1] and "N =     4" in lines[2]
+
+
+def test_errors_are_one_line_without_traceback(tmp_path: object, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["demo", "--out", str(tmp_path / "demo.txt")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "error: out must be a .png path" in err and "Traceback" not in err
+
+    for argv in (["bench", "fields"], ["demo", "--worker", "pid"], ["demo", "--targets", "0"], []):
+        with pytest.raises(SystemExit) as exit_info:
+            cli.main(argv)
+        assert exit_info.value.code == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "error:" in err, argv
+
+
+def test_bench_rejects_bad_sizes() -> None:
+    with pytest.raises(ValueError, match="n_fields must be an integer >= 1, got 0"):
+        bench.bench_world(0)
+    with pytest.raises(ValueError, match="steps must be an integer >= 1, got 0"):
+        bench.bench_world(1, steps=0)

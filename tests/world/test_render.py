@@ -1,0 +1,52 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hier_ssl.world.physics import World
+from hier_ssl.world.render import TEAM_COLORS, render_fields
+
+
+def _rgb(color: str) -> np.ndarray:
+    return np.array([int(color[i : i + 2], 16) for i in (1, 3, 5)])
+
+
+def _world() -> World:
+    world = World(2, 3)
+    world.set_state([0, 1], np.array([[[-1.5, 0.5], [1.0, -1.0], [2.0, 1.2]]] * 2), np.zeros((2, 3)))
+    return world
+
+
+def test_render_returns_an_rgb_image_with_robots_in_team_colours() -> None:
+    world = _world()
+    image = render_fields(
+        world.field,
+        world.state,
+        targets=np.array([[1.0, 1.0, 0.5, 0.0, 0.0]] * 2),
+        subgoals=np.zeros((2, 3, 5)),
+        trails=[np.array([[-2.0, -1.0], [-1.5, 0.5]]), np.array([[0.0, -1.5], [1.0, -1.0]])],
+        size=(330, 230),
+    )
+    assert image.shape == (230, 330, 3) and image.dtype == np.uint8
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # not blank
+    # The walled area and a 5 cm margin fill the image, origin at its centre, y up. Robot 0 (controlled) is
+    # at (-1.5, 0.5), robot 1 (obstacle) at (1.0, -1.0); sample a little off the centre, away from the
+    # heading tick along +x.
+    hx, hy = world.field.wall_half_extent
+    px_per_m = 1 / max(2 * (hx + 0.05) / 330, 2 * (hy + 0.05) / 230)
+    for (x, y), team in [((-1.5, 0.5), 0), ((1.0, -1.0), 1)]:
+        col, row = round(165 + px_per_m * x), round(115 - px_per_m * y)
+        pixel = image[row - 2, col - 2].astype(int)
+        assert np.abs(pixel - _rgb(TEAM_COLORS[team])).max() < 40, (team, pixel)
+
+
+def test_render_picks_the_field_and_checks_its_arguments() -> None:
+    world = _world()
+    first = render_fields(world.field, world.state, field_index=1, size=(200, 140))
+    assert first.shape == (140, 200, 3)
+    with pytest.raises(ValueError, match="field_index 2 out of range"):
+        render_fields(world.field, world.state, field_index=2)
+    with pytest.raises(ValueError, match="team has shape"):
+        render_fields(world.field, world.state, team=[0, 1])
+    with pytest.raises(ValueError, match="targets must have shape"):
+        render_fields(world.field, world.state, targets=np.zeros(3))

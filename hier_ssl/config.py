@@ -90,11 +90,34 @@ class PPOConfig(Strict):
     init_noise_std: float = Field(0.5, gt=0)
 
 
+class GoToPointConfig(Strict):
+    """The goToPoint task, where the worker is the learner (``hier_ssl.envs.gotopoint``).
+
+    World, thresholds and the episode limit come from the run's ``env`` section (field, dt, substeps,
+    d_th, theta_th_deg, speed_th, spawn_margin, max_steps); the reward weights are those of
+    ``hier_ssl.worker.rewards``.
+    """
+
+    near_fraction: float = Field(0.5, ge=0, le=1)  # share of sub-goals drawn within near_radius of the robot
+    near_radius: float = Field(1.0, gt=0)  # m
+    moving_fraction: float = Field(0.5, ge=0, le=1)  # share of episodes starting at a random velocity
+    angle_weight: float = Field(1.0, ge=0)  # m of distance a heading error of pi rad is worth
+    time_cost: float = Field(0.01, ge=0)
+    smooth_cost: float = Field(0.01, ge=0)
+    success_bonus: float = Field(10.0, ge=0)
+
+
 class TrainConfig(Strict):
-    """A training run: the environment, the learner, and how long."""
+    """A training run: the environment, the learner, and how long.
+
+    ``kind: manager`` (default) trains a manager over the worker ``env.worker``; ``kind: worker`` trains
+    the goToPoint worker itself on the task the ``gotopoint`` section describes (PPO only).
+    """
 
     name: str = "run"
+    kind: Literal["manager", "worker"] = "manager"
     env: EnvConfig = Field(default_factory=EnvConfig)
+    gotopoint: GoToPointConfig | None = None
     algo: Literal["sac", "ppo"] = "sac"
     sac: SACConfig = Field(default_factory=SACConfig)
     ppo: PPOConfig = Field(default_factory=PPOConfig)
@@ -106,6 +129,21 @@ class TrainConfig(Strict):
     seed: int = 0
     device: str = "cpu"
     threads: int = Field(2, ge=1)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_gotopoint(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("kind") == "worker" and data.get("gotopoint") is None:
+            data = {**data, "gotopoint": {}}
+        return data
+
+    @model_validator(mode="after")
+    def _kind_consistent(self) -> TrainConfig:
+        if self.kind == "manager" and self.gotopoint is not None:
+            raise ValueError("gotopoint: only read when kind is 'worker'")
+        if self.kind == "worker" and self.algo != "ppo":
+            raise ValueError(f"algo: kind 'worker' trains with 'ppo', got {self.algo!r}")
+        return self
 
 
 def _format(err: ValidationError, root: str) -> str:

@@ -52,10 +52,13 @@ def sac_policy(actor: torch.nn.Module) -> Policy:
 
 def resume_config(run_dir: Path) -> TrainConfig:
     """The config a run was started with; errors name the missing file."""
-    for name in (CONFIG_FILE, MODEL_FILE):
+    for name in (CONFIG_FILE,):
         if not (run_dir / name).is_file():
             raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / name}")
-    return parse_config(load_yaml(run_dir / CONFIG_FILE))
+    config = parse_config(load_yaml(run_dir / CONFIG_FILE))
+    if config.algo == "sac" and not (run_dir / MODEL_FILE).is_file():
+        raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / MODEL_FILE}")
+    return config
 
 
 class _Selection:
@@ -151,11 +154,14 @@ def _train_sac(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool,
 def _train_ppo(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool):
     import time
 
-    from hier_ssl.policies.ppo import latest_checkpoint, load_ppo, make_ppo_runner, ppo_policy
+    from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
 
     runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device)
     if resume:
-        load_ppo(runner, latest_checkpoint(run_dir))
+        saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
+        if not saved:
+            raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
+        load_ppo(runner, saved[-1])
     iterations = max(1, config.total_steps // config.ppo.num_steps_per_env)
     start = time.perf_counter()
     runner.learn(max(0, iterations - runner.current_learning_iteration))

@@ -1,0 +1,132 @@
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hier_ssl.config import parse_config
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.manager import decode_subgoal
+from hier_ssl.policies.networks import SquashedGaussianActor
+from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE
+from hier_ssl.train import train
+
+TINY = {
+    "name": "tiny",
+    "env": {"task": "proposed", "frame_skip": 16},
+    "num_envs": 8,
+    "total_steps": 1500,
+    "eval_interval": 500,
+    "eval_episodes": 20,
+    "threads": 1,
+    "sac": {"caps": True, "hidden": [64, 64], "learning_starts": 800, "batch_size": 128, "reward_scale": 0.1},
+}
+
+
+def _subgoal_error(actor: SquashedGaussianActor, seed: int = 99) -> float:
+    """Median distance (m) between the first sub-goal and the target over 200 fresh episodes."""
+    core = HierarchicalCore(parse_config(TINY).env, 200)
+    obs = core.reset(seed)
+    with torch.no_grad():
+        action = actor.deterministic(torch.as_tensor(obs)).numpy()
+    subgoal = decode_subgoal(action, "pose4", core.field.half_length, core.field.half_width)
+    return float(np.median(np.linalg.norm(subgoal[:, :2] - core.target[:, :2], axis=1)))
+
+
+def test_sac_caps_learns_to_aim_sub_goals_at_the_target(tmp_path: Path) -> None:
+    config = parse_config(TINY)
+    summary = train(config, tmp_path, progress=False)
+    actor = SquashedGaussianActor(13, 4, (64, 64))
+    untrained = _subgoal_error(actor)
+    actor.load_state_dict(torch.load(tmp_path / MODEL_FILE, weights_only=True)["sac"]["actor"])
+    trained = _subgoal_error(actor)
+    # An untrained actor names a point near the centre, ~2 m from a random target.
+    assert untrained > 1.0
+    assert trained < 0.4, (untrained, trained)
+    for name in ("config.yaml", "eval.json", "curve.csv", "best_actor.pt", REPLAY_FILE):
+        assert (tmp_path / name).is_file(), name
+    keys = {
+        "success_rate",
+        "episode_length_median",
+        "cpad_median",
+        "collision_rate",
+        "episodes",
+        "train_wall_s",
+    }
+    assert keys <= set(json.loads((tmp_path / "eval.json").read_text()))
+    assert summary["episodes"] == 20
+
+
+def _cli(*args: str, **kwargs) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "hier_ssl.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        **kwargs,
+    )
+
+
+def test_killed_run_resumes_to_the_same_step_with_its_replay(tmp_path: Path) -> None:
+    config = tmp_path / "tiny.yaml"
+    config.write_text(
+        json.dumps(
+            {**TINY, "total_steps": 600, "save_interval": 100, "sac": {**TINY["sac"], "learning_starts": 200}}
+        )
+    )
+    run = tmp_path / "run"
+    proc = _cli("train", str(config), "--out", str(run), "--no-progress")
+    deadline = time.time() + 120
+    while not (run / MODEL_FILE).is_file() and time.time() < deadline:
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    killed_at = torch.load(run / MODEL_FILE, weights_only=True)["step"]
+    assert 0 < killed_at < 600
+    assert not (run / "eval.json").exists()
+
+    proc = _cli("train", "--resume", str(run), "--no-progress")
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    model = torch.load(run / MODEL_FILE, weights_only=True)
+    replay = torch.load(run / REPLAY_FILE, weights_only=True)
+    assert model["step"] == 600
+    # Every transition since the start is in the buffer: the replay survived the kill.
+    assert len(replay["obs"]) == 600 * TINY["num_envs"]
+    assert (run / "eval.json").is_file()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--set", "env.frame_skp=4"], "env.frame_skp"),
+        (["--set", "sac.actor_lr=-0.1"], "sac.actor_lr"),
+        (["--set", "env.field=moon"], "moon"),
+    ],
+)
+def test_bad_config_is_one_line_and_writes_nothing(tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "run"
+    proc = _cli(
+        "train", "configs/proposed/fscaps.yaml", "--out", str(out), *args, cwd=Path(__file__).parents[1]
+    )
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode != 0
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_resume_without_checkpoint_names_the_file(tmp_path: Path) -> None:
+    proc = _cli("train", "--resume", str(tmp_path))
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode != 0 and "config.yaml" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []

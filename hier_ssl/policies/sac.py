@@ -48,7 +48,7 @@ class SACConfig(BaseModel):
     caps_sigma: float = Field(0.05, ge=0)
     updates_per_step: float = Field(1.0, gt=0, description="gradient updates per vector env step")
     reward_scale: float = Field(
-        1.0, gt=0, description="rewards are multiplied by this in the critic target; the env's stay as they are"
+        1.0, gt=0, description="multiplies rewards in the critic target; the env rewards stay as they are"
     )
 
     @field_validator("hidden")
@@ -172,7 +172,8 @@ class SAC:
             next_state_actions, next_state_log_pi = self.actor(data.next_obs, self.generator)
             qf_next_target = self.qf_target(data.next_obs, next_state_actions).min(dim=0).values
             min_qf_next_target = qf_next_target - alpha * next_state_log_pi
-            target_q = cfg.reward_scale * data.rewards + (1.0 - data.terminated) * cfg.gamma * min_qf_next_target
+            rewards = cfg.reward_scale * data.rewards
+            target_q = rewards + (1.0 - data.terminated) * cfg.gamma * min_qf_next_target
         qf_a_values = self.qf(data.obs, data.actions)  # (2, B)
         qf_loss = (qf_a_values - target_q).pow(2).mean(dim=1).sum()  # qf1_loss + qf2_loss
         self.q_optimizer.zero_grad(set_to_none=True)

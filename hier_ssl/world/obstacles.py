@@ -1,8 +1,8 @@
 """Scripted obstacle behaviours: random agents that move obstacle robots.
 
 A behaviour drives one obstacle robot in every field: ``reset(fields, rng)`` when episodes start and
-``__call__(state, rng) -> (N, 3)`` each control step, a robot-frame (vx, vy, w) command, given the
-obstacle's own state (a RobotState whose robot axis has length 1 squeezed away: pos (N, 2) ...).
+``__call__(pos (N, 2), angle (N,), rng) -> (N, 3)`` each control step, a robot-frame (vx, vy, w)
+command given the obstacle's own pose.
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hier_ssl.world.physics import to_robot_frame
 
 
 @dataclass
@@ -43,8 +42,12 @@ class RandomWalk:
         n = len(angle)
         heading = rng.uniform(-np.pi, np.pi, n)
         speed = rng.uniform(*self.speed, n)
-        vel = np.stack([speed * np.cos(heading), speed * np.sin(heading)], axis=-1)
-        return np.concatenate([to_robot_frame(vel, angle), np.zeros((n, 1))], axis=-1)
+        # The direction in the robot's frame is the field heading minus the robot's own: one rotation.
+        relative = heading - angle
+        command = np.zeros((n, 3))
+        command[:, 0] = speed * np.cos(relative)
+        command[:, 1] = speed * np.sin(relative)
+        return command
 
 
 @dataclass

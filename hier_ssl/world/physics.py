@@ -399,6 +399,14 @@ class World:
             if not np.isfinite(value).all():
                 raise ValueError(f"set_state: {name} holds NaN or infinite values")
             checked[name] = value
+        reach = np.array(self.field.wall_half_extent) - self.robot.radius
+        outside = (np.abs(checked["pos"]) > reach).any(axis=-1)
+        if outside.any():
+            f, i = np.argwhere(outside)[0]
+            raise ValueError(
+                f"set_state: robot {i} of field {fields[f]} at {checked['pos'][f, i].tolist()} is not inside the "
+                f"walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
+            )
         if m == 0:
             return
         out = self._write_state.rows

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
-
 @dataclass
 class Stationary:
     """Stands still (the obstacle of the paper's real-robot experiment)."""

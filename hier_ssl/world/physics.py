@@ -404,8 +404,8 @@ class World:
         if outside.any():
             f, i = np.argwhere(outside)[0]
             raise ValueError(
-                f"set_state: robot {i} of field {fields[f]} at {checked['pos'][f, i].tolist()} is not inside the "
-                f"walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
+                f"set_state: robot {i} of field {fields[f]} at {checked['pos'][f, i].tolist()} is not inside "
+                f"the walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
             )
         if m == 0:
             return

@@ -247,7 +247,7 @@ def _snapshot(world: World) -> list[np.ndarray]:
         (lambda w: w.set_state([0], np.zeros((1, 3, 2)), np.zeros((1, 2))), r"pos has shape \(1, 3, 2\)"),
         (lambda w: w.set_state([0], np.full((1, 2, 2), np.nan), np.zeros((1, 2))), r"pos holds NaN"),
         (lambda w: w.set_state([0], np.zeros((1, 2, 2)), np.zeros((1, 2)), vel=np.zeros(3)), "vel has shape"),
-        (lambda w: w.set_state([1], np.full((1, 2, 2), 3.5), np.zeros((1, 2))), r"robot 0 of field 1.*inside the walls"),
+        (lambda w: w.set_state([1], np.full((1, 2, 2), 3.5), np.zeros((1, 2))), r"robot 0 of field 1"),
     ],
 )
 def test_bad_input_raises_naming_the_value_and_leaves_the_world_unchanged(call: object, message: str) -> None:

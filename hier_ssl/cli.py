@@ -27,6 +27,23 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _worker_spec(text: str) -> str:
+    """A ``make_worker`` spec whose name part is a known worker or an existing directory."""
+    from pathlib import Path
+
+    from hier_ssl.worker import WORKERS, parse_worker_spec
+
+    try:
+        base, _ = parse_worker_spec(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    if base not in WORKERS and not Path(base).is_dir():
+        raise argparse.ArgumentTypeError(
+            f"unknown worker {base!r}; expected {'|'.join(WORKERS)} or a run directory"
+        )
+    return text
+
+
 # -- bench ------------------------------------------------------------------------------------------------
 
 
@@ -78,7 +95,10 @@ def _add_demo(subparsers: argparse._SubParsersAction) -> None:
     demo.add_argument("--out", default="runs/demo.png", help="PNG to write (default: %(default)s)")
     demo.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     demo.add_argument(
-        "--worker", choices=WORKERS, default="paper", help="scripted worker (default: %(default)s)"
+        "--worker",
+        type=_worker_spec,
+        default="paper",
+        help=f"{'|'.join(WORKERS)}|RUN_DIR, optionally +latency=K+noise=F... (default: %(default)s)",
     )
     demo.add_argument(
         "--targets", type=_positive_int, default=4, help="targets to visit (default: %(default)s)"
@@ -140,9 +160,144 @@ def _train(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- export -----------------------------------------------------------------------------------------------
+
+
+def _add_export(subparsers: argparse._SubParsersAction) -> None:
+    export = subparsers.add_parser(
+        "export", help="write a trained manager as one TorchScript or ONNX file: raw state in, sub-goal out"
+    )
+    export.add_argument("run_dir", metavar="RUN_DIR", help="run directory of a trained manager")
+    export.add_argument("--format", choices=("torchscript", "onnx"), default="torchscript", dest="fmt")
+    export.add_argument("--out", default=None, help="file to write (default: RUN_DIR/manager.pt or .onnx)")
+    export.set_defaults(func=_export)
+
+
+def _export(args: argparse.Namespace) -> int:
+    from hier_ssl.policies.export import export_manager
+
+    path = export_manager(args.run_dir, args.fmt, args.out)
+    print(
+        f"wrote {path} ({path.stat().st_size:,} bytes, {args.fmt}); input/output layout: README.md, "
+        "'Deploying a manager'"
+    )
+    return 0
+
+
+# -- eval -------------------------------------------------------------------------------------------------
+
+
+def _add_eval(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.manager.planners import PLANNERS
+    from hier_ssl.report import TASKS
+    from hier_ssl.worker import WORKERS
+
+    ev = subparsers.add_parser(
+        "eval",
+        help="evaluate managers (run directories or planners) on the same seeded episodes: tables, Fig. 3",
+    )
+    ev.add_argument(
+        "managers", nargs="+", metavar="RUN_DIR_OR_PLANNER", help=f"a run directory or a planner {PLANNERS}"
+    )
+    ev.add_argument("--task", choices=TASKS, default=None, help="task (default: a run's own, else proposed)")
+    ev.add_argument("--episodes", type=_positive_int, default=1000, help="episodes (default: %(default)s)")
+    ev.add_argument(
+        "--worker",
+        action="append",
+        type=_worker_spec,
+        default=None,
+        metavar="WORKER",
+        help=f"{'|'.join(WORKERS)}|RUN_DIR, optionally perturbed: paper+latency=2+noise=0.2 "
+        "(keys: hier_ssl.worker.perturbed); repeatable; default: the run's own",
+    )
+    ev.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
+    ev.add_argument(
+        "--frame-skip", type=_positive_int, default=None, help="decision period (default: a run's own, 16)"
+    )
+    ev.add_argument("--json", default=None, metavar="PATH", help="write one JSON record per evaluation")
+    ev.add_argument(
+        "--out", default=None, metavar="DIR", help="tables and figure (default: runs/eval/TASK-sSEED)"
+    )
+    ev.add_argument("--video", action="store_true", help="also write an animated GIF of the figure's episode")
+    ev.set_defaults(func=_eval)
+
+
+def _eval(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hier_ssl.managers import compare
+    from hier_ssl.report import markdown_table, write_evaluation
+
+    evaluations = compare(
+        args.managers,
+        task=args.task,
+        workers=args.worker or [None],
+        episodes=args.episodes,
+        seed=args.seed,
+        frame_skip=args.frame_skip,
+        record=range(min(16, args.episodes)),
+    )
+    task = evaluations[0].env.task
+    out = Path(args.out) if args.out else Path("runs") / "eval" / f"{task}-s{args.seed}"
+    print(f"task {task}, {args.episodes} episodes, seed {args.seed}; lengths in 25 ms control steps\n")
+    print(markdown_table([e.record for e in evaluations]))
+    for e in evaluations:
+        where = f"{e.env.worker} worker, frame skip {e.env.frame_skip}"
+        print(f"eval wall time {e.name} ({where}): {e.record['eval_wall_s']:.1f} s")
+    paths = write_evaluation(evaluations, out, json_path=args.json, video=args.video, title=task)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+# -- reproduce --------------------------------------------------------------------------------------------
+
+
+def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
+    rep = subparsers.add_parser(
+        "reproduce", help="train and evaluate the paper's 12 configurations, write report.md (resumable)"
+    )
+    rep.add_argument(
+        "--only", nargs="+", default=[], metavar="NAME", help="e.g. proposed/fscaps, obstacle (default: all)"
+    )
+    rep.add_argument("--seeds", type=_positive_int, default=1, help="training seeds per config (default: 1)")
+    rep.add_argument("--out", default="runs/reproduce", metavar="DIR", help="(default: %(default)s)")
+    rep.add_argument(
+        "--episodes", type=_positive_int, default=1000, help="evaluation episodes (default: 1000)"
+    )
+    rep.add_argument("--config-dir", default="configs", metavar="DIR", help="(default: %(default)s)")
+    rep.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every config"
+    )
+    rep.add_argument("--no-progress", action="store_true", help="no progress bars")
+    rep.set_defaults(func=_reproduce)
+
+
+def _reproduce(args: argparse.Namespace) -> int:
+    from hier_ssl.reproduce import reproduce
+
+    report = reproduce(
+        only=args.only,
+        seeds=args.seeds,
+        out=args.out,
+        episodes=args.episodes,
+        config_dir=args.config_dir,
+        overrides=args.set,
+        progress=not args.no_progress,
+    )
+    print(f"wrote {report}")
+    return 0
+
+
 # -- entry point ------------------------------------------------------------------------------------------
 
-COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (_add_bench, _add_demo, _add_train)
+COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
+    _add_bench,
+    _add_demo,
+    _add_train,
+    _add_export,
+    _add_eval,
+    _add_reproduce,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

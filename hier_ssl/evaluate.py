@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -15,25 +15,39 @@ Policy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
 
 
-def evaluate(policy: Policy, config: EnvConfig, episodes: int, seed: int = 0) -> dict[str, object]:
+def evaluate(
+    policy: Policy, config: EnvConfig, episodes: int, seed: int = 0, record: Sequence[int] = ()
+) -> dict[str, object]:
     """Run ``episodes`` episodes (one per field, seeded: the same starts, targets and obstacle motion for
     every policy given the same seed) and summarise them.
 
+    The policy sees only the fields whose episode is still running (its input has fewer rows as episodes
+    end), so a row-wise policy costs nothing for finished episodes.
+
     Returns success_rate, collision_rate, episode_length and cpad as {median, q1, q3, min, max},
     optimal_ratio_median (episode time over the analytic rest-to-rest minimum time to the target under
-    the robot's speed and acceleration limits, successful episodes only), the raw per-episode arrays
-    under "per_episode", and eval_wall_s.
+    the robot's speed and acceleration limits, successful episodes only), time_to_target_s_median
+    (successful episodes, seconds), the raw per-episode arrays
+    under "per_episode", and eval_wall_s. With ``record`` (episode indices), "trajectories" holds one
+    dict per recorded episode, every control step of it (see ``_Recorder.episode``).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    record = [int(i) for i in record]
+    if any(not 0 <= i < episodes for i in record):
+        raise ValueError(f"record: episode indices must be in [0, {episodes}), got {record}")
     start = time.perf_counter()
     core = HierarchicalCore(config, episodes, autoreset=False)
     obs = core.reset(seed)
+    recorder = _Recorder(core, record) if record else None
     distance = np.linalg.norm(core.state.pos[:, 0] - core.target[:, :2], axis=1)
     length = np.zeros(episodes, dtype=np.int64)
     success, collision, cpad = np.zeros(episodes, bool), np.zeros(episodes, bool), np.zeros(episodes)
+    action = np.zeros((episodes, core.act_dim))
     while not core.done.all():
-        result = core.step(policy(obs))
+        live = ~core.done
+        action[live] = policy(obs[live])
+        result = core.step(action)
         episode = result.info["episode"]
         idx = episode["field"]
         length[idx] = episode["length"]
@@ -44,13 +58,15 @@ def evaluate(policy: Policy, config: EnvConfig, episodes: int, seed: int = 0) ->
     robot = core.robot
     bound = min_time_to_pose(distance, robot.max_speed, robot.max_accel)
     ratio = length * config.dt / np.maximum(bound, 1e-9)
-    return {
+    solved, nan = bool(success.any()), float("nan")
+    summary: dict[str, object] = {
         "episodes": episodes,
         "success_rate": float(success.mean()),
         "collision_rate": float(collision.mean()),
         "episode_length": summarize(length),
         "cpad": summarize(cpad),
-        "optimal_ratio_median": float(np.median(ratio[success])) if success.any() else float("nan"),
+        "optimal_ratio_median": float(np.median(ratio[success])) if solved else nan,
+        "time_to_target_s_median": float(np.median(length[success]) * config.dt) if solved else nan,
         "per_episode": {
             "length": length,
             "success": success,
@@ -60,3 +76,44 @@ def evaluate(policy: Policy, config: EnvConfig, episodes: int, seed: int = 0) ->
         },
         "eval_wall_s": time.perf_counter() - start,
     }
+    if recorder is not None:
+        summary["trajectories"] = [recorder.episode(j, int(length[i])) for j, i in enumerate(record)]
+        summary["eval_wall_s"] = time.perf_counter() - start
+    return summary
+
+
+class _Recorder:
+    """Poses and sub-goals of chosen fields after every control step, by wrapping the core's
+    ``control_step`` (the batched path of ``step`` is unchanged; the copies are of a few rows)."""
+
+    def __init__(self, core: HierarchicalCore, fields: list[int]) -> None:
+        self.core, self.fields = core, np.asarray(fields)
+        self.target = core.target[self.fields].copy()
+        s = core.state
+        self.pos, self.angle, self.subgoal = [s.pos[self.fields]], [s.angle[self.fields]], []
+        self._step = core.control_step
+        core.control_step = self.control_step  # instance attribute: only this core is affected
+
+    def control_step(self, live: np.ndarray, *args: object, **kwargs: object) -> tuple:
+        out = self._step(live, *args, **kwargs)
+        s = self.core.state  # replaced by every world step; fancy indexing copies
+        self.pos.append(s.pos[self.fields])
+        self.angle.append(s.angle[self.fields])
+        self.subgoal.append(self.core.subgoal[self.fields].copy())
+        return out
+
+    def episode(self, j: int, length: int) -> dict[str, object]:
+        """Recorded field ``j`` over its ``length`` control steps: target (5,); robot (T+1, 2) and
+        robot_angle (T+1,) from the reset on; subgoal (T, 5), the sub-goal in force at each control step;
+        obstacles (T+1, K, 2) and obstacle_angle (T+1, K). Metres, radians, field frame."""
+        pos = np.stack([p[j] for p in self.pos[: length + 1]])
+        angle = np.stack([a[j] for a in self.angle[: length + 1]])
+        return {
+            "field": int(self.fields[j]),
+            "target": self.target[j],
+            "robot": pos[:, 0],
+            "robot_angle": angle[:, 0],
+            "subgoal": np.stack([g[j] for g in self.subgoal[:length]]).reshape(length, 5),
+            "obstacles": pos[:, 1:],
+            "obstacle_angle": angle[:, 1:],
+        }

@@ -1,0 +1,186 @@
+"""Managers by name: a scripted planner ("direct", "sampling") or a training run directory, as a numpy
+policy ``obs (N, O) -> actions (N, A)`` for ``hier_ssl.evaluate``, and ``compare``: several managers on
+the same seeded episodes.
+
+A run directory (``hier_ssl.train``) holds ``config.yaml`` and, for SAC, ``best_actor.pt`` (preferred) or
+``model.pt``; for PPO, rsl-rl's ``model_<iteration>.pt`` files (the latest is used).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hier_ssl.config import EnvConfig, TrainConfig, load_yaml, parse_config
+from hier_ssl.evaluate import Policy, evaluate
+from hier_ssl.manager import action_dim, manager_obs_dim
+from hier_ssl.manager.planners import PLANNERS, make_planner
+
+
+def is_planner(spec: str | Path) -> bool:
+    return str(spec) in PLANNERS
+
+
+def manager_name(spec: str | Path) -> str:
+    """How a manager is labelled in tables and figures: the planner's name or the run folder's name."""
+    return str(spec) if is_planner(spec) else Path(spec).resolve().name
+
+
+def run_config(run_dir: str | Path) -> TrainConfig:
+    """The TrainConfig a run was trained with; ValueError if ``run_dir`` is not a run directory."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        known = ", ".join(PLANNERS)
+        raise ValueError(f"manager {str(run_dir)!r} is neither a planner ({known}) nor a run directory")
+    if not (run_dir / "config.yaml").is_file():
+        raise ValueError(f"run directory {run_dir} has no config.yaml")
+    return parse_config(load_yaml(run_dir / "config.yaml"))
+
+
+def load_manager(spec: str | Path, env_config: EnvConfig) -> Policy:
+    """The manager ``spec`` (planner name or run directory) as a numpy policy acting in ``env_config``.
+
+    Raises ValueError when a run's network does not fit the environment's observation or action size
+    (e.g. a manager trained without obstacles evaluated on the Obstacle task) or has no checkpoint.
+    """
+    if is_planner(spec):
+        return make_planner(str(spec), env_config)
+    run_dir = Path(spec)
+    config = run_config(run_dir)
+    obs_dim, act_dim = manager_obs_dim(len(env_config.obstacles)), action_dim(env_config.action_form)
+    trained = (manager_obs_dim(len(config.env.obstacles)), action_dim(config.env.action_form))
+    if trained != (obs_dim, act_dim):
+        raise ValueError(
+            f"{run_dir} was trained with observations/actions of size {trained}, "
+            f"the {env_config.task} environment has {(obs_dim, act_dim)}"
+        )
+    if config.algo == "sac":
+        return _load_sac(run_dir, config, obs_dim, act_dim)
+    return _load_ppo(run_dir, config, env_config)
+
+
+def _load_sac(run_dir: Path, config: TrainConfig, obs_dim: int, act_dim: int) -> Policy:
+    import torch
+
+    from hier_ssl.policies.networks import SquashedGaussianActor
+    from hier_ssl.train import sac_policy
+
+    if (run_dir / "best_actor.pt").is_file():
+        state = torch.load(run_dir / "best_actor.pt", weights_only=True, map_location="cpu")["actor"]
+    elif (run_dir / "model.pt").is_file():
+        state = torch.load(run_dir / "model.pt", weights_only=True, map_location="cpu")["sac"]["actor"]
+    else:
+        raise ValueError(f"run directory {run_dir} has neither best_actor.pt nor model.pt")
+    actor = SquashedGaussianActor(obs_dim, act_dim, config.sac.hidden)
+    try:
+        actor.load_state_dict(state)
+    except RuntimeError as err:
+        raise ValueError(f"{run_dir}: actor checkpoint does not match config.yaml ({err})") from None
+    actor.eval()
+    return sac_policy(actor)
+
+
+def _load_ppo(run_dir: Path, config: TrainConfig, env_config: EnvConfig) -> Policy:
+    from hier_ssl.envs.vector import VectorEnv
+    from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
+
+    saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
+    if not saved:
+        raise ValueError(f"PPO run directory {run_dir} has no model_*.pt")
+    with contextlib.redirect_stdout(io.StringIO()):  # rsl-rl prints its networks on construction
+        runner = make_ppo_runner(VectorEnv(env_config, 1), config.ppo, None, "cpu")
+    load_ppo(runner, saved[-1])
+    return ppo_policy(runner)
+
+
+PLANNER_FRAME_SKIP = 16  # the paper's FSCAPS decision period, unless --frame-skip says otherwise
+
+
+def manager_env(
+    spec: str | Path, task: str | None = None, frame_skip: int | None = None, worker: str | None = None
+) -> EnvConfig:
+    """The environment to evaluate ``spec`` in: a run's own ``env`` section, or for a planner the task's
+    default environment (``hier_ssl.envs.env_config``) deciding every ``PLANNER_FRAME_SKIP`` control
+    steps. ``task``, ``frame_skip`` and ``worker`` override what the run or the default gives."""
+    from hier_ssl.envs import env_config
+
+    overrides: dict[str, Any] = {}
+    if frame_skip is not None:
+        overrides["frame_skip"] = frame_skip
+    if worker is not None:
+        overrides["worker"] = worker
+    if is_planner(spec):
+        overrides.setdefault("frame_skip", PLANNER_FRAME_SKIP)
+        return env_config(task=task or "proposed", **overrides)
+    base = run_config(spec).env
+    if task is not None and task != base.task:
+        overrides["task"] = task
+    return env_config(base, **overrides) if overrides else base
+
+
+@dataclass
+class Evaluation:
+    """One manager evaluated: its label, environment, the JSON ``record`` and ``evaluate``'s ``result``."""
+
+    name: str
+    env: EnvConfig
+    record: dict[str, Any]
+    result: dict[str, Any]
+
+
+def compare(
+    specs: Sequence[str | Path],
+    task: str | None = None,
+    workers: Sequence[str | None] = (None,),
+    episodes: int = 1000,
+    seed: int = 0,
+    frame_skip: int | None = None,
+    record: Sequence[int] = (),
+    progress: bool = False,
+) -> list[Evaluation]:
+    """Evaluate every manager under every worker on the same seeded episodes (same starts, targets and
+    obstacle commands). Managers are all loaded before any is evaluated, so a bad name fails at once.
+    Without ``task``, runs keep their own and planners take the first run's (else "proposed").
+
+    Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
+    ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures.
+    """
+    from hier_ssl.report import make_record, outcome
+
+    if task is None:  # planners follow the first run's task, so every row shares the episodes
+        runs = [spec for spec in specs if not is_planner(spec)]
+        task = run_config(runs[0]).env.task if runs else None
+    jobs = []
+    for spec in specs:
+        for worker in workers:
+            env = manager_env(spec, task, frame_skip, worker)
+            jobs.append((manager_name(spec), env, load_manager(spec, env)))
+    evaluations = []
+    for name, env, policy in jobs:
+        result = evaluate(policy, env, episodes, seed, record=record)
+        per = result["per_episode"]
+        for episode in result.get("trajectories", []):
+            i = episode["field"]
+            episode["outcome"] = outcome(bool(per["success"][i]), bool(per["collision"][i]))
+            episode["cpad"] = float(per["cpad"][i])
+        context = {"worker": env.worker, "task": env.task, "frame_skip": env.frame_skip, "seed": seed}
+        evaluations.append(Evaluation(name, env, make_record(name, result, **context), result))
+        if progress:
+            print(f"  {name} ({env.worker} worker): {result['eval_wall_s']:.1f} s", flush=True)
+    return evaluations
+
+
+__all__ = [
+    "PLANNERS",
+    "Evaluation",
+    "compare",
+    "is_planner",
+    "load_manager",
+    "manager_env",
+    "manager_name",
+    "run_config",
+]

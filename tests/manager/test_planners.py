@@ -1,0 +1,118 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hier_ssl.envs import env_config
+from hier_ssl.evaluate import evaluate
+from hier_ssl.manager import decode_subgoal, manager_observation
+from hier_ssl.manager.planners import SamplingPlanner, make_planner, read_scene
+from hier_ssl.world.field import get_field
+
+FIELD = get_field("hardware_challenge")
+
+
+def _obs(robot_xy, target_xy, obstacles=(), robot_vel=(0.0, 0.0), obstacle_vel=None, target_angle=0.3):
+    """Manager observations (1, 13 + 5K) of one hand-placed scene."""
+    k = len(obstacles)
+    obs_pos = np.asarray(obstacles, dtype=float).reshape(1, k, 2)
+    obs_vel = (
+        np.zeros((1, k, 2)) if obstacle_vel is None else np.asarray(obstacle_vel, float).reshape(1, k, 2)
+    )
+    return manager_observation(
+        np.array([[*target_xy, target_angle, 0.0, 0.0]]),
+        np.array([robot_xy], dtype=float),
+        np.array([0.0]),
+        np.array([robot_vel], dtype=float),
+        np.array([0.0]),
+        obs_pos,
+        obs_vel,
+        np.zeros((1, k)),
+        max_pos=FIELD.max_pos,
+    )
+
+
+def _subgoal(action: np.ndarray) -> np.ndarray:
+    return decode_subgoal(action, "pose4", FIELD.half_length, FIELD.half_width)
+
+
+def test_read_scene_undoes_the_observation() -> None:
+    obs = _obs(
+        (-1.0, 0.5), (2.0, -1.5), obstacles=[(0.3, 0.2)], robot_vel=(1.0, -0.5), obstacle_vel=[(0.4, 0)]
+    )
+    scene = read_scene(obs, FIELD.max_pos, 2.5)
+    np.testing.assert_allclose(scene.target[0], [2.0, -1.5, 0.3, 0.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(scene.robot_pos[0], [-1.0, 0.5], atol=1e-6)
+    np.testing.assert_allclose(scene.robot_vel[0], [1.0, -0.5], atol=1e-6)
+    np.testing.assert_allclose(scene.obstacle_pos[0], [[0.3, 0.2]], atol=1e-6)
+    np.testing.assert_allclose(scene.obstacle_vel[0], [[0.4, 0.0]], atol=1e-6)
+    with pytest.raises(ValueError, match="13 \\+ 5K"):
+        read_scene(np.zeros((1, 15)), FIELD.max_pos, 2.5)
+
+
+def test_direct_names_the_target() -> None:
+    planner = make_planner("direct", env_config(task="proposed"))
+    subgoal = _subgoal(planner(_obs((-1.0, 0.5), (2.0, -1.5), target_angle=-2.0)))
+    np.testing.assert_allclose(subgoal[0], [2.0, -1.5, -2.0, 0.0, 0.0], atol=1e-6)
+
+
+def test_direct_solves_proposed() -> None:
+    config = env_config(task="proposed", frame_skip=16)
+    result = evaluate(make_planner("direct", config), config, 40, seed=3)
+    assert result["success_rate"] == 1.0 and result["cpad"]["max"] == 0.0
+    assert 1.0 <= result["optimal_ratio_median"] < 2.0
+
+
+def test_sampling_goes_straight_in_an_empty_field() -> None:
+    planner = make_planner("sampling", env_config(task="proposed"))
+    rng = np.random.default_rng(0)
+    obs = np.concatenate([_obs(rng.uniform(-2, 2, 2), rng.uniform(-2, 2, 2)) for _ in range(8)])
+    np.testing.assert_allclose(planner(obs), make_planner("direct", env_config(task="proposed"))(obs))
+
+
+def test_sampling_steps_around_an_obstacle_on_the_line() -> None:
+    planner = make_planner("sampling", env_config(task="obstacle"))
+    obs = _obs((-1.0, 0.0), (1.0, 0.0), obstacles=[(0.0, 0.0)])
+    scene = read_scene(obs, FIELD.max_pos, 2.5)
+    cand = planner.candidates(scene)
+    arrival, clearance, hard, near = planner.rollout(scene, cand)
+    # Straight at the target runs through the obstacle: every clearance of column 0 is negative.
+    assert abs(cand[0, 0] - 1.0) < 1e-6 and hard[0, 0] < 0 and near[0, 0] < 0
+    subgoal = _subgoal(planner(obs))[0]
+    assert abs(subgoal[1]) > 0.25  # beside the obstacle, not on the line
+    chosen = np.argmin(np.abs(cand[0] - (subgoal[0] + 1j * subgoal[1])))
+    assert clearance[0, chosen] >= 0 and arrival[0, chosen] < planner.horizon
+
+
+def test_sampling_is_stateless_and_row_wise() -> None:
+    config = env_config(task="obstacle")
+    planner = make_planner("sampling", config)
+    rng = np.random.default_rng(1)
+    obs = np.concatenate(
+        [_obs(rng.uniform(-2, 2, 2), rng.uniform(-2, 2, 2), [rng.uniform(-1, 1, 2)]) for _ in range(6)]
+    )
+    first = planner(obs)
+    np.testing.assert_array_equal(planner(obs), first)
+    np.testing.assert_array_equal(planner(obs[[4, 1]]), first[[4, 1]])
+    assert first.shape == (6, 4) and np.all(np.abs(first) <= 1.0)
+
+
+def test_sampling_collides_less_than_direct_on_the_obstacle_task() -> None:
+    # Measured with these settings (seed 0, 150 episodes, frame skip 16): direct 92 % collisions, sampling
+    # about 1 %; on 1000 episodes 92.6 % and 0.2 %.
+    config = env_config(task="obstacle", frame_skip=16)
+    direct = evaluate(make_planner("direct", config), config, 150, seed=0)
+    sampling = evaluate(make_planner("sampling", config), config, 150, seed=0)
+    assert direct["collision_rate"] > 0.7
+    assert sampling["collision_rate"] < 0.05
+    assert sampling["success_rate"] > 0.9
+
+
+def test_make_planner_checks_names_and_options() -> None:
+    with pytest.raises(ValueError, match="unknown planner 'astar'"):
+        make_planner("astar", env_config())
+    with pytest.raises(ValueError, match="horizon must be > 0"):
+        SamplingPlanner(FIELD, horizon=0.0)
+    planner = make_planner("sampling", env_config(worker="paper"), margin=0.2)
+    assert planner.margin == 0.2 and planner.speed == 2.2  # the paper worker's cap
+    assert make_planner("sampling", env_config(worker="bangbang")).speed == 2.5

@@ -1,0 +1,164 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from hier_ssl import reproduce as reproduce_module
+from hier_ssl.envs import env_config
+from hier_ssl.evaluate import evaluate
+from hier_ssl.manager import cpad, min_time_to_pose
+from hier_ssl.manager.planners import make_planner
+from hier_ssl.managers import compare
+from hier_ssl.report import (
+    PAPER_RESULTS,
+    csv_table,
+    episode_video,
+    figure3,
+    latex_table,
+    markdown_table,
+    paper_comparison,
+    pick_episode,
+    table_cells,
+)
+from hier_ssl.world.field import get_field
+
+# The paper's Proposed FSCAPS row (Table 1) as a record, plus made-up collision, success and ratio.
+RECORD = {
+    "manager": "proposed_fscaps",
+    "worker": "paper",
+    "task": "proposed",
+    "frame_skip": 16,
+    "episodes": 1000,
+    "episode_length": PAPER_RESULTS[("proposed", "fscaps")]["episode_length"],
+    "cpad": PAPER_RESULTS[("proposed", "fscaps")]["cpad"],
+    "collision_rate": 0.0061,
+    "success_rate": 0.995,
+    "optimal_ratio_median": 1.3344,
+    "eval_wall_s": 1.23,
+}
+
+
+def test_table_cells_are_the_papers_format() -> None:
+    assert table_cells(RECORD) == [
+        "proposed_fscaps",
+        "paper",
+        "114 (92 - 137)",
+        "193",
+        "31",
+        "0.06 (0.05 - 0.08)",
+        "0.16",
+        "0.00",
+        "0.61 %",
+        "99.5 %",
+        "1.33",
+    ]
+    half = {**RECORD, "episode_length": {**RECORD["episode_length"], "median": 114.5}}
+    assert table_cells(half)[2] == "114.5 (92 - 137)"
+
+
+def test_markdown_csv_and_latex_hold_the_same_row() -> None:
+    md = markdown_table([RECORD]).splitlines()
+    assert len(md) == 3 and md[2].startswith("| proposed_fscaps | paper | 114 (92 - 137) |")
+    rows = csv_table([RECORD]).splitlines()
+    assert rows[0].startswith("manager,worker,task,frame_skip,episodes,episode_length_median")
+    assert rows[1].split(",")[:7] == ["proposed_fscaps", "paper", "proposed", "16", "1000", "114", "92"]
+    tex = latex_table([RECORD], caption="1000 episodes")
+    assert r"proposed\_fscaps & paper & 114 (92 - 137) & 193 & 31 & 0.06 (0.05 - 0.08)" in tex
+    assert r"0.61 \% & 99.5 \%" in tex and tex.count(r"\begin{tabular}") == 1
+    assert "eval_wall" not in md[0] + rows[0] + tex  # tables are reproducible: no wall times
+
+
+def test_paper_comparison_puts_the_papers_numbers_beside_ours() -> None:
+    text = paper_comparison([("proposed", "fscaps", RECORD), ("obstacle", "caps", None)])
+    lines = text.splitlines()
+    assert "| proposed | FSCAPS | proposed_fscaps | 114 (92 - 137) | 114 (92 - 137) |" in lines[2]
+    assert lines[3].startswith("| obstacle | CAPS | - | not run | 1200 (1200 - 1200) |")
+    assert "1.32 %" in lines[3]
+
+
+def test_recorded_episode_matches_the_metrics() -> None:
+    config = env_config(task="proposed", frame_skip=16)
+    result = evaluate(make_planner("direct", config), config, 6, seed=2, record=[0, 5])
+    per = result["per_episode"]
+    for episode in result["trajectories"]:
+        i, length = episode["field"], int(per["length"][episode["field"]])
+        assert episode["robot"].shape == (length + 1, 2) and episode["subgoal"].shape == (length, 5)
+        assert episode["obstacles"].shape == (length + 1, 0, 2)
+        # The paper's CPAD of the sub-goal in force at each control step is the env's running CPAD.
+        assert cpad(episode["subgoal"][:, :2]) == pytest.approx(per["cpad"][i])
+        assert per["success"][i] and np.linalg.norm(episode["robot"][-1] - episode["target"][:2]) < 0.05
+        assert per["distance"][i] == pytest.approx(
+            np.linalg.norm(episode["robot"][0] - episode["target"][:2])
+        )
+    # Ratio to the time-optimal bound, recomputed by hand from the per-episode arrays.
+    bound = min_time_to_pose(per["distance"], 2.5, 3.0)
+    assert result["optimal_ratio_median"] == pytest.approx(np.median(per["length"] * 0.025 / bound))
+    with pytest.raises(ValueError, match="record"):
+        evaluate(make_planner("direct", config), config, 6, record=[6])
+
+
+def test_same_manager_same_seed_gives_identical_tables() -> None:
+    first, second = (compare(["sampling", "direct"], task="obstacle", episodes=40, seed=5) for _ in range(2))
+    assert markdown_table([e.record for e in first]) == markdown_table([e.record for e in second])
+    assert csv_table([e.record for e in first]) == csv_table([e.record for e in second])
+    other = compare(["sampling"], task="obstacle", episodes=40, seed=6)
+    assert csv_table([other[0].record]) != csv_table([first[0].record])
+
+
+def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
+    evaluations = compare(["direct", "sampling"], task="obstacle", episodes=4, seed=0, record=range(4))
+    outcomes = [[t["outcome"] == "success" for t in e.result["trajectories"]] for e in evaluations]
+    j = pick_episode(outcomes)
+    panels = [(e.name, e.result["trajectories"][j]) for e in evaluations]
+    png = figure3(panels, get_field("hardware_challenge"), tmp_path / "fig" / "fig3.png", size=(220, 150))
+    image = imread(png)
+    assert image.shape[1] > 400 and image.std() > 0.05  # two panels side by side, not blank
+    gif = episode_video(
+        panels, get_field("hardware_challenge"), tmp_path / "ep.gif", max_frames=5, size=(110, 75)
+    )
+    assert gif.read_bytes()[:6] == b"GIF89a"
+    with pytest.raises(ValueError, match=".gif"):
+        episode_video(panels, get_field("hardware_challenge"), tmp_path / "ep.mp4")
+
+
+def test_pick_episode_prefers_episodes_most_managers_solve() -> None:
+    assert pick_episode([[False, True, True], [False, False, True]]) == 2
+    assert pick_episode([[False, False], [False, False]]) == 0
+
+
+def test_reproduce_trains_missing_runs_once_and_reports(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import torch
+
+    from hier_ssl.config import dump_config
+    from hier_ssl.policies.networks import SquashedGaussianActor
+
+    trained = []
+
+    def fake_train(config: object, run_dir: Path, resume: bool = False, progress: bool = True) -> None:
+        trained.append(run_dir.name)
+        run_dir.mkdir(parents=True)
+        (run_dir / "config.yaml").write_text(dump_config(config))
+        actor = SquashedGaussianActor(13, 4, config.sac.hidden)
+        torch.save({"actor": actor.state_dict()}, run_dir / "best_actor.pt")
+        (run_dir / "eval.json").write_text(json.dumps({"train_wall_s": 1.0}))
+
+    monkeypatch.setattr(reproduce_module, "train", fake_train)
+    configs = Path(__file__).parents[1] / "configs"
+    args = {"only": ["proposed/fscaps"], "out": tmp_path, "episodes": 3, "config_dir": configs}
+    args["overrides"] = ["sac.hidden=[8, 8]"]
+    report = reproduce_module.reproduce(**args, progress=False)
+    text = report.read_text()
+    assert trained == ["proposed-fscaps-s0"]
+    assert "| proposed | FSCAPS | proposed-fscaps-s0 |" in text and "114 (92 - 137)" in text
+    assert "| proposed | direct | direct |" in text and "sqrt(sum of squared distances)" in text
+    assert (tmp_path / "proposed" / "fig3.png").is_file() and (tmp_path / "proposed" / "table.tex").is_file()
+    reproduce_module.reproduce(**args, progress=False)
+    assert trained == ["proposed-fscaps-s0"]  # finished runs are skipped
+    with pytest.raises(ValueError, match="not a paper configuration"):
+        reproduce_module.reproduce(only=["proposed/sac"], out=tmp_path, config_dir=configs)

@@ -1,8 +1,19 @@
-"""hier_ssl: hierarchical RL path planning for RoboCup SSL (manager / worker / obstacles)."""
+"""hier_ssl: hierarchical RL path planning for RoboCup SSL (manager / worker / obstacles).
+
+The environment entry points are loaded on first use, so ``hier-ssl --help`` does not import torch.
+"""
 
 from __future__ import annotations
 
-from hier_ssl.envs import env, manager_env, parallel_env, vector_env
+from typing import Any
 
 __all__ = ["env", "manager_env", "parallel_env", "vector_env"]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        from hier_ssl import envs
+
+        return getattr(envs, name)
+    raise AttributeError(f"module 'hier_ssl' has no attribute {name!r}")

@@ -107,6 +107,8 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
     run_dir.mkdir(parents=True, exist_ok=True)
     if not resume:
         atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
+    if config.kind == "worker":
+        return _train_worker(config, run_dir, resume)
     env = VectorEnv(config.env, config.num_envs, config.device)
     if config.algo == "sac":
         policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress)
@@ -168,7 +170,24 @@ def _train_ppo(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool)
     return ppo_policy(runner), time.perf_counter() - start
 
 
+def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str, Any]:
+    """``kind: worker``: PPO on the goToPoint task, then the worker beside the scripted ones."""
+    from hier_ssl.envs.gotopoint import GoToPointEnv, worker_summary
+
+    torch.manual_seed(config.seed)
+    env = GoToPointEnv(config.env, config.gotopoint, config.num_envs, config.device, seed=config.seed)
+    policy, train_wall_s = _train_ppo(config, env, run_dir, resume)
+    summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)
+    summary["train_wall_s"] = round(train_wall_s, 1)
+    atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
+    return summary
+
+
 def print_summary(summary: dict[str, Any]) -> None:
+    if summary.get("task") == "gotopoint":
+        from hier_ssl.envs.gotopoint import print_worker_summary
+
+        return print_worker_summary(summary)
     length, cpad = summary["episode_length"], summary["cpad"]
     where = f"{summary['episodes']} episodes, task {summary['task']}, worker {summary['worker']}"
     print(f"| metric ({where}) | value |")

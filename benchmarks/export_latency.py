@@ -1,0 +1,88 @@
+"""Measurement, not CI: size and batch-1 inference time of an exported manager on one CPU thread.
+
+Exports RUN_DIR's manager as TorchScript and ONNX into a temporary folder, then times single-state calls
+(after 200 warm-up calls): TorchScript through ``torch.jit.load`` under ``torch.inference_mode``,
+ONNX through an onnxruntime session with one intra-op thread, and, for reference, the Python path that
+``hier_ssl.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``). Prints one line per
+path: file size, and the median and 90th percentile time per call.
+
+Run: python benchmarks/export_latency.py RUN_DIR [--calls 5000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from hier_ssl.manager import decode_subgoal, manager_observation
+from hier_ssl.policies.actor import load_actor
+from hier_ssl.policies.export import export_manager
+
+
+def _time(call, calls: int) -> tuple[float, float]:
+    for _ in range(200):
+        call()
+    times = np.empty(calls)
+    for i in range(calls):
+        start = time.perf_counter()
+        call()
+        times[i] = time.perf_counter() - start
+    return float(np.median(times)) * 1e6, float(np.percentile(times, 90)) * 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir")
+    parser.add_argument("--calls", type=int, default=5000)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    import onnxruntime
+
+    actor, config = load_actor(args.run_dir)
+    k = len(config.env.obstacles)
+    state = np.random.default_rng(0).uniform(-1.0, 1.0, (1, 11 + 5 * k)).astype(np.float32)
+    with tempfile.TemporaryDirectory() as tmp:
+        script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
+        onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
+        module = torch.jit.load(str(script))
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = options.inter_op_num_threads = 1
+        session = onnxruntime.InferenceSession(str(onnx), options, providers=["CPUExecutionProvider"])
+        x = torch.from_numpy(state)
+
+        def torchscript() -> None:
+            with torch.inference_mode():
+                module(x)
+
+        def onnx_call() -> None:
+            session.run(["subgoal"], {"state": state})
+
+        def python() -> None:
+            s = state.astype(np.float64)
+            obs = manager_observation(
+                s[:, 0:5], s[:, 5:7], s[:, 7], s[:, 8:10], s[:, 10], s[:, 11:].reshape(1, k, 5)[:, :, 0:2],
+                s[:, 11:].reshape(1, k, 5)[:, :, 2:4], s[:, 11:].reshape(1, k, 5)[:, :, 4], max_pos=3.8,
+            )  # fmt: skip
+            with torch.inference_mode():
+                action = actor(torch.from_numpy(obs)).numpy()
+            zero = config.env.task != "baseline"
+            decode_subgoal(action, config.env.action_form, 3.0, 2.0, zero_velocity=zero)
+
+        print(f"{args.run_dir}: {config.algo}, task {config.env.task}, {k} obstacle(s), batch 1, one thread")
+        for name, call, size in (
+            ("torchscript", torchscript, script.stat().st_size),
+            ("onnxruntime", onnx_call, onnx.stat().st_size),
+            ("python (numpy obs + torch actor + decode)", python, None),
+        ):
+            median, p90 = _time(call, args.calls)
+            where = f"{size:,} bytes, " if size else ""
+            print(f"  {name:42s} {where}median {median:7.1f} us, p90 {p90:7.1f} us per state")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,123 @@
+"""A trained run's deterministic policy as a plain, frozen torch module, read from its run directory.
+
+Both learners' actors are an MLP whose mean action is squashed into [-1, 1]: SAC's
+``SquashedGaussianActor`` (ReLU, output mean and log-std, action tanh(mean)) and rsl-rl's ``MLPModel``
+(ELU, output the Gaussian mean, clipped to [-1, 1] by ``ppo_policy``). ``load_actor`` rebuilds either as
+``nn.Sequential(Linear, act, ..., Linear, Tanh | Hardtanh)`` with only the mean's rows in the last layer:
+no rsl-rl, tensordict or distribution objects, so the module scripts and exports as it is. The layer
+sizes are read from the weights, so a checkpoint cannot disagree with the config about them.
+
+Checkpoints are read with ``torch.load(weights_only=True)``: ``best_actor.pt`` for SAC, the
+highest-numbered ``model_*.pt`` for PPO (rsl-rl keeps no "best"; the last is what training ended with).
+"""
+
+from __future__ import annotations
+
+import pickle
+import re
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from hier_ssl.config import ConfigError, TrainConfig, load_yaml, parse_config
+
+CONFIG_FILE, SAC_ACTOR_FILE = "config.yaml", "best_actor.pt"
+_PPO_FILE = re.compile(r"model_(\d+)\.pt")
+
+
+def freeze(module: nn.Module) -> nn.Module:
+    """``module`` in eval mode with every parameter's ``requires_grad`` off; returned for chaining."""
+    module.eval()
+    for parameter in module.parameters():
+        parameter.requires_grad_(False)
+    return module
+
+
+def _linear_layers(
+    state_dict: dict[str, torch.Tensor], prefix: str
+) -> list[tuple[torch.Tensor, torch.Tensor]]:
+    """(weight, bias) of every ``{prefix}{i}.weight`` in index order."""
+    found = {}
+    for key in state_dict:
+        match = re.fullmatch(re.escape(prefix) + r"(\d+)\.weight", key)
+        if match:
+            i = int(match.group(1))
+            found[i] = (state_dict[key], state_dict[f"{prefix}{i}.bias"])
+    return [found[i] for i in sorted(found)]
+
+
+def mean_actor(
+    state_dict: dict[str, torch.Tensor],
+    prefix: str,
+    activation: type[nn.Module],
+    out_dim: int,
+    squash: nn.Module,
+) -> nn.Sequential:
+    """An MLP from ``state_dict``'s ``{prefix}{i}`` linear layers, the last cut to its first ``out_dim``
+    rows, then ``squash``. Shape: (B, obs_dim) -> (B, out_dim)."""
+    layers = _linear_layers(state_dict, prefix)
+    if not layers:
+        raise ValueError(f"no '{prefix}<i>.weight' layers in the state dict")
+    modules: list[nn.Module] = []
+    for i, (weight, bias) in enumerate(layers):
+        last = i == len(layers) - 1
+        weight, bias = (weight[:out_dim], bias[:out_dim]) if last else (weight, bias)
+        linear = nn.Linear(weight.shape[1], weight.shape[0])
+        with torch.no_grad():
+            linear.weight.copy_(weight)
+            linear.bias.copy_(bias)
+        modules += [linear] if last else [linear, activation()]
+    return nn.Sequential(*modules, squash)
+
+
+def run_config(run_dir: str | Path) -> TrainConfig:
+    """The config a run was trained with; a ValueError names the run directory if it is not one."""
+    run_dir = Path(run_dir)
+    if not (run_dir / CONFIG_FILE).is_file():
+        raise ConfigError(f"{run_dir}: not a run directory (no {CONFIG_FILE})")
+    return parse_config(load_yaml(run_dir / CONFIG_FILE))
+
+
+def checkpoint_path(run_dir: str | Path, config: TrainConfig) -> Path:
+    """The file ``load_actor`` reads: ``best_actor.pt`` (SAC) or the last ``model_<iteration>.pt`` (PPO)."""
+    run_dir = Path(run_dir)
+    if config.algo == "sac":
+        path = run_dir / SAC_ACTOR_FILE
+        if not path.is_file():
+            raise ConfigError(f"{run_dir}: no usable checkpoint ({SAC_ACTOR_FILE} missing)")
+        return path
+    saved = [(int(m.group(1)), p) for p in run_dir.glob("model_*.pt") if (m := _PPO_FILE.fullmatch(p.name))]
+    if not saved:
+        raise ConfigError(f"{run_dir}: no usable checkpoint (no PPO model_<iteration>.pt)")
+    return max(saved)[1]
+
+
+def load_actor(run_dir: str | Path) -> tuple[nn.Sequential, TrainConfig]:
+    """The run's deterministic actor, frozen (eval mode, no gradients), and its config.
+
+    Shape of the actor: (B, obs_dim) float32 -> (B, act_dim) in [-1, 1]. ValueErrors (``ConfigError``)
+    name the run directory or the checkpoint file when either is unusable.
+    """
+    config = run_config(run_dir)
+    path = checkpoint_path(run_dir, config)
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+        if config.algo == "sac":
+            state = saved["actor"]
+            act_dim = _linear_layers(state, "net.")[-1][0].shape[0] // 2
+            actor = mean_actor(state, "net.", nn.ReLU, act_dim, nn.Tanh())
+        else:
+            state = saved["actor_state_dict"]
+            if any(key.startswith("obs_normalizer.") for key in state):
+                raise ValueError("actors with empirical observation normalisation are not supported")
+            act_dim = _linear_layers(state, "mlp.")[-1][0].shape[0]
+            actor = mean_actor(state, "mlp.", nn.ELU, act_dim, nn.Hardtanh(-1.0, 1.0))
+    except (KeyError, IndexError, RuntimeError, ValueError, EOFError, pickle.UnpicklingError) as err:
+        raise ConfigError(
+            f"{path}: not a usable {config.algo} checkpoint ({type(err).__name__}: {err})"
+        ) from None
+    return freeze(actor), config
+
+
+__all__ = ["checkpoint_path", "freeze", "load_actor", "mean_actor", "run_config"]

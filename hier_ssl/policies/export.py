@@ -1,0 +1,198 @@
+"""A trained manager as one self-contained file for robot software: TorchScript or ONNX.
+
+The exported graph takes the raw field-frame state and returns the sub-goal pose; the manager
+observation's normalisation (``hier_ssl.manager.observation``), the actor's deterministic (mean) action
+and the action decoding (``hier_ssl.manager.actions``) are all inside it::
+
+    state (B, 11 + 5K) float32, metres, radians, m/s, rad/s, field frame:
+        0-4    target x, y, theta, vx, vy
+        5-10   robot x, y, theta, vx, vy, w
+        11+5k  obstacle k: x, y, vx, vy, w
+    subgoal (B, 5) float32: x, y, theta in (-pi, pi], vx, vy (0 for pose4 and for the Proposed and
+        Obstacle tasks)
+
+Normalisation runs in float64, as the numpy observation builder does, and its result is rounded to
+float32 for the actor, so the file reproduces the Python policy to float32 rounding. The layout is
+also stored in the file (TorchScript extra file ``layout.json``, ONNX metadata ``layout``).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import warnings
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from hier_ssl.config import TrainConfig
+from hier_ssl.manager.actions import action_dim
+from hier_ssl.manager.observation import manager_obs_dim
+from hier_ssl.policies.actor import load_actor
+from hier_ssl.world.field import get_field
+from hier_ssl.world.physics import RobotSpec
+
+FORMATS = {"torchscript": ".pt", "onnx": ".onnx"}
+STATE_BASE_DIM = 11  # target 5 + robot 6
+OBSTACLE_STATE_DIM = 5
+OBS_CLIP = 1.2
+
+
+class ExportedManager(nn.Module):
+    """Raw state (B, 11 + 5K) -> sub-goal (B, 5): observation, actor mean, decoding, in one module."""
+
+    def __init__(
+        self,
+        actor: nn.Module,
+        num_obstacles: int,
+        action_form: str,
+        zero_velocity: bool,
+        half_length: float,
+        half_width: float,
+        max_pos: float,
+        max_v: float,
+        max_w: float,
+    ) -> None:
+        super().__init__()
+        self.actor = actor
+        self.num_obstacles = num_obstacles
+        self.pose6 = action_form == "pose6"
+        self.zero_velocity = zero_velocity or not self.pose6
+        self.half_length, self.half_width = half_length, half_width
+        self.max_pos, self.max_v, self.max_w = max_pos, max_v, max_w
+        self.clip = OBS_CLIP
+        per_obstacle = torch.tensor([max_pos, max_pos, max_v, max_v, max_w], dtype=torch.float64)
+        self.register_buffer("obstacle_scale", per_obstacle.repeat(num_obstacles))
+
+    def forward(self, state: torch.Tensor) -> torch.Tensor:
+        x = state.to(torch.float64)
+        parts = [
+            x[:, 0:2] / self.max_pos,  # target
+            torch.sin(x[:, 2:3]),
+            torch.cos(x[:, 2:3]),
+            x[:, 3:5] / self.max_v,
+            x[:, 5:7] / self.max_pos,  # robot
+            torch.sin(x[:, 7:8]),
+            torch.cos(x[:, 7:8]),
+            x[:, 8:10] / self.max_v,
+            x[:, 10:11] / self.max_w,
+        ]
+        if self.num_obstacles > 0:  # a (B, 0) slice would make ONNX infer a reshape by dividing by 0
+            parts.append(x[:, 11:] / self.obstacle_scale)
+        obs = torch.cat(parts, dim=1)
+        action = self.actor(torch.clamp(obs, -self.clip, self.clip).to(torch.float32))
+        xy = torch.clamp(action[:, 0:2], -1.0, 1.0)
+        xy = torch.cat([xy[:, 0:1] * self.half_length, xy[:, 1:2] * self.half_width], dim=1)
+        if self.pose6:
+            theta = torch.atan2(action[:, 4:5], action[:, 5:6])
+            vel = torch.clamp(action[:, 2:4], -1.0, 1.0) * self.max_v
+        else:
+            theta = torch.atan2(action[:, 2:3], action[:, 3:4])
+            vel = torch.zeros_like(xy)
+        if self.zero_velocity:
+            vel = torch.zeros_like(xy)
+        return torch.cat([xy, theta, vel], dim=1)
+
+
+def layout(config: TrainConfig) -> dict[str, object]:
+    """The exported file's input and output layout, as stored in it and printed by the CLI."""
+    k = len(config.env.obstacles)
+    obstacles = [f"obstacle{j}_{name}" for j in range(k) for name in ("x", "y", "vx", "vy", "w")]
+    return {
+        "input": "state",
+        "input_shape": ["batch", STATE_BASE_DIM + OBSTACLE_STATE_DIM * k],
+        "input_fields": ["target_x", "target_y", "target_theta", "target_vx", "target_vy"]
+        + ["robot_x", "robot_y", "robot_theta", "robot_vx", "robot_vy", "robot_w", *obstacles],
+        "output": "subgoal",
+        "output_shape": ["batch", 5],
+        "output_fields": ["x", "y", "theta", "vx", "vy"],
+        "units": "m, rad, m/s, rad/s; field frame, origin at the centre, x along the length",
+        "dtype": "float32",
+        "task": config.env.task,
+        "field": config.env.field,
+        "action_form": config.env.action_form,
+        "frame_skip": config.env.frame_skip,
+    }
+
+
+def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]:
+    """The manager trained in ``run_dir`` as an ``ExportedManager`` (frozen, eval mode), and its config."""
+    actor, config = load_actor(run_dir)
+    if config.kind != "manager":
+        raise ValueError(f"{run_dir}: a {config.kind} run; export takes a manager run")
+    env, k = config.env, len(config.env.obstacles)
+    in_dim, out_dim = actor[0].in_features, actor[-2].out_features
+    if (in_dim, out_dim) != (manager_obs_dim(k), action_dim(env.action_form)):
+        raise ValueError(
+            f"{run_dir}: actor maps {in_dim} -> {out_dim} values; its config needs "
+            f"{manager_obs_dim(k)} -> {action_dim(env.action_form)}"
+        )
+    field, robot = get_field(env.field), RobotSpec()
+    module = ExportedManager(
+        actor,
+        num_obstacles=k,
+        action_form=env.action_form,
+        zero_velocity=env.task != "baseline",
+        half_length=field.half_length,
+        half_width=field.half_width,
+        max_pos=field.max_pos,
+        max_v=robot.max_speed,
+        max_w=robot.max_ang_speed,
+    )
+    return module.eval(), config
+
+
+def export_manager(run_dir: str | Path, fmt: str, out: str | Path | None = None) -> Path:
+    """Write the manager of ``run_dir`` as ``fmt`` ("torchscript" or "onnx") to ``out`` (default:
+    ``RUN_DIR/manager.pt`` or ``RUN_DIR/manager.onnx``). Returns the path written."""
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown export format {fmt!r}; expected one of {sorted(FORMATS)}")
+    module, config = exported_manager(run_dir)
+    out = Path(out) if out is not None else Path(run_dir) / f"manager{FORMATS[fmt]}"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    example = torch.zeros(2, STATE_BASE_DIM + OBSTACLE_STATE_DIM * module.num_obstacles)
+    meta = json.dumps(layout(config))
+    if fmt == "torchscript":
+        with warnings.catch_warnings():  # torch 2.13 deprecates TorchScript; C++ stacks still load it
+            warnings.simplefilter("ignore", DeprecationWarning)
+            torch.jit.save(torch.jit.script(module), str(out), _extra_files={"layout.json": meta})
+    else:
+        _export_onnx(module, example, out, meta)
+    return out
+
+
+def _export_onnx(module: ExportedManager, example: torch.Tensor, out: Path, meta: str) -> None:
+    import onnx
+
+    # The exporter logs about optional packages (torchvision) and deprecations that concern it, not us.
+    onnx_logger = logging.getLogger("torch.onnx")
+    level = onnx_logger.level
+    onnx_logger.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _torch_onnx_export(module, example, out)
+    finally:
+        onnx_logger.setLevel(level)
+    model = onnx.load(str(out))
+    entry = model.metadata_props.add()
+    entry.key, entry.value = "layout", meta
+    onnx.save(model, str(out))
+
+
+def _torch_onnx_export(module: ExportedManager, example: torch.Tensor, out: Path) -> None:
+    torch.onnx.export(
+        module,
+        (example,),
+        str(out),
+        input_names=["state"],
+        output_names=["subgoal"],
+        dynamic_shapes=({0: torch.export.Dim("batch")},),
+        dynamo=True,
+        external_data=False,  # one file: the weights inside the graph
+        verbose=False,
+    )
+
+
+__all__ = ["FORMATS", "ExportedManager", "export_manager", "exported_manager", "layout"]

@@ -1,0 +1,185 @@
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hier_ssl import cli
+from hier_ssl.config import PPOConfig, TrainConfig, dump_config, parse_config
+from hier_ssl.envs import vector_env
+from hier_ssl.manager import decode_subgoal, manager_observation
+from hier_ssl.policies.export import export_manager, layout
+from hier_ssl.policies.networks import SquashedGaussianActor
+from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
+
+STATES = 1000
+
+# Runs in a fresh interpreter that never imports hier_ssl, as a robot's software would: every exported
+# file of the session in one process (an interpreter that imports torch takes seconds to start).
+_LOAD_AND_RUN = """
+import json
+import sys
+import numpy as np
+import onnxruntime
+import torch
+
+out = {}
+for name, path, states in json.loads(sys.argv[1]):
+    x = np.load(states)
+    if path.endswith(".onnx"):
+        session = onnxruntime.InferenceSession(path, providers=["CPUExecutionProvider"])
+        out[name] = session.run(["subgoal"], {"state": x})[0]
+        out[name + "_meta"] = np.array(session.get_modelmeta().custom_metadata_map["layout"])
+    else:
+        with torch.no_grad():
+            out[name] = torch.jit.load(path)(torch.from_numpy(x)).numpy()
+assert not any(name.split(".")[0] == "hier_ssl" for name in sys.modules), "hier_ssl was imported"
+np.savez(sys.argv[2], **out)
+"""
+VARIANTS = {
+    # name: (learner, env settings, export formats)
+    "ppo_obstacle": (
+        "ppo",
+        {"task": "obstacle", "obstacles": [{}], "min_start_distance": 0.6},
+        ("torchscript", "onnx"),
+    ),
+    "sac_proposed": ("sac", {"task": "proposed", "frame_skip": 16}, ("torchscript",)),
+    "sac_baseline_pose6": ("sac", {"task": "baseline", "action_form": "pose6"}, ("torchscript",)),
+}
+
+
+def _config(algo: str, **env: object) -> TrainConfig:
+    return parse_config({"algo": algo, "env": env, "sac": {"hidden": [32, 32]}, "ppo": {"hidden": [32, 32]}})
+
+
+def _sac_run(run_dir: Path, **env: object):
+    """A run directory with a random SAC actor; returns its config and the Python policy."""
+    config = _config("sac", **env)
+    torch.manual_seed(1)
+    probe = vector_env(config.env, num_envs=1)
+    actor = SquashedGaussianActor(probe.num_obs, probe.num_actions, hidden=(32, 32))
+    with torch.no_grad():  # a wider spread than the initial weights, so decoding and clipping get exercised
+        for p in actor.parameters():
+            p.mul_(3.0)
+    run_dir.mkdir()
+    (run_dir / "config.yaml").write_text(dump_config(config))
+    torch.save({"actor": actor.state_dict(), "step": 0}, run_dir / "best_actor.pt")
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return actor.deterministic(torch.from_numpy(obs)).numpy()
+
+    return config, policy
+
+
+def _ppo_run(run_dir: Path, **env: object):
+    """A run directory with an rsl-rl PPO checkpoint; returns its config and the Python policy."""
+    config = _config("ppo", **env)
+    torch.manual_seed(2)
+    runner = make_ppo_runner(vector_env(config.env, num_envs=2), PPOConfig(hidden=(32, 32)), log_dir=None)
+    with torch.no_grad():
+        for p in runner.alg.get_policy().parameters():
+            p.mul_(3.0)
+    run_dir.mkdir()
+    (run_dir / "config.yaml").write_text(dump_config(config))
+    runner.save(str(run_dir / "model_7.pt"))
+    return config, ppo_policy(runner)
+
+
+def _states(num_obstacles: int, seed: int = 0) -> np.ndarray:
+    """Raw states, some beyond the field and the speed limits so the observation's clipping matters."""
+    rng = np.random.default_rng(seed)
+    one = [3.5, 2.5, np.pi, 3.0, 3.0]  # x, y, theta, vx, vy
+    scale = np.array(one + [*one, 12.0] + [3.5, 2.5, 3.0, 3.0, 12.0] * num_obstacles)
+    return (rng.uniform(-1.0, 1.0, (STATES, len(scale))) * scale).astype(np.float32)
+
+
+def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> np.ndarray:
+    """The reference: the numpy observation builder, the actor, and ``decode_subgoal``."""
+    x = states.astype(np.float64)
+    k = len(config.env.obstacles)
+    obstacles = x[:, 11:].reshape(len(x), k, 5)
+    obs = manager_observation(
+        x[:, 0:5], x[:, 5:7], x[:, 7], x[:, 8:10], x[:, 10], obstacles[:, :, 0:2], obstacles[:, :, 2:4],
+        obstacles[:, :, 4], max_pos=3.8, max_v=2.5, max_w=10.0,
+    )  # fmt: skip
+    action = policy(obs)
+    form, zero = config.env.action_form, config.env.task != "baseline"
+    return decode_subgoal(np.clip(action, -1.0, 1.0), form, 3.0, 2.0, 2.5, zero_velocity=zero)
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """Every variant exported, and run in one fresh interpreter: {variant: (config, states, want, got)}."""
+    root = tmp_path_factory.mktemp("export")
+    jobs, cases = [], {}
+    for name, (algo, env, formats) in VARIANTS.items():
+        run_dir = root / name
+        config, policy = (_ppo_run if algo == "ppo" else _sac_run)(run_dir, **env)
+        states = _states(len(config.env.obstacles), seed=len(jobs))
+        np.save(root / f"{name}.npy", states)
+        for fmt in formats:
+            path = export_manager(run_dir, fmt)
+            assert not path.with_name(path.name + ".data").exists()  # the weights are inside the file
+            jobs.append([f"{name}_{fmt}", str(path), str(root / f"{name}.npy")])
+        cases[name] = (config, states, _python_subgoals(states, config, policy))
+    (root / "load.py").write_text(_LOAD_AND_RUN)
+    command = [sys.executable, "-I", str(root / "load.py"), json.dumps(jobs), str(root / "out.npz")]
+    subprocess.run(command, check=True, cwd=root)
+    got = dict(np.load(root / "out.npz"))
+    return {
+        name: (*case, {k[len(name) + 1 :]: v for k, v in got.items() if k.startswith(name)})
+        for name, case in cases.items()
+    }
+
+
+def _assert_same_subgoals(got: np.ndarray, want: np.ndarray) -> None:
+    assert got.shape == want.shape == (STATES, 5) and got.dtype == np.float32
+    np.testing.assert_allclose(got[:, [0, 1, 3, 4]], want[:, [0, 1, 3, 4]], rtol=0, atol=1e-5)
+    # Angles compare on the circle: +pi and -pi name the same heading.
+    turn = np.angle(np.exp(1j * (got[:, 2].astype(np.float64) - want[:, 2])))
+    np.testing.assert_allclose(turn, 0.0, atol=1e-5)
+
+
+@pytest.mark.parametrize("variant", list(VARIANTS))
+def test_exported_files_match_the_python_policy(exported: dict, variant: str) -> None:
+    config, states, want, got = exported[variant]
+    formats = VARIANTS[variant][2]
+    assert sorted(k for k in got if not k.endswith("_meta")) == sorted(formats)
+    for fmt in formats:
+        _assert_same_subgoals(got[fmt], want)
+    if "onnx" in formats:
+        assert json.loads(str(got["onnx_meta"])) == layout(config)
+    assert len(layout(config)["input_fields"]) == states.shape[1] == 11 + 5 * len(config.env.obstacles)
+    # The Baseline's pose6 sub-goal carries a velocity; the other tasks' sub-goals are at rest.
+    assert np.any(want[:, 3:5] != 0) == (config.env.task == "baseline")
+
+
+def test_export_writes_one_file_where_asked(tmp_path: Path) -> None:
+    _sac_run(tmp_path / "run", task="proposed")
+    assert export_manager(tmp_path / "run", "torchscript") == tmp_path / "run" / "manager.pt"
+    out = export_manager(tmp_path / "run", "torchscript", tmp_path / "deploy" / "m.pt")
+    assert sorted(p.name for p in out.parent.iterdir()) == ["m.pt"]
+    with pytest.raises(ValueError, match="unknown export format 'tflite'"):
+        export_manager(tmp_path / "run", "tflite")
+
+
+def test_export_command_and_its_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _sac_run(tmp_path / "run", task="proposed")
+    assert cli.main(["export", str(tmp_path / "run"), "--out", str(tmp_path / "m.pt")]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {tmp_path / 'm.pt'} (")
+    assert cli.main(["export", str(tmp_path / "nowhere")]) == 1
+    assert "nowhere: not a run directory" in capsys.readouterr().err
+    (tmp_path / "run" / "best_actor.pt").unlink()
+    assert cli.main(["export", str(tmp_path / "run")]) == 1
+    assert "no usable checkpoint (best_actor.pt missing)" in capsys.readouterr().err
+    worker_run = tmp_path / "worker"
+    worker_run.mkdir()
+    (worker_run / "config.yaml").write_text(dump_config(parse_config({"kind": "worker", "algo": "ppo"})))
+    assert cli.main(["export", str(worker_run)]) == 1
+    assert "model_<iteration>.pt" in capsys.readouterr().err

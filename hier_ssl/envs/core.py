@@ -25,8 +25,9 @@ from hier_ssl.manager import (
 )
 from hier_ssl.worker import make_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
+from hier_ssl.world.field import Field
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import RobotState, World
+from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 OBSTACLE_OBS_DIM = 7
 
@@ -50,6 +51,21 @@ def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.nd
     if not np.isfinite(action).all():
         raise ValueError(f"action of {name} holds NaN or infinite values: {action.tolist()}")
     return action
+
+
+def controlled_worker_observation(
+    state: RobotState, subgoal: np.ndarray, robot: RobotSpec, field: Field
+) -> np.ndarray:
+    """The worker observation (N, 9) of robot 0 of every field towards ``subgoal`` (N, 5)."""
+    return worker_observation(
+        state.pos[:, 0],
+        state.angle[:, 0],
+        state.vel[:, 0],
+        state.ang_vel[:, 0],
+        subgoal,
+        robot,
+        field.max_pos,
+    )
 
 
 class HierarchicalCore:
@@ -168,16 +184,7 @@ class HierarchicalCore:
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, 9) float32."""
-        s = self.state
-        return worker_observation(
-            s.pos[:, 0],
-            s.angle[:, 0],
-            s.vel[:, 0],
-            s.ang_vel[:, 0],
-            self.subgoal,
-            self.robot,
-            self.field.max_pos,
-        )
+        return controlled_worker_observation(self.state, self.subgoal, self.robot, self.field)
 
     def observe_obstacle(self, j: int) -> np.ndarray:
         """Obstacle ``j``'s view of itself (N, 7): position, sin/cos heading, velocity, angular velocity."""

@@ -19,10 +19,11 @@ import numpy as np
 import torch
 
 from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig
-from hier_ssl.envs.core import StepResult, check_action
+from hier_ssl.envs.core import StepResult, check_action, controlled_worker_observation
+from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
 from hier_ssl.worker.learned import LearnedWorker, WorkerPolicy
-from hier_ssl.worker.observation import WORKER_OBS_DIM, worker_observation
+from hier_ssl.worker.observation import WORKER_OBS_DIM
 from hier_ssl.worker.rewards import gotopoint_reward, pose_potential
 from hier_ssl.world.physics import World, to_robot_frame
 
@@ -112,16 +113,7 @@ class GoToPointCore:
 
     def observe(self) -> np.ndarray:
         """Worker observations (N, 9) float32."""
-        s = self.world.state
-        return worker_observation(
-            s.pos[:, 0],
-            s.angle[:, 0],
-            s.vel[:, 0],
-            s.ang_vel[:, 0],
-            self.subgoal,
-            self.robot,
-            self.field.max_pos,
-        )
+        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field)
 
     def step_command(self, command: np.ndarray) -> StepResult:
         """``step`` with robot-frame commands (N, 3) in m/s and rad/s, as scripted workers give them."""
@@ -191,7 +183,7 @@ class GoToPointCore:
         return StepResult(obs, reward.astype(np.float32), terminated, truncated, info)
 
 
-class GoToPointEnv:
+class GoToPointEnv(TorchView):
     """The batched torch view of ``GoToPointCore`` (auto-reset), with ``VectorEnv``'s protocol, so that
     ``RslRlVecEnv`` and ``make_ppo_runner`` take it as they are.
 
@@ -209,36 +201,9 @@ class GoToPointEnv:
         seed: int | None = None,
     ) -> None:
         self.config, self.task = config, task
-        self.core = GoToPointCore(config, task, num_envs, autoreset=True)
-        self.core.rng = np.random.default_rng(seed)
-        self.num_envs = num_envs
-        self.num_obs, self.num_actions = WORKER_OBS_DIM, ACT_DIM
-        self.device = torch.device(device)
-        self.max_episode_length = config.max_steps
-
-    def _tensor(self, array: np.ndarray, dtype: torch.dtype = torch.float32) -> torch.Tensor:
-        return torch.as_tensor(array, device=self.device).to(dtype)
-
-    def reset(self, seed: int | None = None) -> torch.Tensor:
-        return self._tensor(self.core.reset(seed))
-
-    def observe(self) -> torch.Tensor:
-        return self._tensor(self.core.observe())
-
-    def step(
-        self, actions: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict]:
-        result = self.core.step(actions.detach().to("cpu", torch.float64).numpy())
-        info = result.info
-        episode = {k: self._tensor(v) for k, v in info["episode"].items() if k != "field"}
-        out = {"final_obs": self._tensor(info["final_obs"]), "episode": episode}
-        return (
-            self._tensor(result.obs),
-            self._tensor(result.reward),
-            self._tensor(result.terminated, torch.bool),
-            self._tensor(result.truncated, torch.bool),
-            out,
-        )
+        core = GoToPointCore(config, task, num_envs, autoreset=True)
+        core.rng = np.random.default_rng(seed)
+        super().__init__(core, WORKER_OBS_DIM, ACT_DIM, config.max_steps, device)
 
 
 def evaluate_worker(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import torch
 from rsl_rl.env import VecEnv
@@ -11,24 +13,31 @@ from hier_ssl.config import EnvConfig
 from hier_ssl.envs.core import HierarchicalCore
 
 
-class VectorEnv:
-    """N fields of one task; managers act, scripted workers and obstacles run inside.
+class TorchView:
+    """A numpy core with auto-reset, seen through torch tensors; the cores' shared vector protocol.
 
     ``step(actions (N, A) in [-1, 1])`` returns obs (N, O) float32, reward (N,), terminated (N,),
     truncated (N,), info. Finished fields are reset inside the step: ``obs`` is already the new
     episode's first observation and ``info["final_obs"]`` the last one of the old episode;
-    ``info["episode"]`` holds one 1-D tensor entry per finished episode (return, length in control
-    steps, success, collision, cpad).
+    ``info["episode"]`` holds one 1-D tensor entry per finished episode.
     """
 
-    def __init__(self, config: EnvConfig, num_envs: int, device: str | torch.device = "cpu") -> None:
-        self.config = config
-        self.core = HierarchicalCore(config, num_envs, autoreset=True)
-        self.num_envs = num_envs
-        self.num_obs = self.core.obs_dim
-        self.num_actions = self.core.act_dim
+    # Per-field info arrays a core may report besides "final_obs" and "episode", passed on as tensors.
+    _PER_FIELD = ("control_steps", "action_clipped")
+
+    def __init__(
+        self,
+        core: Any,
+        num_obs: int,
+        num_actions: int,
+        max_episode_length: int,
+        device: str | torch.device = "cpu",
+    ) -> None:
+        self.core = core
+        self.num_envs = core.num_fields
+        self.num_obs, self.num_actions = num_obs, num_actions
+        self.max_episode_length = max_episode_length
         self.device = torch.device(device)
-        self.max_episode_length = -(-config.max_steps // config.frame_skip)  # in decisions
 
     def _tensor(self, array: np.ndarray, dtype: torch.dtype = torch.float32) -> torch.Tensor:
         return torch.as_tensor(array, device=self.device).to(dtype)
@@ -44,13 +53,13 @@ class VectorEnv:
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict]:
         result = self.core.step(actions.detach().to("cpu", torch.float64).numpy())
         info = result.info
-        episode = {k: self._tensor(v, torch.float32) for k, v in info["episode"].items() if k != "field"}
         out = {
             "final_obs": self._tensor(info["final_obs"]),
-            "episode": episode,
-            "control_steps": self._tensor(info["control_steps"], torch.int64),
-            "action_clipped": self._tensor(info["action_clipped"], torch.int64),
+            "episode": {k: self._tensor(v) for k, v in info["episode"].items() if k != "field"},
         }
+        for key in self._PER_FIELD:
+            if key in info:
+                out[key] = self._tensor(info[key], torch.int64)
         return (
             self._tensor(result.obs),
             self._tensor(result.reward),
@@ -58,6 +67,19 @@ class VectorEnv:
             self._tensor(result.truncated, torch.bool),
             out,
         )
+
+
+class VectorEnv(TorchView):
+    """N fields of one paper task; managers act, scripted workers and obstacles run inside.
+
+    ``info["episode"]`` entries: return, length in control steps, decisions, success, collision, cpad.
+    """
+
+    def __init__(self, config: EnvConfig, num_envs: int, device: str | torch.device = "cpu") -> None:
+        self.config = config
+        core = HierarchicalCore(config, num_envs, autoreset=True)
+        decisions = -(-config.max_steps // config.frame_skip)
+        super().__init__(core, core.obs_dim, core.act_dim, decisions, device)
 
 
 class RslRlVecEnv(VecEnv):

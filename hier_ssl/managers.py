@@ -8,14 +8,14 @@ A run directory (``hier_ssl.train``) holds ``config.yaml`` and, for SAC, ``best_
 
 from __future__ import annotations
 
-import contextlib
-import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import EnvConfig, TrainConfig, load_yaml, parse_config
+import numpy as np
+
+from hier_ssl.config import EnvConfig, TrainConfig
 from hier_ssl.evaluate import Policy, evaluate
 from hier_ssl.manager import action_dim, manager_obs_dim
 from hier_ssl.manager.planners import PLANNERS, make_planner
@@ -31,14 +31,13 @@ def manager_name(spec: str | Path) -> str:
 
 
 def run_config(run_dir: str | Path) -> TrainConfig:
-    """The TrainConfig a run was trained with; ValueError if ``run_dir`` is not a run directory."""
-    run_dir = Path(run_dir)
-    if not run_dir.is_dir():
+    """The TrainConfig a run was trained with; ValueError if ``run_dir`` is neither a planner nor a run."""
+    from hier_ssl.policies.actor import run_config as saved_config
+
+    if not Path(run_dir).is_dir():
         known = ", ".join(PLANNERS)
         raise ValueError(f"manager {str(run_dir)!r} is neither a planner ({known}) nor a run directory")
-    if not (run_dir / "config.yaml").is_file():
-        raise ValueError(f"run directory {run_dir} has no config.yaml")
-    return parse_config(load_yaml(run_dir / "config.yaml"))
+    return saved_config(run_dir)
 
 
 def load_manager(spec: str | Path, env_config: EnvConfig) -> Policy:
@@ -49,6 +48,10 @@ def load_manager(spec: str | Path, env_config: EnvConfig) -> Policy:
     """
     if is_planner(spec):
         return make_planner(str(spec), env_config)
+    import torch
+
+    from hier_ssl.policies.actor import load_actor
+
     run_dir = Path(spec)
     config = run_config(run_dir)
     obs_dim, act_dim = manager_obs_dim(len(env_config.obstacles)), action_dim(env_config.action_form)
@@ -58,43 +61,13 @@ def load_manager(spec: str | Path, env_config: EnvConfig) -> Policy:
             f"{run_dir} was trained with observations/actions of size {trained}, "
             f"the {env_config.task} environment has {(obs_dim, act_dim)}"
         )
-    if config.algo == "sac":
-        return _load_sac(run_dir, config, obs_dim, act_dim)
-    return _load_ppo(run_dir, config, env_config)
+    actor, _ = load_actor(run_dir)
 
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
 
-def _load_sac(run_dir: Path, config: TrainConfig, obs_dim: int, act_dim: int) -> Policy:
-    import torch
-
-    from hier_ssl.policies.networks import SquashedGaussianActor
-    from hier_ssl.train import sac_policy
-
-    if (run_dir / "best_actor.pt").is_file():
-        state = torch.load(run_dir / "best_actor.pt", weights_only=True, map_location="cpu")["actor"]
-    elif (run_dir / "model.pt").is_file():
-        state = torch.load(run_dir / "model.pt", weights_only=True, map_location="cpu")["sac"]["actor"]
-    else:
-        raise ValueError(f"run directory {run_dir} has neither best_actor.pt nor model.pt")
-    actor = SquashedGaussianActor(obs_dim, act_dim, config.sac.hidden)
-    try:
-        actor.load_state_dict(state)
-    except RuntimeError as err:
-        raise ValueError(f"{run_dir}: actor checkpoint does not match config.yaml ({err})") from None
-    actor.eval()
-    return sac_policy(actor)
-
-
-def _load_ppo(run_dir: Path, config: TrainConfig, env_config: EnvConfig) -> Policy:
-    from hier_ssl.envs.vector import VectorEnv
-    from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
-
-    saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
-    if not saved:
-        raise ValueError(f"PPO run directory {run_dir} has no model_*.pt")
-    with contextlib.redirect_stdout(io.StringIO()):  # rsl-rl prints its networks on construction
-        runner = make_ppo_runner(VectorEnv(env_config, 1), config.ppo, None, "cpu")
-    load_ppo(runner, saved[-1])
-    return ppo_policy(runner)
+    return policy
 
 
 PLANNER_FRAME_SKIP = 16  # the paper's FSCAPS decision period, unless --frame-skip says otherwise

@@ -85,7 +85,7 @@ def test_eval_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
     cases = [
         (["eval", "astar"], "neither a planner (direct, sampling) nor a run directory"),
         (["eval", str(run), "--task", "obstacle"], "trained with observations/actions of size (13, 4)"),
-        (["eval", str(tmp_path)], "has no config.yaml"),
+        (["eval", str(tmp_path)], "no config.yaml"),
     ]
     for argv, message in cases:
         assert cli.main([*argv, "--episodes", "2", "--out", str(tmp_path / "out")]) == 1

@@ -1,0 +1,165 @@
+"""The manager's observation for many robots: target, own state and the K nearest other robots.
+
+Layout, 13 values (the paper's observation without obstacles, SPEC "Manager observation") then 6 per
+neighbour slot, nearest first::
+
+    0-12      as ``hier_ssl.manager.observation`` with K = 0
+    13+6k     neighbour k: relative x, y / max_pos, relative vx, vy / max_v, teammate, present
+
+"Relative" is the neighbour's value minus the robot's own, in the field frame. ``teammate`` is 1 for
+another controlled robot and 0 for an obstacle; ``present`` is 1 for a real neighbour and 0 for a padding
+slot (all six values 0) when fewer than K other robots exist. The width depends on K only, not on how many
+robots a scenario has, so one policy serves every robot count. Positions and velocities are clipped to
+[-clip, clip] like the rest of the observation. Read it through ``NEIGHBOUR_OBS_SLICES`` and
+``neighbour_obs_slice``. The paper's 1-obstacle layout stays in ``hier_ssl.manager.observation``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hier_ssl.manager.observation import (
+    MANAGER_OBS_BASE_DIM,
+    MANAGER_OBS_SLICES,
+    OBSTACLE_OBS_DIM,
+    check_array,
+    manager_observation,
+)
+
+NEIGHBOUR_OBS_DIM = 6
+
+# Offsets inside one neighbour's block; `neighbour_obs_slice` gives the block itself.
+NEIGHBOUR_OBS_SLICES: dict[str, slice] = {
+    "rel_pos": slice(0, 2),
+    "rel_vel": slice(2, 4),
+    "teammate": slice(4, 5),
+    "present": slice(5, 6),
+}
+
+
+def neighbour_obs_dim(k: int) -> int:
+    """Length of the observation with ``k`` neighbour slots."""
+    if k < 0:
+        raise ValueError(f"number of neighbour slots must be >= 0, got {k}")
+    return MANAGER_OBS_BASE_DIM + NEIGHBOUR_OBS_DIM * k
+
+
+def neighbour_obs_slice(k: int) -> slice:
+    """Columns of neighbour slot ``k`` (0-based, 0 the nearest)."""
+    if k < 0:
+        raise ValueError(f"neighbour index must be >= 0, got {k}")
+    start = MANAGER_OBS_BASE_DIM + NEIGHBOUR_OBS_DIM * k
+    return slice(start, start + NEIGHBOUR_OBS_DIM)
+
+
+def nearest(pos: ArrayLike, others_pos: ArrayLike, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the ``k`` other robots nearest to each robot, nearest first (ties: lower index first).
+
+    Args:
+        pos: (B, 2) m. others_pos: (B, J, 2) m, J >= 0.
+
+    Returns:
+        index (B, k) int into the J axis and present (B, k) bool; slots past J are padding (index 0,
+        present False).
+    """
+    pos = check_array("pos", pos, (None, 2))
+    others_pos = check_array("others_pos", others_pos, (pos.shape[0], None, 2))
+    b, j = others_pos.shape[:2]
+    dist = np.linalg.norm(others_pos - pos[:, None, :], axis=2)
+    order = np.argsort(dist, axis=1, kind="stable")[:, :k]
+    index = np.zeros((b, k), dtype=np.int64)
+    index[:, : order.shape[1]] = order
+    present = np.zeros((b, k), dtype=bool)
+    present[:, :j] = True
+    return index, present
+
+
+def neighbour_observation(
+    target: ArrayLike,
+    pos: ArrayLike,
+    angle: ArrayLike,
+    vel: ArrayLike,
+    ang_vel: ArrayLike,
+    others_pos: ArrayLike,
+    others_vel: ArrayLike,
+    teammate: ArrayLike,
+    k: int,
+    *,
+    max_pos: float = 3.8,
+    max_v: float = 2.5,
+    max_w: float = 10.0,
+    clip: float = 1.2,
+) -> np.ndarray:
+    """Observations of B robots, each seeing its ``k`` nearest other robots.
+
+    Args:
+        target: (B, 5) x, y, theta, vx, vy. pos: (B, 2). angle: (B,). vel: (B, 2). ang_vel: (B,).
+        others_pos, others_vel: (B, J, 2) every other robot of the robot's field (teammates and
+            obstacles), field frame. teammate: (B, J) bool, which of them are controlled robots.
+        k: neighbour slots; max_pos, max_v, max_w, clip: as in ``manager_observation``.
+
+    Returns:
+        (B, 13 + 6k) float32, laid out as in the module docstring.
+    """
+    base = manager_observation(
+        target,
+        pos,
+        angle,
+        vel,
+        ang_vel,
+        np.zeros((len(angle), 0, 2)),
+        np.zeros((len(angle), 0, 2)),
+        np.zeros((len(angle), 0)),
+        max_pos=max_pos,
+        max_v=max_v,
+        max_w=max_w,
+        clip=clip,
+    )
+    b = base.shape[0]
+    others_vel = check_array("others_vel", others_vel, np.shape(others_pos))
+    teammate = np.asarray(teammate, dtype=bool)
+    if teammate.shape != np.shape(others_pos)[:2]:
+        raise ValueError(f"teammate must have shape {np.shape(others_pos)[:2]}, got {teammate.shape}")
+    index, present = nearest(pos, others_pos, k)
+    rows = np.arange(b)[:, None]
+    rel_pos = (np.asarray(others_pos)[rows, index] - np.asarray(pos)[:, None]) / max_pos
+    rel_vel = (others_vel[rows, index] - np.asarray(vel)[:, None]) / max_v
+    flags = np.stack([teammate[rows, index], present], axis=2)
+    blocks = np.concatenate([np.clip(rel_pos, -clip, clip), np.clip(rel_vel, -clip, clip), flags], axis=2)
+    # Padding slots are all zeros, whatever robot their placeholder index points at.
+    blocks *= present[..., None]
+    return np.concatenate([base, blocks.reshape(b, NEIGHBOUR_OBS_DIM * k).astype(np.float32)], axis=1)
+
+
+def as_obstacle_observation(obs: ArrayLike) -> np.ndarray:
+    """The paper's layout (B, 13 + 5P) of neighbour observations (B, 13 + 6k), for code that reads obstacles
+    that way (the scripted planners of ``hier_ssl.manager.planners``).
+
+    Every row must have the same number P of present neighbours (true of an env whose robots are all
+    observable: P = min(k, robots - 1)). Neighbours become obstacles at absolute positions and velocities:
+    own value plus the relative one, both already on the same scale. The angular velocity, which the
+    neighbour layout lacks, is 0.
+    """
+    obs = check_array("obs", obs, (None, None))
+    b, width = obs.shape
+    k, rest = divmod(width - MANAGER_OBS_BASE_DIM, NEIGHBOUR_OBS_DIM)
+    if width < MANAGER_OBS_BASE_DIM or rest:
+        raise ValueError(f"obs must have 13 + 6k columns, got {width}")
+    blocks = obs[:, MANAGER_OBS_BASE_DIM:].reshape(b, k, NEIGHBOUR_OBS_DIM)
+    present = blocks[:, :, NEIGHBOUR_OBS_SLICES["present"]][..., 0] > 0.5
+    p = int(present[0].sum()) if b else 0
+    if not (present[:, :p].all() and not present[:, p:].any()):
+        raise ValueError("as_obstacle_observation needs the same number of present neighbours in every row")
+    s = MANAGER_OBS_SLICES
+    obstacles = np.concatenate(
+        [
+            obs[:, None, s["robot_pos"]] + blocks[:, :p, NEIGHBOUR_OBS_SLICES["rel_pos"]],
+            obs[:, None, s["robot_vel"]] + blocks[:, :p, NEIGHBOUR_OBS_SLICES["rel_vel"]],
+            np.zeros((b, p, 1)),
+        ],
+        axis=2,
+    )
+    return np.concatenate(
+        [obs[:, :MANAGER_OBS_BASE_DIM], obstacles.reshape(b, OBSTACLE_OBS_DIM * p)], axis=1
+    ).astype(np.float32)

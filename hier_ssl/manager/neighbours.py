@@ -25,6 +25,8 @@ from hier_ssl.manager.observation import (
     OBSTACLE_OBS_DIM,
     check_array,
     manager_observation,
+    slot_slice,
+    slots_dim,
 )
 
 NEIGHBOUR_OBS_DIM = 6
@@ -40,17 +42,12 @@ NEIGHBOUR_OBS_SLICES: dict[str, slice] = {
 
 def neighbour_obs_dim(k: int) -> int:
     """Length of the observation with ``k`` neighbour slots."""
-    if k < 0:
-        raise ValueError(f"number of neighbour slots must be >= 0, got {k}")
-    return MANAGER_OBS_BASE_DIM + NEIGHBOUR_OBS_DIM * k
+    return slots_dim(k, NEIGHBOUR_OBS_DIM, "number of neighbour slots")
 
 
 def neighbour_obs_slice(k: int) -> slice:
     """Columns of neighbour slot ``k`` (0-based, 0 the nearest)."""
-    if k < 0:
-        raise ValueError(f"neighbour index must be >= 0, got {k}")
-    start = MANAGER_OBS_BASE_DIM + NEIGHBOUR_OBS_DIM * k
-    return slice(start, start + NEIGHBOUR_OBS_DIM)
+    return slot_slice(k, NEIGHBOUR_OBS_DIM, "neighbour index")
 
 
 def nearest(pos: ArrayLike, others_pos: ArrayLike, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -57,19 +57,29 @@ def check_array(name: str, value: ArrayLike, shape: tuple[int | None, ...]) -> n
     return array
 
 
+def slots_dim(count: int, width: int, name: str) -> int:
+    """Length of an observation of the 13 base values and ``count`` slots of ``width`` values each."""
+    if count < 0:
+        raise ValueError(f"{name} must be >= 0, got {count}")
+    return MANAGER_OBS_BASE_DIM + width * count
+
+
+def slot_slice(k: int, width: int, name: str) -> slice:
+    """Columns of slot ``k`` (0-based) after the 13 base values, slots being ``width`` values wide."""
+    if k < 0:
+        raise ValueError(f"{name} must be >= 0, got {k}")
+    start = MANAGER_OBS_BASE_DIM + width * k
+    return slice(start, start + width)
+
+
 def manager_obs_dim(num_obstacles: int) -> int:
     """Length of the manager observation with `num_obstacles` obstacles."""
-    if num_obstacles < 0:
-        raise ValueError(f"num_obstacles must be >= 0, got {num_obstacles}")
-    return MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * num_obstacles
+    return slots_dim(num_obstacles, OBSTACLE_OBS_DIM, "num_obstacles")
 
 
 def obstacle_obs_slice(k: int) -> slice:
     """Columns of obstacle `k` (0-based) in the manager observation."""
-    if k < 0:
-        raise ValueError(f"obstacle index must be >= 0, got {k}")
-    start = MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k
-    return slice(start, start + OBSTACLE_OBS_DIM)
+    return slot_slice(k, OBSTACLE_OBS_DIM, "obstacle index")
 
 
 def manager_observation(

@@ -305,9 +305,9 @@ class HierarchicalCore:
             live &= ~(succ | hit | out)
             if not live.any():
                 break
-        return self._finish(reward, success | failure, timeout, success, failure, elapsed, clipped)
+        return self.finish_period(reward, success | failure, timeout, success, failure, elapsed, clipped)
 
-    def _finish(
+    def finish_period(
         self,
         reward: np.ndarray,
         terminated: np.ndarray,
@@ -317,7 +317,8 @@ class HierarchicalCore:
         elapsed: np.ndarray,
         clipped: np.ndarray,
     ) -> StepResult:
-        """Book-keeping after a decision period: returns, episode statistics, auto-reset."""
+        """Book-keeping after a decision period (or, for a view with exposed agents, one control step):
+        returns, episode statistics, auto-reset. Shapes: every argument (N,)."""
         self.ep_return += reward
         ended = terminated | truncated
         info: dict[str, object] = {

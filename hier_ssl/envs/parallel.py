@@ -134,7 +134,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         reward, success, hit, timeout, _ = core.control_step(live, worker, obstacles)
         s = core.state
         d, delta = pose_errors(np.column_stack([s.pos[:, 0], s.angle[:, 0]]), core.subgoal)
-        result = core._finish(
+        result = core.finish_period(
             reward,
             success | (hit & ~success),
             timeout & ~success & ~hit,

@@ -9,6 +9,7 @@ the pure functions of ``hier_ssl.manager``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,6 +52,21 @@ def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.nd
     if not np.isfinite(action).all():
         raise ValueError(f"action of {name} holds NaN or infinite values: {action.tolist()}")
     return action
+
+
+def end_period(core: Any, ended: np.ndarray, info: dict[str, object]) -> np.ndarray:
+    """Close a period of ``core`` (any core with ``observe``, ``done``, ``autoreset`` and ``reset_fields``):
+    record the last observation as ``info["final_obs"]``, mark ``ended`` (N,) fields done and, with
+    auto-reset, start their next episode. Returns the observation the agent acts on next.
+    """
+    obs = core.observe()
+    info["final_obs"] = obs
+    core.done |= ended
+    idx = np.flatnonzero(ended)
+    if core.autoreset and len(idx):
+        core.reset_fields(idx)
+        obs = core.observe()
+    return obs
 
 
 def controlled_worker_observation(
@@ -338,10 +354,5 @@ class HierarchicalCore:
             "collision": collision[idx].astype(np.float64),
             "cpad": self.ep_cpad[idx].copy(),
         }
-        obs = self.observe()
-        info["final_obs"] = obs
-        self.done |= ended
-        if self.autoreset and len(idx):
-            self.reset_fields(idx)
-            obs = self.observe()
+        obs = end_period(self, ended, info)
         return StepResult(obs, reward.astype(np.float32), terminated, truncated, info)

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig
-from hier_ssl.envs.core import StepResult, check_action, controlled_worker_observation
+from hier_ssl.envs.core import StepResult, check_action, controlled_worker_observation, end_period
 from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
 from hier_ssl.worker.learned import LearnedWorker, WorkerPolicy
@@ -174,12 +174,7 @@ class GoToPointCore:
                 "start_distance": self.start_distance[idx].copy(),
             },
         }
-        obs = self.observe()
-        info["final_obs"] = obs
-        self.done |= ended
-        if self.autoreset and len(idx):
-            self.reset_fields(idx)
-            obs = self.observe()
+        obs = end_period(self, ended, info)
         return StepResult(obs, reward.astype(np.float32), terminated, truncated, info)
 
 

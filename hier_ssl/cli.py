@@ -117,6 +117,53 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- render -----------------------------------------------------------------------------------------------
+
+
+def _add_render(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.manager.planners import PLANNERS
+
+    render = subparsers.add_parser(
+        "render", help="one episode of a multi-robot scenario under a manager, as a GIF or a PNG"
+    )
+    render.add_argument("scenario", metavar="SCENARIO", help="a scenario name or YAML (configs/scenarios/)")
+    render.add_argument(
+        "--manager",
+        default="sampling",
+        help=f"a planner {PLANNERS} or a run directory (default: %(default)s)",
+    )
+    render.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key (repeatable)"
+    )
+    render.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
+    render.add_argument(
+        "--out", default="runs/render.gif", help="a .gif (animated) or .png (default: %(default)s)"
+    )
+    render.set_defaults(func=_render)
+
+
+def _render(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hier_ssl.config import ConfigError, apply_overrides
+    from hier_ssl.envs.scenarios import scenario_config
+    from hier_ssl.managers import compare_scenario
+    from hier_ssl.report import episode_video, figure3, panel_title
+    from hier_ssl.world.field import get_field
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".gif", ".png"):
+        raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
+    base = scenario_config(args.scenario)
+    scenario = scenario_config(**apply_overrides(base.model_dump(exclude_unset=True), args.set))
+    (evaluation,) = compare_scenario([args.manager], scenario, episodes=1, seed=args.seed, record=[0])
+    panels = [(evaluation.name, evaluation.result["trajectories"][0])]
+    draw = episode_video if out.suffix.lower() == ".gif" else figure3
+    path = draw(panels, get_field(scenario.field), out)
+    print(f"wrote {path}: {panel_title(*panels[0]).replace(chr(10), ': ')}")
+    return 0
+
+
 # -- train ------------------------------------------------------------------------------------------------
 
 DEFAULT_CONFIG = "configs/proposed/fscaps.yaml"
@@ -200,6 +247,16 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
         "managers", nargs="+", metavar="RUN_DIR_OR_PLANNER", help=f"a run directory or a planner {PLANNERS}"
     )
     ev.add_argument("--task", choices=TASKS, default=None, help="task (default: a run's own, else proposed)")
+    ev.add_argument(
+        "--scenario",
+        default=None,
+        metavar="NAME_OR_YAML",
+        help="a multi-robot scenario instead of a task (default for runs trained on one: their own); "
+        "figures are per robot",
+    )
+    ev.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key (repeatable)"
+    )
     ev.add_argument("--episodes", type=_positive_int, default=1000, help="episodes (default: %(default)s)")
     ev.add_argument(
         "--worker",
@@ -225,21 +282,41 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
 def _eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hier_ssl.managers import compare
+    from hier_ssl.config import ConfigError, apply_overrides
+    from hier_ssl.envs.scenarios import scenario_config
+    from hier_ssl.managers import compare, compare_scenario, is_planner, run_config
     from hier_ssl.report import markdown_table, write_evaluation
 
-    evaluations = compare(
-        args.managers,
-        task=args.task,
-        workers=args.worker or [None],
-        episodes=args.episodes,
-        seed=args.seed,
-        frame_skip=args.frame_skip,
-        record=range(min(16, args.episodes)),
-    )
-    task = evaluations[0].env.task
+    record = range(min(16, args.episodes))
+    runs = [spec for spec in args.managers if not is_planner(spec)]
+    if args.scenario is not None or (runs and run_config(runs[0]).scenario is not None):
+        if args.task is not None or args.worker or args.frame_skip is not None:
+            raise ConfigError(
+                "--task, --worker and --frame-skip are for paper tasks; set scenario keys with --set"
+            )
+        scenario = None
+        if args.scenario is not None or args.set:
+            base = scenario_config(args.scenario or run_config(runs[0]).scenario)
+            scenario = scenario_config(**apply_overrides(base.model_dump(exclude_unset=True), args.set))
+        evaluations = compare_scenario(args.managers, scenario, args.episodes, args.seed, record)
+        task = evaluations[0].env.scenario
+        what = f"scenario {task} ({evaluations[0].record['robots'] // args.episodes} robots a field)"
+    else:
+        if args.set:
+            raise ConfigError("--set overrides scenario keys; give --scenario (or a run trained on one)")
+        evaluations = compare(
+            args.managers,
+            task=args.task,
+            workers=args.worker or [None],
+            episodes=args.episodes,
+            seed=args.seed,
+            frame_skip=args.frame_skip,
+            record=record,
+        )
+        task = evaluations[0].env.task
+        what = f"task {task}"
     out = Path(args.out) if args.out else Path("runs") / "eval" / f"{task}-s{args.seed}"
-    print(f"task {task}, {args.episodes} episodes, seed {args.seed}; lengths in 25 ms control steps\n")
+    print(f"{what}, {args.episodes} episodes, seed {args.seed}; lengths in 25 ms control steps\n")
     print(markdown_table([e.record for e in evaluations]))
     for e in evaluations:
         where = f"{e.env.worker} worker, frame skip {e.env.frame_skip}"
@@ -293,6 +370,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_bench,
     _add_demo,
+    _add_render,
     _add_train,
     _add_export,
     _add_eval,

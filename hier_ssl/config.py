@@ -34,29 +34,62 @@ class ObstacleConfig(Strict):
     placement: Literal["midpoint", "uniform"] = "midpoint"
 
 
-class EnvConfig(Strict):
-    """One learning environment of the paper (SPEC.md), over N fields."""
+class TaskSettings(Strict):
+    """How a manager's decisions become sub-goals, rewards and episode ends (SPEC.md), shared by the
+    paper's environments (``EnvConfig``) and the multi-robot scenarios (``ScenarioConfig``)."""
 
-    task: Literal["baseline", "proposed", "obstacle"] = "proposed"
-    field: str = "hardware_challenge"
-    obstacles: list[ObstacleConfig] = Field(default_factory=list)
     action_form: Literal["pose4", "pose6"] = "pose4"
+    # "field": the paper's sub-goal in field coordinates; "target": an offset from the target pose, so the
+    # zero action is the direct sub-goal (``hier_ssl.manager.actions.decode_in_frame``).
+    action_frame: Literal["field", "target"] = "field"
     frame_skip: int = Field(1, ge=1)
     frame_skip_reward: Literal["sum", "last"] = "sum"
     max_steps: int = Field(1200, ge=1)
     success_mode: Literal["add", "replace"] = "add"
     hit_mode: Literal["add", "replace"] = "add"
+    # Multiply R_t (+1000) and R_hit (-1000); see ``hier_ssl.manager.rewards.task_reward``.
+    success_weight: float = Field(1.0, ge=0)
+    hit_weight: float = Field(1.0, ge=0)
+    # "paper": 13 values + 5 per obstacle in field coordinates (SPEC); "neighbours": 13 + 6 per slot for
+    # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``).
+    observation: Literal["paper", "neighbours"] = "paper"
+    neighbours: int = Field(6, ge=0)
     worker: str = "paper"
-    expose_worker: bool = False
-    expose_obstacles: bool = False
     dt: float = Field(0.025, gt=0)
     substeps: int = Field(2, ge=1)
     d_th: float = Field(0.05, gt=0)
     theta_th_deg: float = Field(5.0, gt=0)
     speed_th: float = Field(0.05, gt=0)
     collision_distance: float = Field(0.2, gt=0)
-    min_start_distance: float = Field(0.2, ge=0)
     spawn_margin: float = Field(0.1, ge=0)
+
+    @property
+    def act_dim(self) -> int:
+        """Length of the manager action."""
+        from hier_ssl.manager import action_dim
+
+        return action_dim(self.action_form)
+
+
+class EnvConfig(TaskSettings):
+    """One learning environment of the paper (SPEC.md), over N fields."""
+
+    task: Literal["baseline", "proposed", "obstacle"] = "proposed"
+    field: str = "hardware_challenge"
+    obstacles: list[ObstacleConfig] = Field(default_factory=list)
+    expose_worker: bool = False
+    expose_obstacles: bool = False
+    min_start_distance: float = Field(0.2, ge=0)
+
+    @property
+    def obs_dim(self) -> int:
+        """Length of the manager observation of this environment."""
+        from hier_ssl.manager import manager_obs_dim
+        from hier_ssl.manager.neighbours import neighbour_obs_dim
+
+        if self.observation == "neighbours":
+            return neighbour_obs_dim(self.neighbours)
+        return manager_obs_dim(len(self.obstacles))
 
     @model_validator(mode="after")
     def _consistent(self) -> EnvConfig:
@@ -70,6 +103,78 @@ class EnvConfig(Strict):
                     f"min_start_distance: {self.min_start_distance} m puts a midpoint obstacle inside the "
                     f"collision distance at reset; use >= {2 * self.collision_distance}"
                 )
+        return self
+
+
+MAX_AGENTS, MAX_OBSTACLES = 11, 11  # robots a side in an SSL Division A game
+
+
+class BehaviourConfig(Strict):
+    """How every obstacle robot of a scenario moves: a behaviour of ``hier_ssl.world.obstacles``."""
+
+    behaviour: str = "random_walk"
+    options: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _known(self) -> BehaviourConfig:
+        from hier_ssl.world.obstacles import OBSTACLES, make_obstacle
+
+        if self.behaviour not in OBSTACLES:
+            known = sorted(OBSTACLES)
+            raise ValueError(f"behaviour: unknown obstacle behaviour {self.behaviour!r}; known: {known}")
+        make_obstacle(self.behaviour, 1, **self.options)  # rejects unknown or bad options, naming them
+        return self
+
+
+class ScenarioConfig(TaskSettings):
+    """One multi-robot scenario over N fields. Keys left out take the scenario class's ``defaults``, then
+    the values below; ``options`` are the scenario's own settings (its ``Options`` model). The task
+    settings mean what they mean in ``EnvConfig``; the task is always action-centric ("obstacle" rules, or
+    "proposed" when a field holds a single robot) and the observation always "neighbours"."""
+
+    scenario: str
+    field: str = "division_b"
+    num_agents: int = Field(1, ge=1, le=MAX_AGENTS)
+    num_obstacles: int = Field(0, ge=0, le=MAX_OBSTACLES)
+    obstacles: BehaviourConfig = Field(default_factory=BehaviourConfig)
+    options: dict[str, Any] = Field(default_factory=dict)
+    frame_skip: int = Field(16, ge=1)
+    observation: Literal["neighbours"] = "neighbours"
+
+    @property
+    def obs_dim(self) -> int:
+        """Length of every controlled robot's manager observation."""
+        from hier_ssl.manager.neighbours import neighbour_obs_dim
+
+        return neighbour_obs_dim(self.neighbours)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _scenario_defaults(cls, data: Any) -> Any:
+        from hier_ssl.envs.scenarios import SCENARIOS
+
+        if isinstance(data, dict) and "scenario" in data:
+            name = data["scenario"]
+            if name not in SCENARIOS:
+                raise ValueError(f"scenario: unknown scenario {name!r}; known: {sorted(SCENARIOS)}")
+            data = {**SCENARIOS[name].defaults, **data}
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ScenarioConfig:
+        from hier_ssl.envs.scenarios import SCENARIOS
+        from hier_ssl.worker import WORKERS
+
+        if self.field not in FIELDS:
+            raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
+        if self.worker not in WORKERS:
+            raise ValueError(f"worker: unknown worker {self.worker!r}; known: {list(WORKERS)}")
+        try:
+            SCENARIOS[self.scenario](self)  # checks the options and that the layout fits the field
+        except ValidationError as err:
+            first = err.errors()[0]
+            key = ".".join(str(p) for p in ("options", *first["loc"]))
+            raise ValueError(f"{key}: {first['msg']}") from None
         return self
 
 
@@ -123,6 +228,8 @@ class TrainConfig(Strict):
     name: str = "run"
     kind: Literal["manager", "worker"] = "manager"
     env: EnvConfig = Field(default_factory=EnvConfig)
+    # A multi-robot scenario in place of ``env``: one manager shared by every controlled robot (SAC).
+    scenario: ScenarioConfig | None = None
     gotopoint: GoToPointConfig | None = None
     algo: Literal["sac", "ppo"] = "sac"
     sac: SACConfig = Field(default_factory=SACConfig)
@@ -147,6 +254,13 @@ class TrainConfig(Strict):
 
     @model_validator(mode="after")
     def _kind_consistent(self) -> TrainConfig:
+        if self.scenario is not None:
+            if "env" in self.model_fields_set and self.env != EnvConfig():
+                raise ValueError("env: not read when 'scenario' is set; put the task keys in the scenario")
+            if self.kind != "manager" or self.algo != "sac":
+                raise ValueError(
+                    f"scenario: trains a shared manager with SAC, not kind {self.kind!r}, algo {self.algo!r}"
+                )
         if self.kind == "manager" and self.gotopoint is not None:
             raise ValueError("gotopoint: only read when kind is 'worker'")
         if self.kind == "worker" and self.algo != "ppo":
@@ -158,7 +272,9 @@ def _format(err: ValidationError, root: str) -> str:
     first = err.errors()[0]
     path = ".".join(str(p) for p in (root, *first["loc"]) if p != "")
     extra = "" if len(err.errors()) == 1 else f" (+{len(err.errors()) - 1} more)"
-    return f"{path}: {first['msg']}{extra}"
+    # Our validators' messages start with the key they are about; pydantic's prefix adds nothing.
+    msg = first["msg"].removeprefix("Value error, ")
+    return f"{path}: {msg}{extra}" if path else f"{msg}{extra}"
 
 
 def parse_config(data: dict[str, Any], model: type[BaseModel] = TrainConfig, root: str = "") -> Any:

@@ -104,7 +104,7 @@ def run_demo(
         targets=np.array(goals)[None],
         subgoals=np.array(waypoints).reshape(1, -1, 2),
         trails=[np.array(robot_trail)] + [np.array(trail) for trail in obstacle_trails],
-        trail_team=[0] + [1] * len(obstacle_trails),
+        trail_robot=[0] + [1] * len(obstacle_trails),
         size=size,
     )
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from hier_ssl.config import EnvConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.manager import min_time_to_pose, summarize
+from hier_ssl.world.physics import RobotSpec
 
 Policy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
@@ -29,17 +31,15 @@ def evaluate(
     the robot's speed and acceleration limits, successful episodes only), time_to_target_s_median
     (successful episodes, seconds), the raw per-episode arrays
     under "per_episode", and eval_wall_s. With ``record`` (episode indices), "trajectories" holds one
-    dict per recorded episode, every control step of it (see ``_Recorder.episode``).
+    dict per recorded episode, every control step of it (see ``Recorder.episode``).
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    record = [int(i) for i in record]
-    if any(not 0 <= i < episodes for i in record):
-        raise ValueError(f"record: episode indices must be in [0, {episodes}), got {record}")
+    record = check_record(record, episodes)
     start = time.perf_counter()
     core = HierarchicalCore(config, episodes, autoreset=False)
     obs = core.reset(seed)
-    recorder = _Recorder(core, record) if record else None
+    recorder = Recorder(core, record) if record else None
     distance = np.linalg.norm(core.state.pos[:, 0] - core.target[:, :2], axis=1)
     length = np.zeros(episodes, dtype=np.int64)
     success, collision, cpad = np.zeros(episodes, bool), np.zeros(episodes, bool), np.zeros(episodes)
@@ -55,9 +55,6 @@ def evaluate(
         collision[idx] = episode["collision"] > 0
         cpad[idx] = episode["cpad"]
         obs = result.obs
-    robot = core.robot
-    bound = min_time_to_pose(distance, robot.max_speed, robot.max_accel)
-    ratio = length * config.dt / np.maximum(bound, 1e-9)
     solved, nan = bool(success.any()), float("nan")
     summary: dict[str, object] = {
         "episodes": episodes,
@@ -65,7 +62,7 @@ def evaluate(
         "collision_rate": float(collision.mean()),
         "episode_length": summarize(length),
         "cpad": summarize(cpad),
-        "optimal_ratio_median": float(np.median(ratio[success])) if solved else nan,
+        "optimal_ratio_median": optimal_ratio_median(length, success, distance, core.robot, config.dt),
         "time_to_target_s_median": float(np.median(length[success]) * config.dt) if solved else nan,
         "per_episode": {
             "length": length,
@@ -82,38 +79,57 @@ def evaluate(
     return summary
 
 
-class _Recorder:
-    """Poses and sub-goals of chosen fields after every control step, by wrapping the core's
-    ``control_step`` (the batched path of ``step`` is unchanged; the copies are of a few rows)."""
+def check_record(record: Sequence[int], episodes: int) -> list[int]:
+    """Episode indices to record, as ints; ValueError naming them if any is out of range."""
+    record = [int(i) for i in record]
+    if any(not 0 <= i < episodes for i in record):
+        raise ValueError(f"record: episode indices must be in [0, {episodes}), got {record}")
+    return record
 
-    def __init__(self, core: HierarchicalCore, fields: list[int]) -> None:
+
+def optimal_ratio_median(
+    length: np.ndarray, success: np.ndarray, distance: np.ndarray, robot: RobotSpec, dt: float
+) -> float:
+    """Median, over successful robots, of time to the target over the analytic rest-to-rest minimum
+    under the robot's speed and acceleration limits (NaN when none succeeded). Same-shape arrays:
+    length in control steps, success, and the start-to-target distance in m."""
+    if not success.any():
+        return float("nan")
+    bound = min_time_to_pose(distance[success], robot.max_speed, robot.max_accel)
+    return float(np.median(length[success] * dt / np.maximum(bound, 1e-9)))
+
+
+class Recorder:
+    """Poses and sub-goals of chosen fields after every control step, by wrapping a core's
+    ``control_step`` (the batched path of ``step`` is unchanged; the copies are of a few rows). Works for
+    ``HierarchicalCore`` (one controlled robot) and ``MultiRobotCore`` (M, robots 0..M-1)."""
+
+    def __init__(self, core: Any, fields: Sequence[int]) -> None:
         self.core, self.fields = core, np.asarray(fields)
-        self.target = core.target[self.fields].copy()
-        s = core.state
+        n = len(self.fields)
+        self.target = core.target[self.fields].reshape(n, -1, 5).copy()
+        s = core.world.state
         self.pos, self.angle, self.subgoal = [s.pos[self.fields]], [s.angle[self.fields]], []
         self._step = core.control_step
         core.control_step = self.control_step  # instance attribute: only this core is affected
 
     def control_step(self, live: np.ndarray, *args: object, **kwargs: object) -> tuple:
         out = self._step(live, *args, **kwargs)
-        s = self.core.state  # replaced by every world step; fancy indexing copies
+        s = self.core.world.state  # replaced by every world step; fancy indexing copies
         self.pos.append(s.pos[self.fields])
         self.angle.append(s.angle[self.fields])
-        self.subgoal.append(self.core.subgoal[self.fields].copy())
+        self.subgoal.append(self.core.subgoal[self.fields].reshape(len(self.fields), -1, 5))
         return out
 
     def episode(self, j: int, length: int) -> dict[str, object]:
-        """Recorded field ``j`` over its ``length`` control steps: target (5,); robot (T+1, 2) and
-        robot_angle (T+1,) from the reset on; subgoal (T, 5), the sub-goal in force at each control step;
-        obstacles (T+1, K, 2) and obstacle_angle (T+1, K). Metres, radians, field frame."""
-        pos = np.stack([p[j] for p in self.pos[: length + 1]])
-        angle = np.stack([a[j] for a in self.angle[: length + 1]])
+        """Recorded field ``j`` over its ``length`` control steps, M controlled robots (robots 0..M-1) of
+        R: ``controlled`` M; target (M, 5); robots (T+1, R, 2) and angles (T+1, R) from the reset on;
+        subgoal (T, M, 5), the sub-goals in force at each control step. Metres, radians, field frame."""
         return {
             "field": int(self.fields[j]),
+            "controlled": self.target.shape[1],
             "target": self.target[j],
-            "robot": pos[:, 0],
-            "robot_angle": angle[:, 0],
-            "subgoal": np.stack([g[j] for g in self.subgoal[:length]]).reshape(length, 5),
-            "obstacles": pos[:, 1:],
-            "obstacle_angle": angle[:, 1:],
+            "robots": np.stack([p[j] for p in self.pos[: length + 1]]),
+            "angles": np.stack([a[j] for a in self.angle[: length + 1]]),
+            "subgoal": np.stack([g[j] for g in self.subgoal[:length]]).reshape(length, -1, 5),
         }

@@ -15,9 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from hier_ssl.config import EnvConfig, TrainConfig
+from hier_ssl.config import EnvConfig, ScenarioConfig, TrainConfig
 from hier_ssl.evaluate import Policy, evaluate
-from hier_ssl.manager import action_dim, manager_obs_dim
 from hier_ssl.manager.planners import PLANNERS, make_planner
 
 
@@ -40,8 +39,9 @@ def run_config(run_dir: str | Path) -> TrainConfig:
     return saved_config(run_dir)
 
 
-def load_manager(spec: str | Path, env_config: EnvConfig) -> Policy:
-    """The manager ``spec`` (planner name or run directory) as a numpy policy acting in ``env_config``.
+def load_manager(spec: str | Path, env_config: EnvConfig | ScenarioConfig) -> Policy:
+    """The manager ``spec`` (planner name or run directory) as a numpy policy acting in ``env_config`` (an
+    environment or a scenario; in a scenario the policy acts for every live robot, one row each).
 
     Raises ValueError when a run's network does not fit the environment's observation or action size
     (e.g. a manager trained without obstacles evaluated on the Obstacle task) or has no checkpoint.
@@ -54,12 +54,12 @@ def load_manager(spec: str | Path, env_config: EnvConfig) -> Policy:
 
     run_dir = Path(spec)
     config = run_config(run_dir)
-    obs_dim, act_dim = manager_obs_dim(len(env_config.obstacles)), action_dim(env_config.action_form)
-    trained = (manager_obs_dim(len(config.env.obstacles)), action_dim(config.env.action_form))
-    if trained != (obs_dim, act_dim):
+    own = config.scenario or config.env
+    trained, wanted = (own.obs_dim, own.act_dim), (env_config.obs_dim, env_config.act_dim)
+    if trained != wanted:
         raise ValueError(
             f"{run_dir} was trained with observations/actions of size {trained}, "
-            f"the {env_config.task} environment has {(obs_dim, act_dim)}"
+            f"the environment it is asked to act in has {wanted}"
         )
     actor, _ = load_actor(run_dir)
 
@@ -100,7 +100,7 @@ class Evaluation:
     """One manager evaluated: its label, environment, the JSON ``record`` and ``evaluate``'s ``result``."""
 
     name: str
-    env: EnvConfig
+    env: EnvConfig | ScenarioConfig
     record: dict[str, Any]
     result: dict[str, Any]
 
@@ -122,7 +122,7 @@ def compare(
     Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
     ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures.
     """
-    from hier_ssl.report import make_record, outcome
+    from hier_ssl.report import label_outcomes, make_record
 
     if task is None:  # planners follow the first run's task, so every row shares the episodes
         runs = [spec for spec in specs if not is_planner(spec)]
@@ -136,10 +136,7 @@ def compare(
     for name, env, policy in jobs:
         result = evaluate(policy, env, episodes, seed, record=record)
         per = result["per_episode"]
-        for episode in result.get("trajectories", []):
-            i = episode["field"]
-            episode["outcome"] = outcome(bool(per["success"][i]), bool(per["collision"][i]))
-            episode["cpad"] = float(per["cpad"][i])
+        label_outcomes(result, per["success"][:, None], per["collision"][:, None], per["cpad"][:, None])
         context = {"worker": env.worker, "task": env.task, "frame_skip": env.frame_skip, "seed": seed}
         evaluations.append(Evaluation(name, env, make_record(name, result, **context), result))
         if progress:
@@ -147,7 +144,63 @@ def compare(
     return evaluations
 
 
+# The keys that fix a shared manager's interface: a run acts in any scenario with its own values of these.
+INTERFACE_KEYS = ("action_form", "action_frame", "neighbours")
+
+
+def compare_scenario(
+    specs: Sequence[str | Path],
+    scenario: ScenarioConfig | None = None,
+    episodes: int = 200,
+    seed: int = 0,
+    record: Sequence[int] = (),
+    progress: bool = False,
+) -> list[Evaluation]:
+    """Evaluate every manager on the same seeded episodes of a multi-robot scenario, per robot.
+
+    ``scenario`` defaults to the first run's training scenario. A run trained on a scenario acts in it with
+    its own ``INTERFACE_KEYS``; planners read and write whatever the scenario uses. Recorded episodes get
+    per-robot ``outcome`` and ``cpad`` lists (``hier_ssl.report.label_outcomes``).
+    """
+    from hier_ssl.evaluate_multi import evaluate_scenario
+    from hier_ssl.report import label_outcomes, make_record
+
+    runs = [spec for spec in specs if not is_planner(spec)]
+    for run in runs:
+        if run_config(run).scenario is None:
+            raise ValueError(f"{run} was trained on a paper task, not a scenario; evaluate it with --task")
+    if scenario is None:
+        if not runs:
+            raise ValueError("planners alone need a scenario to act in (--scenario NAME_OR_YAML)")
+        scenario = run_config(runs[0]).scenario
+    jobs = []
+    for spec in specs:
+        acting = scenario
+        if not is_planner(spec):
+            own = run_config(spec).scenario
+            acting = scenario.model_copy(update={k: getattr(own, k) for k in INTERFACE_KEYS})
+        jobs.append((manager_name(spec), acting, load_manager(spec, acting)))
+    evaluations = []
+    for name, acting, policy in jobs:
+        result = evaluate_scenario(policy, acting, episodes, seed, record=record)
+        per = result["per_robot"]
+        label_outcomes(result, per["success"], per["collision"], per["cpad"])
+        context = {
+            "worker": acting.worker,
+            "task": acting.scenario,
+            "frame_skip": acting.frame_skip,
+            "seed": seed,
+            "robots": result["robots"],
+            "field_success_rate": result["field_success_rate"],
+        }
+        evaluations.append(Evaluation(name, acting, make_record(name, result, **context), result))
+        if progress:
+            print(f"  {name}: {result['eval_wall_s']:.1f} s", flush=True)
+    return evaluations
+
+
 __all__ = [
+    "compare_scenario",
     "PLANNERS",
     "Evaluation",
     "compare",

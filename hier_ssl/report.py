@@ -251,6 +251,20 @@ def outcome(success: bool, collision: bool) -> str:
     return "success" if success else "collision" if collision else "timeout"
 
 
+def label_outcomes(
+    result: dict[str, Any], success: np.ndarray, collision: np.ndarray, cpad: np.ndarray
+) -> None:
+    """Give every recorded episode of ``result`` (its "trajectories") the ``outcome`` of each of its
+    controlled robots ("success", "collision", "timeout") and their ``cpad``, for figures. Shapes:
+    (episodes, M) per robot."""
+    for episode in result.get("trajectories", []):
+        i = episode["field"]
+        episode["outcome"] = [
+            outcome(bool(s), bool(c)) for s, c in zip(success[i], collision[i], strict=True)
+        ]
+        episode["cpad"] = [float(x) for x in cpad[i]]
+
+
 def _panel(
     field: Field,
     episode: dict[str, Any],
@@ -259,37 +273,44 @@ def _panel(
     robot: RobotSpec | None = None,
     robots_at: int | None = None,
 ) -> np.ndarray:
-    """One episode drawn up to control step ``step`` (default: its end) as an RGB image (H, W, 3):
-    the target, the sub-goals so far as dots, the paths so far as lines, and the robots where they are
-    at step ``robots_at`` (default: ``step``)."""
+    """One recorded episode (``hier_ssl.evaluate.Recorder.episode``) drawn up to control step ``step``
+    (default: its end) as an RGB image (H, W, 3): every controlled robot's target, sub-goals so far as dots
+    and path so far as a line, the obstacles' paths, and the robots where they are at step ``robots_at``
+    (default: ``step``)."""
     from hier_ssl.world.render import render_fields
 
-    robot_path, obstacles = episode["robot"], episode["obstacles"]
-    end = len(robot_path) - 1 if step is None else min(step, len(robot_path) - 1)
+    robots, m = episode["robots"], episode["controlled"]
+    end = len(robots) - 1 if step is None else min(step, len(robots) - 1)
     at = end if robots_at is None else min(robots_at, end)
-    pos = np.concatenate([robot_path[at][None], obstacles[at]], axis=0)[None]
-    angle = np.concatenate([[episode["robot_angle"][at]], episode["obstacle_angle"][at]])[None]
+    pos, angle = robots[at][None], episode["angles"][at][None]
     state = RobotState(pos, angle, np.zeros_like(pos), np.zeros_like(angle))
-    subgoals = episode["subgoal"][:end, :2]
-    if len(subgoals):  # a held sub-goal is one dot, not frame_skip of them
+    dots, owner = [], []
+    for i in range(m):  # a held sub-goal is one dot, not frame_skip of them
+        subgoals = episode["subgoal"][:end, i, :2]
         keep = np.ones(len(subgoals), dtype=bool)
         keep[1:] = np.any(subgoals[1:] != subgoals[:-1], axis=1)
-        subgoals = subgoals[keep]
-    trails = [robot_path[: end + 1]] + [obstacles[: end + 1, k] for k in range(obstacles.shape[1])]
+        dots.append(subgoals[keep])
+        owner += [i] * int(keep.sum())
+    dots = np.concatenate(dots) if owner else None
     return render_fields(
         field,
         state,
-        targets=episode["target"][None, :3],
-        subgoals=subgoals[None] if len(subgoals) else None,
-        trails=trails,
+        targets=episode["target"][None, :, :3],
+        subgoals=None if dots is None else dots[None],
+        subgoal_robot=owner,
+        trails=[robots[: end + 1, k] for k in range(robots.shape[1])],
+        team=[0] * m + [1] * (robots.shape[1] - m),
         size=size,
         robot=robot,
     )
 
 
 def panel_title(name: str, episode: dict[str, Any]) -> str:
-    steps = len(episode["robot"]) - 1
-    return f"{name}\n{episode['outcome']}, {steps} steps, CPAD {episode['cpad']:.2f} m"
+    steps, outcomes = len(episode["robots"]) - 1, episode["outcome"]
+    if len(outcomes) == 1:
+        return f"{name}\n{outcomes[0]}, {steps} steps, CPAD {episode['cpad'][0]:.2f} m"
+    reached, hit = outcomes.count("success"), outcomes.count("collision")
+    return f"{name}\n{reached}/{len(outcomes)} reached, {hit} collided, {steps} steps"
 
 
 def figure3(
@@ -354,13 +375,14 @@ def episode_video(
         raise ValueError(f"video path must end in .gif, got {str(path)!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
     width, height = size
-    longest = max(len(e["robot"]) - 1 for _, e in panels)
+    longest = max(len(e["robots"]) - 1 for _, e in panels)
     stride = max(2, -(-longest // max_frames))
     # The names once, as an image strip above the panels.
     fig = Figure(figsize=(len(panels) * width / 100, 0.45), dpi=100, facecolor="white")
     canvas = FigureCanvasAgg(fig)
     for i, (name, episode) in enumerate(panels):
-        fig.text((i + 0.5) / len(panels), 0.5, f"{name}: {episode['outcome']}", ha="center", va="center")
+        label = panel_title(name, episode).split("\n")[1].split(",")[0]
+        fig.text((i + 0.5) / len(panels), 0.5, f"{name}: {label}", ha="center", va="center")
     canvas.draw()
     strip = np.asarray(canvas.buffer_rgba())[..., :3]
     frames = []
@@ -371,12 +393,13 @@ def episode_video(
     return path
 
 
-def pick_episode(outcomes: Sequence[Sequence[bool]]) -> int:
+def pick_episode(outcomes: Sequence[Sequence[float]]) -> int:
     """Index of the recorded episode to show: the first in which the most managers succeed.
 
-    ``outcomes[m][j]``: whether manager m succeeded in recorded episode j.
+    ``outcomes[m][j]``: whether (or, with several robots, the share of robots for which) manager m
+    succeeded in recorded episode j.
     """
-    counts = np.sum(np.asarray(outcomes, dtype=int), axis=0)
+    counts = np.sum(np.asarray(outcomes, dtype=float), axis=0)
     return int(np.argmax(counts))
 
 
@@ -404,7 +427,7 @@ def write_evaluation(
     labels = [f"{e.name} ({e.env.worker})" if several_workers else e.name for e in evaluations]
     recorded = [e.result.get("trajectories") for e in evaluations]
     if evaluations and all(recorded):
-        j = pick_episode([[t["outcome"] == "success" for t in ts] for ts in recorded])
+        j = pick_episode([[np.mean(np.equal(t["outcome"], "success")) for t in ts] for ts in recorded])
         panels = [(label, ts[j]) for label, ts in zip(labels, recorded, strict=True)]
         fld = get_field(evaluations[0].env.field)
         episode = f"episode {panels[0][1]['field']}" + (f" - {title}" if title else "")

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml, parse_config
-from hier_ssl.envs.vector import VectorEnv
+from hier_ssl.envs.vector import TorchView, VectorEnv
 from hier_ssl.evaluate import Policy, evaluate
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
@@ -75,7 +75,7 @@ class _Selection:
 
     def __call__(self, runner: SACRunner) -> dict[str, float]:
         cfg = self.config
-        result = evaluate(sac_policy(runner.sac.actor), cfg.env, cfg.eval_episodes, SELECTION_SEED + cfg.seed)
+        result = evaluate_run(sac_policy(runner.sac.actor), cfg, SELECTION_SEED + cfg.seed)
         row = {
             "step": runner.step,
             "transitions": runner.num_transitions,
@@ -101,6 +101,15 @@ class _Selection:
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
 
 
+def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, Any]:
+    """``config.eval_episodes`` seeded episodes of the run's environment or scenario (per robot)."""
+    if config.scenario is not None:
+        from hier_ssl.evaluate_multi import evaluate_scenario
+
+        return evaluate_scenario(policy, config.scenario, config.eval_episodes, seed)
+    return evaluate(policy, config.env, config.eval_episodes, seed)
+
+
 def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bool = True) -> dict[str, Any]:
     """Train as ``config`` says into ``run_dir`` (or continue it), then evaluate; returns eval.json's dict."""
     torch.set_num_threads(config.threads)
@@ -109,12 +118,17 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
         atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
-    env = VectorEnv(config.env, config.num_envs, config.device)
+    if config.scenario is not None:
+        from hier_ssl.envs.multi import MultiVectorEnv
+
+        env = MultiVectorEnv(config.scenario, config.num_envs, config.device)
+    else:
+        env = VectorEnv(config.env, config.num_envs, config.device)
     if config.algo == "sac":
         policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress)
     else:
         policy, train_wall_s = _train_ppo(config, env, run_dir, resume)
-    result = evaluate(policy, config.env, config.eval_episodes, EVALUATION_SEED + config.seed)
+    result = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
     summary = {
         "success_rate": result["success_rate"],
         "episode_length_median": result["episode_length"]["median"],
@@ -124,15 +138,20 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
         "train_wall_s": round(train_wall_s, 1),
         "episode_length": result["episode_length"],
         "cpad": result["cpad"],
-        "optimal_ratio_median": result["optimal_ratio_median"],
         "task": config.env.task,
         "worker": config.env.worker,
     }
+    if config.scenario is not None:  # per-robot figures; "episodes" counts fields
+        scenario = config.scenario
+        summary |= {"task": scenario.scenario, "worker": scenario.worker, "robots": result["robots"]}
+        summary["field_success_rate"] = result["field_success_rate"]
+    else:
+        summary["optimal_ratio_median"] = result["optimal_ratio_median"]
     atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
 
 
-def _train_sac(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool, progress: bool):
+def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, progress: bool):
     selection = _Selection(config, run_dir)
     runner = SACRunner(
         env,
@@ -153,7 +172,7 @@ def _train_sac(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool,
     return sac_policy(runner.sac.actor), runner.train_time_s
 
 
-def _train_ppo(config: TrainConfig, env: VectorEnv, run_dir: Path, resume: bool):
+def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool):
     import time
 
     from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
@@ -189,10 +208,13 @@ def print_summary(summary: dict[str, Any]) -> None:
 
         return print_worker_summary(summary)
     length, cpad = summary["episode_length"], summary["cpad"]
-    where = f"{summary['episodes']} episodes, task {summary['task']}, worker {summary['worker']}"
+    robots = f" ({summary['robots']} robots)" if "robots" in summary else ""
+    where = f"{summary['episodes']} episodes{robots}, task {summary['task']}, worker {summary['worker']}"
     print(f"| metric ({where}) | value |")
     print("|---|---|")
     print(f"| success rate | {100 * summary['success_rate']:.1f} % |")
+    if "field_success_rate" in summary:
+        print(f"| episodes every robot succeeded | {100 * summary['field_success_rate']:.1f} % |")
     print(f"| collision rate | {100 * summary['collision_rate']:.1f} % |")
     quartiles = f"{length['median']:.0f} ({length['q1']:.0f} - {length['q3']:.0f})"
     print(f"| episode length, median (Q1 - Q3) | {quartiles} |")

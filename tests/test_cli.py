@@ -65,3 +65,13 @@ def test_bench_rejects_bad_sizes() -> None:
         bench.bench_world(0)
     with pytest.raises(ValueError, match="steps must be an integer >= 1, got 0"):
         bench.bench_world(1, steps=0)
+
+
+def test_render_draws_one_scenario_episode_and_names_a_bad_file_type(
+    tmp_path: object, capsys: pytest.CaptureFixture[str]
+) -> None:
+    gif = tmp_path / "crossing.gif"
+    assert cli.main(["render", "crossing", "--set", "num_agents=2", "--out", str(gif)]) == 0
+    assert gif.read_bytes()[:6] == b"GIF89a" and capsys.readouterr().out.startswith(f"wrote {gif}: sampling")
+    assert cli.main(["render", "crossing", "--out", str(tmp_path / "crossing.mp4")]) == 1
+    assert "crossing.mp4" in capsys.readouterr().err and not (tmp_path / "crossing.mp4").exists()

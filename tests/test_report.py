@@ -86,14 +86,13 @@ def test_recorded_episode_matches_the_metrics() -> None:
     per = result["per_episode"]
     for episode in result["trajectories"]:
         i, length = episode["field"], int(per["length"][episode["field"]])
-        assert episode["robot"].shape == (length + 1, 2) and episode["subgoal"].shape == (length, 5)
-        assert episode["obstacles"].shape == (length + 1, 0, 2)
+        robot, target = episode["robots"][:, 0], episode["target"][0]
+        assert episode["controlled"] == 1 and episode["robots"].shape == (length + 1, 1, 2)
+        assert episode["subgoal"].shape == (length, 1, 5) and episode["angles"].shape == (length + 1, 1)
         # The paper's CPAD of the sub-goal in force at each control step is the env's running CPAD.
-        assert cpad(episode["subgoal"][:, :2]) == pytest.approx(per["cpad"][i])
-        assert per["success"][i] and np.linalg.norm(episode["robot"][-1] - episode["target"][:2]) < 0.05
-        assert per["distance"][i] == pytest.approx(
-            np.linalg.norm(episode["robot"][0] - episode["target"][:2])
-        )
+        assert cpad(episode["subgoal"][:, 0, :2]) == pytest.approx(per["cpad"][i])
+        assert per["success"][i] and np.linalg.norm(robot[-1] - target[:2]) < 0.05
+        assert per["distance"][i] == pytest.approx(np.linalg.norm(robot[0] - target[:2]))
     # Ratio to the time-optimal bound, recomputed by hand from the per-episode arrays.
     bound = min_time_to_pose(per["distance"], 2.5, 3.0)
     assert result["optimal_ratio_median"] == pytest.approx(np.median(per["length"] * 0.025 / bound))
@@ -111,7 +110,7 @@ def test_same_manager_same_seed_gives_identical_tables() -> None:
 
 def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
     evaluations = compare(["direct", "sampling"], task="obstacle", episodes=4, seed=0, record=range(4))
-    outcomes = [[t["outcome"] == "success" for t in e.result["trajectories"]] for e in evaluations]
+    outcomes = [[t["outcome"] == ["success"] for t in e.result["trajectories"]] for e in evaluations]
     j = pick_episode(outcomes)
     panels = [(e.name, e.result["trajectories"][j]) for e in evaluations]
     png = figure3(panels, get_field("hardware_challenge"), tmp_path / "fig" / "fig3.png", size=(220, 150))

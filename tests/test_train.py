@@ -130,3 +130,43 @@ def test_resume_without_checkpoint_names_the_file(tmp_path: Path) -> None:
     _, err = proc.communicate(timeout=120)
     assert proc.returncode != 0 and "config.yaml" in err and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+SCENARIO = {
+    "name": "tiny-crossing",
+    "scenario": {"scenario": "crossing", "num_agents": 3, "max_steps": 160, "action_frame": "target"},
+    "num_envs": 2,
+    "total_steps": 60,
+    "eval_interval": 30,
+    "eval_episodes": 4,
+    "threads": 1,
+    "sac": {"caps": True, "hidden": [16, 16], "learning_starts": 96, "batch_size": 32},
+}
+
+
+def test_a_scenario_run_trains_a_shared_manager_and_evaluates_it_per_robot(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    summary = train(parse_config(SCENARIO), run, progress=False)
+    assert summary["task"] == "crossing" and summary["robots"] == 4 * 3 and summary["episodes"] == 4
+    assert 0.0 <= summary["field_success_rate"] <= summary["success_rate"] <= 1.0
+    assert (run / "best_actor.pt").is_file() and len((run / "curve.csv").read_text().splitlines()) == 3
+    # The run directory is a manager for `hier-ssl eval`, beside the planners, with per-robot figures.
+    proc = _cli("eval", str(run), "direct", "--episodes", "3", "--out", str(tmp_path / "eval"))
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert "scenario crossing (3 robots a field)" in out and (tmp_path / "eval" / "fig3.png").is_file()
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"env": {"frame_skip": 4}}, "env: not read"),
+        ({"algo": "ppo"}, "shared manager with SAC"),
+        ({"scenario": {"scenario": "crossing", "num_agents": 12}}, "scenario.num_agents"),
+    ],
+)
+def test_scenario_config_errors_name_the_key(change: dict[str, object], message: str) -> None:
+    from hier_ssl.config import ConfigError
+
+    with pytest.raises(ConfigError, match=message):
+        parse_config({**SCENARIO, **change})

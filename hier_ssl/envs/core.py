@@ -15,15 +15,14 @@ import numpy as np
 
 from hier_ssl.config import EnvConfig
 from hier_ssl.manager import (
-    action_dim,
     collided,
     cpad_increment,
-    decode_subgoal,
-    manager_obs_dim,
+    decode_in_frame,
     manager_observation,
     task_reward,
     task_success,
 )
+from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.worker import make_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
 from hier_ssl.world.field import Field
@@ -102,8 +101,7 @@ class HierarchicalCore:
         self.field, self.robot = self.world.field, self.world.robot
         self.worker = make_worker(config.worker, self.robot, config.dt)
         self.obstacles = [make_obstacle(o.behaviour, num_fields, **o.options) for o in config.obstacles]
-        self.obs_dim = manager_obs_dim(self.num_obstacles)
-        self.act_dim = action_dim(config.action_form)
+        self.obs_dim, self.act_dim = config.obs_dim, config.act_dim
         self.theta_th = np.deg2rad(config.theta_th_deg)
         self.rng = np.random.default_rng()
 
@@ -182,21 +180,20 @@ class HierarchicalCore:
         return self.world.state
 
     def observe(self) -> np.ndarray:
-        """Manager observations (N, 13 + 5K) float32."""
+        """Manager observations (N, obs_dim) float32, in the config's ``observation`` layout."""
         s = self.state
-        return manager_observation(
-            self.target,
-            s.pos[:, 0],
-            s.angle[:, 0],
-            s.vel[:, 0],
-            s.ang_vel[:, 0],
-            s.pos[:, 1:],
-            s.vel[:, 1:],
-            s.ang_vel[:, 1:],
-            max_pos=self.field.max_pos,
-            max_v=self.robot.max_speed,
-            max_w=self.robot.max_ang_speed,
-        )
+        own = (self.target, s.pos[:, 0], s.angle[:, 0], s.vel[:, 0], s.ang_vel[:, 0])
+        scales = {
+            "max_pos": self.field.max_pos,
+            "max_v": self.robot.max_speed,
+            "max_w": self.robot.max_ang_speed,
+        }
+        if self.config.observation == "neighbours":
+            teammate = np.zeros((self.num_fields, self.num_obstacles), dtype=bool)
+            return neighbour_observation(
+                *own, s.pos[:, 1:], s.vel[:, 1:], teammate, self.config.neighbours, **scales
+            )
+        return manager_observation(*own, s.pos[:, 1:], s.vel[:, 1:], s.ang_vel[:, 1:], **scales)
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, 9) float32."""
@@ -226,9 +223,11 @@ class HierarchicalCore:
         """
         action = check_action("manager", action, (self.num_fields, self.act_dim))
         clipped = np.count_nonzero(np.abs(action) > 1.0, axis=1)
-        subgoal = decode_subgoal(
-            np.clip(action, -1.0, 1.0),
+        subgoal = decode_in_frame(
+            action,
             self.config.action_form,
+            self.config.action_frame,
+            self.target,
             self.field.half_length,
             self.field.half_width,
             self.robot.max_speed,
@@ -286,6 +285,8 @@ class HierarchicalCore:
             success,
             success_mode=cfg.success_mode,
             hit_mode=cfg.hit_mode,
+            success_weight=cfg.success_weight,
+            hit_weight=cfg.hit_weight,
             **extra,
             **thresholds,
         )

@@ -27,11 +27,11 @@ from pettingzoo import ParallelEnv
 from hier_ssl.envs.core import check_action
 from hier_ssl.envs.scenarios import ScenarioConfig, make_scenario
 from hier_ssl.envs.vector import TorchView
-from hier_ssl.manager import action_dim, collided, cpad_increment, decode_subgoal, task_reward, task_success
+from hier_ssl.manager import action_dim, collided, cpad_increment, decode_in_frame, task_reward, task_success
 from hier_ssl.manager.neighbours import neighbour_obs_dim, neighbour_observation
 from hier_ssl.worker import make_worker
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import World, wrap_angle
+from hier_ssl.world.physics import World
 
 
 @dataclass
@@ -70,7 +70,6 @@ class MultiRobotCore:
         self.obs_dim = neighbour_obs_dim(config.neighbours)
         self.act_dim = action_dim(config.action_form)
         self.theta_th = np.deg2rad(config.theta_th_deg)
-        self._half = np.array([self.field.half_length, self.field.half_width])
         # A robot alone in its field has nothing to avoid: the obstacle terms would have no obstacle.
         self.task = "obstacle" if m + k > 1 else "proposed"
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
@@ -164,24 +163,16 @@ class MultiRobotCore:
         n, m = live.shape
         action = check_action("manager", action, (n, m, self.act_dim))
         clipped = np.where(live, np.count_nonzero(np.abs(action) > 1.0, axis=2), 0)
-        action = np.clip(action, -1.0, 1.0)
-        relative = self.config.action_frame == "target"
-        if relative:
-            # Offsets cubed: fine near the target (|a| < 0.2 lands within 4 cm of it), detours of half the
-            # field still in reach. The turn is the heading of (1 + cos, sin): none at the zero action.
-            action[..., 0:2] **= 3
-            action[..., -1] += 1.0
-        subgoal = decode_subgoal(
+        subgoal = decode_in_frame(
             action.reshape(n * m, self.act_dim),
             self.config.action_form,
+            self.config.action_frame,
+            self.target.reshape(n * m, 5),
             self.field.half_length,
             self.field.half_width,
             self.robot.max_speed,
             zero_velocity=True,
         ).reshape(n, m, 5)
-        if relative:
-            subgoal[..., 0:2] = np.clip(subgoal[..., 0:2] + self.target[..., 0:2], -self._half, self._half)
-            subgoal[..., 2] = wrap_angle(subgoal[..., 2] + self.target[..., 2])
         moved = cpad_increment(self.subgoal[..., 0:2].reshape(-1, 2), subgoal[..., 0:2].reshape(-1, 2))
         self.ep_cpad += np.where(live & (self.decisions > 0), moved.reshape(n, m), 0.0)
         self.subgoal[live] = subgoal[live]
@@ -231,13 +222,11 @@ class MultiRobotCore:
             success,
             success_mode=cfg.success_mode,
             hit_mode=cfg.hit_mode,
+            success_weight=cfg.success_weight,
+            hit_weight=cfg.hit_weight,
             **extra,
             **thresholds,
         )
-        # R_t and R_hit reweighted (the terms keep summing to the total).
-        for name, weight in (("success", cfg.success_weight), ("hit", cfg.hit_weight)):
-            extra = (weight - 1.0) * terms[name]
-            reward, terms[name] = reward + extra, terms[name] + extra
         return (
             reward.reshape(n, m),
             success.reshape(n, m) & live,
@@ -415,7 +404,6 @@ class MultiRobotParallelEnv(ParallelEnv):
             subgoals=self.core.subgoal,
             trails=[np.array(trail) for trail in self._trails[:m]],
             team=[0] * m + [1] * k,
-            trail_team=[0] * m,
         )
 
 

@@ -16,96 +16,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import numpy as np
-from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic import BaseModel, Field
 
-from hier_ssl.config import Strict, load_yaml, parse_config
-from hier_ssl.manager import COLLISION_DISTANCE, DIST_THRESHOLD, SPEED_THRESHOLD
-from hier_ssl.worker import WORKERS
-from hier_ssl.world.field import FIELDS, get_field
-from hier_ssl.world.obstacles import OBSTACLES, make_obstacle
-
-MAX_AGENTS, MAX_OBSTACLES = 11, 11
-
-
-class BehaviourConfig(Strict):
-    """How every obstacle robot of a scenario moves: a behaviour of ``hier_ssl.world.obstacles``."""
-
-    behaviour: str = "random_walk"
-    options: dict[str, Any] = Field(default_factory=dict)
-
-    @model_validator(mode="after")
-    def _known(self) -> BehaviourConfig:
-        if self.behaviour not in OBSTACLES:
-            known = sorted(OBSTACLES)
-            raise ValueError(f"behaviour: unknown obstacle behaviour {self.behaviour!r}; known: {known}")
-        make_obstacle(self.behaviour, 1, **self.options)  # rejects unknown or bad options, naming them
-        return self
-
-
-class ScenarioConfig(Strict):
-    """One multi-robot scenario over N fields. Keys left out take the scenario class's ``defaults``, then
-    the values below; ``options`` are the scenario's own settings (its ``Options`` model)."""
-
-    scenario: str
-    field: str = "division_b"
-    num_agents: int = Field(1, ge=1, le=MAX_AGENTS)
-    num_obstacles: int = Field(0, ge=0, le=MAX_OBSTACLES)
-    obstacles: BehaviourConfig = Field(default_factory=BehaviourConfig)
-    neighbours: int = Field(6, ge=0)  # K: other robots in each manager observation, nearest first
-    options: dict[str, Any] = Field(default_factory=dict)
-    # Task settings, with the meaning they have in EnvConfig (SPEC.md); the task is always action-centric
-    # ("obstacle" rules, or "proposed" when a field holds a single robot).
-    action_form: Literal["pose4", "pose6"] = "pose4"
-    # "field": the paper's sub-goal in field coordinates. "target": an offset from the target pose (x, y
-    # cubed, then scaled by the field's half length and width; a turn of atan2(sin, 1 + cos) within +-90
-    # deg), so the zero action is the direct sub-goal and a learner only has to find the detours.
-    action_frame: Literal["field", "target"] = "field"
-    frame_skip: int = Field(16, ge=1)
-    frame_skip_reward: Literal["sum", "last"] = "sum"
-    max_steps: int = Field(1200, ge=1)
-    success_mode: Literal["add", "replace"] = "add"
-    hit_mode: Literal["add", "replace"] = "add"
-    # Multiply R_t (+1000) and R_hit (-1000). With many obstacles a detour's shaping cost (the sub-goal off
-    # the target for several decisions) can exceed the expected cost of driving straight through, and the
-    # in-threshold bonuses summed over frame skip (+176 a decision) pay a manager more for dithering around
-    # the target, never quite succeeding, than R_t pays for finishing: these weights re-price both.
-    success_weight: float = Field(1.0, ge=0)
-    hit_weight: float = Field(1.0, ge=0)
-    worker: str = "paper"
-    dt: float = Field(0.025, gt=0)
-    substeps: int = Field(2, ge=1)
-    d_th: float = Field(DIST_THRESHOLD, gt=0)
-    theta_th_deg: float = Field(5.0, gt=0)
-    speed_th: float = Field(SPEED_THRESHOLD, gt=0)
-    collision_distance: float = Field(COLLISION_DISTANCE, gt=0)
-    spawn_margin: float = Field(0.1, ge=0)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _scenario_defaults(cls, data: Any) -> Any:
-        if isinstance(data, dict) and "scenario" in data:
-            name = data["scenario"]
-            if name not in SCENARIOS:
-                raise ValueError(f"scenario: unknown scenario {name!r}; known: {sorted(SCENARIOS)}")
-            data = {**SCENARIOS[name].defaults, **data}
-        return data
-
-    @model_validator(mode="after")
-    def _consistent(self) -> ScenarioConfig:
-        if self.field not in FIELDS:
-            raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
-        if self.worker not in WORKERS:
-            raise ValueError(f"worker: unknown worker {self.worker!r}; known: {list(WORKERS)}")
-        try:
-            SCENARIOS[self.scenario](self)  # checks the options and that the layout fits the field
-        except ValidationError as err:
-            first = err.errors()[0]
-            key = ".".join(str(p) for p in ("options", *first["loc"]))
-            raise ValueError(f"{key}: {first['msg']}") from None
-        return self
+from hier_ssl.config import (
+    BehaviourConfig,
+    ScenarioConfig,
+    Strict,
+    load_yaml,
+    parse_config,
+)
+from hier_ssl.world.field import get_field
 
 
 @dataclass
@@ -311,7 +234,8 @@ SCENARIOS: dict[str, type[Scenario]] = {cls.name: cls for cls in (Crossing, Crow
 
 
 def scenario_config(config: str | Path | ScenarioConfig | None = None, **settings: Any) -> ScenarioConfig:
-    """A ScenarioConfig from a registered name, a YAML file or a config; ``settings`` override its keys.
+    """A ScenarioConfig from a registered name, a YAML file (a scenario, or a training config's
+    ``scenario`` section) or a config; ``settings`` override its keys.
 
     ``scenario_config("crossing", num_agents=4)``; ``scenario_config("configs/scenarios/crowd.yaml")``.
     Errors are ConfigErrors naming the key (``scenario.options.radius: ...``).
@@ -322,6 +246,8 @@ def scenario_config(config: str | Path | ScenarioConfig | None = None, **setting
         data = {"scenario": config}
     elif config is not None:
         data = load_yaml(config)
+        if isinstance(data.get("scenario"), dict):  # a training config: its scenario section
+            data = data["scenario"]
     else:
         data = {}
     return parse_config({**data, **settings}, ScenarioConfig, root="scenario")

@@ -5,7 +5,15 @@ Everything works on numpy arrays batched over N fields (leading axis).
 
 from __future__ import annotations
 
-from hier_ssl.manager.actions import ACTION_DIMS, action_dim, decode_subgoal, encode_subgoal
+from hier_ssl.manager.actions import (
+    ACTION_DIMS,
+    ACTION_FRAMES,
+    action_dim,
+    decode_in_frame,
+    decode_subgoal,
+    encode_in_frame,
+    encode_subgoal,
+)
 from hier_ssl.manager.metrics import CPAD_VARIANTS, cpad, cpad_increment, min_time_to_pose, summarize
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
@@ -46,6 +54,7 @@ from hier_ssl.manager.success import (
 )
 
 __all__ = [
+    "ACTION_FRAMES",
     "ACTION_DIMS",
     "ANGLE_BONUS",
     "ANGLE_THRESHOLD",
@@ -71,8 +80,10 @@ __all__ = [
     "collided",
     "cpad",
     "cpad_increment",
+    "decode_in_frame",
     "decode_subgoal",
     "distance_reward",
+    "encode_in_frame",
     "encode_subgoal",
     "manager_obs_dim",
     "manager_observation",

@@ -97,3 +97,76 @@ def encode_subgoal(
         return np.concatenate([xy, sincos], axis=1)
     vel = np.clip(subgoal[:, 3:5] / max_v, -1.0, 1.0)
     return np.concatenate([xy, vel, sincos], axis=1)
+
+
+ACTION_FRAMES = ("field", "target")
+
+
+def _check_frame(frame: str) -> None:
+    if frame not in ACTION_FRAMES:
+        raise ValueError(f"unknown action frame {frame!r}; expected one of {list(ACTION_FRAMES)}")
+
+
+def decode_in_frame(
+    action: ArrayLike,
+    form: str,
+    frame: str,
+    target: ArrayLike,
+    half_length: float,
+    half_width: float,
+    max_v: float = 2.5,
+    zero_velocity: bool = False,
+) -> np.ndarray:
+    """`decode_subgoal` in the field frame (the paper's) or the target frame.
+
+    In the "target" frame x, y are offsets from the target, cubed and then scaled by the field's half
+    length and width (|a| < 0.2 lands within 4 cm of the target, yet a detour across half the field stays
+    in reach), and the turn from the target's heading is atan2(sin, 1 + cos), within +-90 deg. The zero
+    action is then the direct sub-goal (the target pose), so a learner only has to find the detours.
+    Velocities are field-frame in both. Every action value is clipped to [-1, 1] first (so the heading
+    of an out-of-range sin/cos pair is that of the clipped pair), sub-goals to the field.
+
+    Args:
+        target: (N, 5) target poses; read only in the "target" frame.
+        Other arguments as in `decode_subgoal`.
+    """
+    _check_frame(frame)
+    action = np.clip(check_array("action", action, (None, action_dim(form))), -1.0, 1.0)
+    if frame == "field":
+        return decode_subgoal(action, form, half_length, half_width, max_v, zero_velocity)
+    target = check_array("target", target, (action.shape[0], 5))
+    action[:, 0:2] **= 3
+    action[:, -1] += 1.0  # cos is last in both forms
+    subgoal = decode_subgoal(action, form, half_length, half_width, max_v, zero_velocity)
+    half = np.array([half_length, half_width])
+    subgoal[:, 0:2] = np.clip(subgoal[:, 0:2] + target[:, 0:2], -half, half)
+    subgoal[:, 2] = np.angle(np.exp(1j * (subgoal[:, 2] + target[:, 2])))
+    return subgoal
+
+
+def encode_in_frame(
+    subgoal: ArrayLike,
+    form: str,
+    frame: str,
+    target: ArrayLike,
+    half_length: float,
+    half_width: float,
+    max_v: float = 2.5,
+) -> np.ndarray:
+    """Inverse of `decode_in_frame`, for scripted managers acting in an environment of either frame.
+
+    In the "target" frame an offset beyond the field's half size and a turn beyond +-90 deg from the
+    target's heading are clipped to what the frame can express.
+    """
+    _check_frame(frame)
+    if frame == "field":
+        return encode_subgoal(subgoal, form, half_length, half_width, max_v)
+    subgoal = check_array("subgoal", subgoal, (None, 5))
+    target = check_array("target", target, (subgoal.shape[0], 5))
+    action = encode_subgoal(subgoal, form, half_length, half_width, max_v)
+    offset = (subgoal[:, 0:2] - target[:, 0:2]) / np.array([half_length, half_width])
+    action[:, 0:2] = np.cbrt(np.clip(offset, -1.0, 1.0))
+    turn = np.clip(np.angle(np.exp(1j * (subgoal[:, 2] - target[:, 2]))), -np.pi / 2 + 1e-6, np.pi / 2 - 1e-6)
+    # atan2(sin 2t, 1 + cos 2t) = t for |t| < 90 deg.
+    action[:, -2], action[:, -1] = np.sin(2 * turn), np.cos(2 * turn)
+    return action

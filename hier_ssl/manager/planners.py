@@ -11,8 +11,9 @@ manager is (``policy(obs (N, O)) -> actions (N, A)`` in [-1, 1]).
   the same action, so a seeded evaluation is reproducible and the policy may be called on any subset of
   fields.
 
-Everything a planner knows about the world comes from the observation (SPEC "Manager observation") and
-from constants given at construction: the field, the robot's limits and the action form.
+Everything a planner knows about the world comes from the observation (SPEC "Manager observation", or the
+"neighbours" layout, whose neighbours it treats as obstacles) and from constants given at construction: the
+field, the robot's limits, the action form and frame.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hier_ssl.manager.actions import action_dim, encode_subgoal
+from hier_ssl.manager.actions import action_dim, encode_in_frame
+from hier_ssl.manager.neighbours import as_obstacle_observation
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
     MANAGER_OBS_SLICES,
@@ -35,9 +37,10 @@ from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.physics import RobotSpec
 
 if TYPE_CHECKING:
-    from hier_ssl.config import EnvConfig
+    from hier_ssl.config import TaskSettings
 
 PLANNERS = ("direct", "sampling")
+OBSERVATIONS = ("paper", "neighbours")
 
 
 @dataclass(frozen=True)
@@ -55,11 +58,16 @@ class Scene:
     obstacle_vel: np.ndarray
 
 
-def read_scene(obs: np.ndarray, max_pos: float, max_v: float) -> Scene:
+def read_scene(obs: np.ndarray, max_pos: float, max_v: float, observation: str = "paper") -> Scene:
     """Undo the observation's normalisation (positions / max_pos, velocities / max_v).
 
-    ``obs`` (N, 13 + 5K); K is read from its width. Values clipped by the observation stay clipped.
+    ``obs`` (N, 13 + 5K) in the "paper" layout, or (N, 13 + 6K) in the "neighbours" one (every neighbour
+    an obstacle); K is read from its width. Values clipped by the observation stay clipped.
     """
+    if observation not in OBSERVATIONS:
+        raise ValueError(f"unknown observation layout {observation!r}; expected one of {list(OBSERVATIONS)}")
+    if observation == "neighbours":
+        obs = as_obstacle_observation(obs)
     obs = check_array("obs", obs, (None, None))
     n, width = obs.shape
     k, rest = divmod(width - MANAGER_OBS_BASE_DIM, OBSTACLE_OBS_DIM)
@@ -93,13 +101,22 @@ class DirectPlanner:
     action_form: str = "pose4"
     max_pos: float | None = None  # observation normaliser; default field.max_pos
     max_v: float = 2.5
+    observation: str = "paper"  # layout of the observations read (``read_scene``)
+    action_frame: str = "field"  # frame of the actions written (``decode_in_frame``)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions (N, A) for manager observations (N, O)."""
         max_pos = self.max_pos or self.field.max_pos
-        scene = read_scene(obs, max_pos, self.max_v)
-        return encode_subgoal(
-            scene.target, self.action_form, self.field.half_length, self.field.half_width, self.max_v
+        scene = read_scene(obs, max_pos, self.max_v, self.observation)
+        fld = self.field
+        return encode_in_frame(
+            scene.target,
+            self.action_form,
+            self.action_frame,
+            scene.target,
+            fld.half_length,
+            fld.half_width,
+            self.max_v,
         )
 
 
@@ -154,6 +171,8 @@ class SamplingPlanner:
     escape: float = 0.6  # radius of the ring of candidates around the robot (m)
     across: float = 1.5
     seed: int = 0
+    observation: str = "paper"  # as DirectPlanner's
+    action_frame: str = "field"
 
     def __post_init__(self) -> None:
         action_dim(self.action_form)
@@ -245,8 +264,7 @@ class SamplingPlanner:
 
     def plan(self, obs: np.ndarray) -> np.ndarray:
         """The chosen sub-goal poses (N, 5): x, y, the target's heading, zero velocity."""
-        max_pos = self.max_pos or self.field.max_pos
-        scene = read_scene(obs, max_pos, self.robot.max_speed)
+        scene = self.read(obs)
         cand = self.candidates(scene)
         arrival, clearance, hard, near = self.rollout(scene, cand)
         # The fastest candidate clear of the growing safety distance; failing that, the fastest clear of
@@ -260,18 +278,24 @@ class SamplingPlanner:
         subgoal[:, 0], subgoal[:, 1], subgoal[:, 2] = chosen.real, chosen.imag, scene.target[:, 2]
         return subgoal
 
+    def read(self, obs: np.ndarray) -> Scene:
+        return read_scene(obs, self.max_pos or self.field.max_pos, self.robot.max_speed, self.observation)
+
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions (N, A) for manager observations (N, O)."""
-        return encode_subgoal(
+        fld = self.field
+        return encode_in_frame(
             self.plan(obs),
             self.action_form,
-            self.field.half_length,
-            self.field.half_width,
+            self.action_frame,
+            self.read(obs).target,
+            fld.half_length,
+            fld.half_width,
             self.robot.max_speed,
         )
 
 
-def make_planner(name: str, config: EnvConfig, **options: object) -> DirectPlanner | SamplingPlanner:
+def make_planner(name: str, config: TaskSettings, **options: object) -> DirectPlanner | SamplingPlanner:
     """The scripted manager ``name`` ("direct" or "sampling") for environments built from ``config``.
 
     The sampling planner's rollout uses the world's robot limits, its speed capped by the configured
@@ -283,8 +307,9 @@ def make_planner(name: str, config: EnvConfig, **options: object) -> DirectPlann
     if name not in PLANNERS:
         raise ValueError(f"unknown planner {name!r}; known: {list(PLANNERS)}")
     fld, robot = get_field(config.field), RobotSpec()
+    layout = {"observation": config.observation, "action_frame": config.action_frame}
     if name == "direct":
-        return DirectPlanner(fld, config.action_form, max_v=robot.max_speed, **options)
+        return DirectPlanner(fld, config.action_form, max_v=robot.max_speed, **layout, **options)
     worker = make_worker(config.worker, robot, config.dt)
     brake = getattr(worker, "brake_accel", None)
     settings = {
@@ -293,6 +318,7 @@ def make_planner(name: str, config: EnvConfig, **options: object) -> DirectPlann
         "collision_distance": config.collision_distance,
         "arrive_radius": config.d_th,
         "hold": config.frame_skip * config.dt,
+        **layout,
         **options,
     }
     return SamplingPlanner(fld, robot, config.action_form, **settings)

@@ -112,6 +112,8 @@ def task_reward(
     hit: ArrayLike | None = None,
     success_mode: str = "add",
     hit_mode: str = "add",
+    success_weight: float = 1.0,
+    hit_weight: float = 1.0,
     d_th: float = DIST_THRESHOLD,
     theta_th: float = ANGLE_THRESHOLD,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -130,6 +132,10 @@ def task_reward(
             (public code: 1000 instead of R_d + R_theta on success; R_obst still added).
         hit_mode: "add" (paper text: R_hit = -1000 added to the other terms) or "replace"
             (public code: the step's reward is -1000 alone).
+        success_weight, hit_weight: multiply R_t (+1000) and R_hit (-1000); 1 is the paper's. A detour's
+            shaping cost can exceed the expected cost of driving into an obstacle, and the in-threshold
+            bonuses summed over a frame-skip period can pay more for dithering near the target than R_t
+            pays for finishing: these re-price both.
         d_th, theta_th: thresholds of R_d (m) and R_theta (rad).
 
     Returns:
@@ -142,6 +148,9 @@ def task_reward(
         raise ValueError(f"unknown success_mode {success_mode!r}; expected one of {SUCCESS_MODES}")
     if hit_mode not in HIT_MODES:
         raise ValueError(f"unknown hit_mode {hit_mode!r}; expected one of {HIT_MODES}")
+    for name, weight in (("success_weight", success_weight), ("hit_weight", hit_weight)):
+        if not np.isfinite(weight) or weight < 0:
+            raise ValueError(f"{name} must be finite and >= 0, got {weight}")
     target = check_array("target", target, (None, 5))
     n = target.shape[0]
     robot_pos = check_array("robot_pos", robot_pos, (n, 2))
@@ -160,7 +169,7 @@ def task_reward(
     terms = {
         "distance": distance_reward(d, d_th),
         "angle": angle_reward(delta, theta_th),
-        "success": np.where(success, SUCCESS_REWARD, 0.0),
+        "success": np.where(success, success_weight * SUCCESS_REWARD, 0.0),
         "obstacle": np.zeros(n),
         "hit": np.zeros(n),
     }
@@ -169,7 +178,7 @@ def task_reward(
             terms[name] = np.where(success, 0.0, terms[name])
     if task == "obstacle":
         terms["obstacle"] = obstacle_reward(nearest_obstacle_distance(subgoal[:, 0:2], obs_pos))
-        terms["hit"] = np.where(hit, HIT_REWARD, 0.0)
+        terms["hit"] = np.where(hit, hit_weight * HIT_REWARD, 0.0)
         if hit_mode == "replace":
             for name in ("distance", "angle", "success", "obstacle"):
                 terms[name] = np.where(hit, 0.0, terms[name])

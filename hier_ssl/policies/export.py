@@ -27,8 +27,6 @@ import torch
 from torch import nn
 
 from hier_ssl.config import TrainConfig
-from hier_ssl.manager.actions import action_dim
-from hier_ssl.manager.observation import manager_obs_dim
 from hier_ssl.policies.actor import load_actor
 from hier_ssl.world.field import get_field
 from hier_ssl.world.physics import RobotSpec
@@ -122,11 +120,16 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
     if config.kind != "manager":
         raise ValueError(f"{run_dir}: a {config.kind} run; export takes a manager run")
     env, k = config.env, len(config.env.obstacles)
+    if (env.observation, env.action_frame) != ("paper", "field"):
+        raise ValueError(
+            f"{run_dir}: export takes managers with env.observation 'paper' and env.action_frame 'field'; "
+            f"this one has {env.observation!r} and {env.action_frame!r}"
+        )
     in_dim, out_dim = actor[0].in_features, actor[-2].out_features
-    if (in_dim, out_dim) != (manager_obs_dim(k), action_dim(env.action_form)):
+    if (in_dim, out_dim) != (env.obs_dim, env.act_dim):
         raise ValueError(
             f"{run_dir}: actor maps {in_dim} -> {out_dim} values; its config needs "
-            f"{manager_obs_dim(k)} -> {action_dim(env.action_form)}"
+            f"{env.obs_dim} -> {env.act_dim}"
         )
     field, robot = get_field(env.field), RobotSpec()
     module = ExportedManager(

@@ -151,7 +151,11 @@ class SACRunner:
                     actions = self.sac.act(self._obs)
                 # Step and store; the true last observation is the next_obs of finished episodes.
                 next_obs, rewards, terminated, _truncated, info = self.env.step(actions)
-                self.sac.process_env_step(self._obs, actions, rewards, info["final_obs"], terminated)
+                rows = (self._obs, actions, rewards, info["final_obs"], terminated)
+                live = info.get("live")
+                if live is not None:  # rows of robots that have left their episode are not transitions
+                    rows = tuple(x[live] for x in rows)
+                self.sac.process_env_step(*rows)
                 self._obs = next_obs
                 self.step += 1
                 for key, values in info["episode"].items():

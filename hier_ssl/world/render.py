@@ -17,6 +17,12 @@ from hier_ssl.world.physics import RobotSpec, RobotState
 CARPET, LINE, WALL, GOAL = "#2e7d3b", "#f4f4f4", "#3a3a3a", "#111111"
 # Team 0: the controlled robots (SSL blue), team 1: obstacles (SSL yellow); further teams cycle.
 TEAM_COLORS = ("#1d4ed8", "#f5c400", "#d9480f", "#7048e8")
+# With several controlled robots in a field each has its own colour, shared by its path, target and
+# sub-goals (11 a side in SSL); none green (the field) or yellow (the obstacles).
+ROBOT_COLORS = (
+    "#1d4ed8", "#e03131", "#212529", "#9c36b5", "#15aabf", "#f783ac",
+    "#fd7e14", "#f8f9fa", "#8b5a2b", "#b197fc", "#1c2f6e",
+)  # fmt: skip
 TARGET, SUBGOAL = "#e03131", "#ff922b"
 _LINE_WIDTH_M = 0.02  # SSL field lines are 10 mm wide; drawn a little wider so they survive small images
 _GOAL_DEPTH_M = 0.18
@@ -29,21 +35,25 @@ def render_fields(
     *,
     targets: np.ndarray | None = None,
     subgoals: np.ndarray | None = None,
+    subgoal_robot: Sequence[int] | None = None,
     trails: Sequence[np.ndarray] | None = None,
+    trail_robot: Sequence[int] | None = None,
     field_index: int = 0,
     size: tuple[int, int] = (660, 460),
     team: Sequence[int] | None = None,
-    trail_team: Sequence[int] | None = None,
     robot: RobotSpec | None = None,
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
-    ``state`` holds every field (pos (N, R, 2) ...). ``targets`` and ``subgoals`` are per field, (N, K) for
-    one each or (N, M, K) for several, with columns x, y and optionally theta (drawn as a heading tick);
-    sub-goals are drawn as dots. ``trails`` are polylines (T, 2) of this field in the field frame, drawn in
-    the colours of the teams ``trail_team`` (default: the i-th trail in robot i's colour). ``team`` (R,)
-    gives each robot's team (0 controlled, 1 obstacle, ...); by default robot 0 is controlled and the
-    others are obstacles. ``robot`` gives the disc radius (default: ``RobotSpec()``).
+    ``state`` holds every field (pos (N, R, 2) ...). ``team`` (R,) gives each robot's team (0 controlled,
+    1 obstacle, ...); by default robot 0 is controlled and the others are obstacles. ``targets`` and
+    ``subgoals`` are per field, (N, K) for one each or (N, M, K) for several, with columns x, y and
+    optionally theta (drawn as a heading tick); sub-goals are drawn as dots. Target row j belongs to the
+    j-th controlled robot, and so does sub-goal row j unless ``subgoal_robot`` names each row's robot (as
+    an index among the controlled ones). ``trails`` are polylines (T, 2) of this field in the field frame,
+    the i-th that of robot ``trail_robot[i]`` (default: robot i). A robot is drawn in its team's colour;
+    with several controlled robots each of them, its path, target and sub-goals share a colour of
+    ``ROBOT_COLORS``. ``robot`` gives the disc radius (default: ``RobotSpec()``).
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -55,6 +65,21 @@ def render_fields(
     if teams.shape != (num_robots,):
         raise ValueError(f"team has shape {teams.shape}, expected ({num_robots},)")
     radius = (robot or RobotSpec()).radius
+    colors = [TEAM_COLORS[t % len(TEAM_COLORS)] for t in teams]
+    controlled = np.flatnonzero(teams == 0)
+    several = len(controlled) > 1
+    if several:
+        for j, i in enumerate(controlled):
+            colors[i] = ROBOT_COLORS[j % len(ROBOT_COLORS)]
+
+    def owned(default: str, rows: int, owner: Sequence[int] | None = None) -> list[str]:
+        """Colours of ``rows`` target or sub-goal rows: the owning robot's with several robots."""
+        if not several:
+            return [default] * rows
+        owner = range(rows) if owner is None else owner
+        if len(owner) != rows:
+            raise ValueError(f"subgoal_robot has {len(owner)} entries for {rows} sub-goals")
+        return [ROBOT_COLORS[j % len(ROBOT_COLORS)] for j in owner]
 
     dpi = 100
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=WALL)
@@ -71,13 +96,14 @@ def render_fields(
 
     _draw_field(ax, field, line_pt)
     if trails is not None:
-        if trail_team is None:
-            trail_team = [teams[min(i, num_robots - 1)] for i in range(len(trails))]
-        if len(trail_team) != len(trails):
-            raise ValueError(f"trail_team has {len(trail_team)} entries for {len(trails)} trails")
-        for trail, trail_of in zip(trails, trail_team, strict=True):
+        owners = range(len(trails)) if trail_robot is None else trail_robot
+        if len(owners) != len(trails) or not all(0 <= i < num_robots for i in owners):
+            raise ValueError(
+                f"trail_robot: {list(owners)} does not name one of {num_robots} robots per trail"
+            )
+        for trail, i in zip(trails, owners, strict=True):
+            color = colors[i]
             trail = np.asarray(trail, dtype=float).reshape(-1, 2)
-            color = TEAM_COLORS[trail_of % len(TEAM_COLORS)]
             ax.plot(
                 trail[:, 0],
                 trail[:, 1],
@@ -89,26 +115,27 @@ def render_fields(
             )
     if subgoals is not None:
         points = _per_field(subgoals, field_index, "subgoals")
+        dot_colors = owned(SUBGOAL, len(points), subgoal_robot)
         ax.scatter(
-            points[:, 0], points[:, 1], s=(2.2 * line_pt) ** 2, color=SUBGOAL, edgecolors="none", zorder=5
+            points[:, 0], points[:, 1], s=(2.2 * line_pt) ** 2, c=dot_colors, edgecolors="none", zorder=5
         )
     if targets is not None:
         points = _per_field(targets, field_index, "targets")
+        ring_colors = owned(TARGET, len(points))
         ax.scatter(
             points[:, 0],
             points[:, 1],
             s=(9 * line_pt) ** 2,
             facecolors="none",
-            edgecolors=TARGET,
+            edgecolors=ring_colors,
             linewidths=1.2 * line_pt,
             zorder=4,
         )
-        ax.scatter(points[:, 0], points[:, 1], s=(1.6 * line_pt) ** 2, color=TARGET, zorder=4)
+        ax.scatter(points[:, 0], points[:, 1], s=(1.6 * line_pt) ** 2, c=ring_colors, zorder=4)
         if points.shape[1] >= 3:
-            ax.add_collection(_ticks(points[:, 0:2], points[:, 2], 2 * radius, TARGET, 1.2 * line_pt))
+            ax.add_collection(_ticks(points[:, 0:2], points[:, 2], 2 * radius, ring_colors, 1.2 * line_pt))
 
     pos, angle = state.pos[field_index], state.angle[field_index]
-    colors = [TEAM_COLORS[t % len(TEAM_COLORS)] for t in teams]
     discs = PatchCollection(
         [Circle(tuple(p), radius) for p in pos],
         facecolors=colors,
@@ -135,7 +162,12 @@ def _per_field(points: np.ndarray, field_index: int, name: str) -> np.ndarray:
 
 
 def _ticks(
-    pos: np.ndarray, angle: np.ndarray, length: float, color: str, width: float, zorder: int = 4
+    pos: np.ndarray,
+    angle: np.ndarray,
+    length: float,
+    color: str | Sequence[str],
+    width: float,
+    zorder: int = 4,
 ) -> LineCollection:
     """Heading ticks: segments from each point ``length`` metres along its angle."""
     tip = pos + length * np.stack([np.cos(angle), np.sin(angle)], axis=-1)

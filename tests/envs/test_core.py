@@ -110,3 +110,38 @@ def test_bad_config_key_names_it() -> None:
         EnvConfig(frame_skp=4)
     with pytest.raises(ValueError, match="frame_skip"):
         EnvConfig(frame_skip=0)
+
+
+def test_neighbour_observation_and_target_frame_keep_the_planners_results() -> None:
+    """The relative ("neighbours") observation and the target action frame change what a manager reads and
+    writes, not the task: a planner that reads and writes either gets the same episodes."""
+    from hier_ssl.envs import env_config
+    from hier_ssl.evaluate import evaluate
+    from hier_ssl.manager.planners import make_planner
+
+    results = []
+    for layout in ({}, {"observation": "neighbours", "neighbours": 2, "action_frame": "target"}):
+        config = env_config(task="obstacle", frame_skip=16, **layout)
+        result = evaluate(make_planner("sampling", config), config, 40, seed=4)
+        results.append((result["success_rate"], result["collision_rate"]))
+    assert results[0] == results[1] and results[0][0] > 0.9
+
+    core = HierarchicalCore(env_config(task="obstacle", observation="neighbours", neighbours=2), 3)
+    obs, s = core.reset(seed=0), core.state
+    assert obs.shape == (3, 13 + 2 * 6) == (3, core.obs_dim)
+    rel = (s.pos[:, 1] - s.pos[:, 0]) / core.field.max_pos
+    np.testing.assert_allclose(obs[:, 13:15], rel, atol=1e-6)
+    assert obs[:, 17:19].tolist() == [[0.0, 1.0]] * 3  # an obstacle, present
+    assert not obs[:, 19:].any()  # the second slot is padding
+
+
+def test_target_frame_zero_action_drives_to_the_target() -> None:
+    core = HierarchicalCore(
+        EnvConfig(frame_skip=16, action_frame="target", max_steps=400), 4, autoreset=False
+    )
+    core.reset(seed=1)
+    success = np.zeros(4, dtype=bool)
+    while not core.done.all():
+        result = core.step(np.zeros((4, 4)))
+        success[result.info["episode"]["field"]] = result.info["episode"]["success"] > 0
+    assert success.all() and core.ep_cpad.max() == 0.0  # the direct sub-goal, never moved

@@ -9,7 +9,7 @@ from hier_ssl.config import ConfigError
 from hier_ssl.envs import RslRlVecEnv
 from hier_ssl.envs.multi import MultiRobotCore, MultiRobotParallelEnv, MultiVectorEnv
 from hier_ssl.envs.scenarios import SCENARIOS, make_scenario, scenario_config
-from hier_ssl.evaluate_multi import evaluate_scenario, planner_policy
+from hier_ssl.evaluate_multi import evaluate_scenario
 from hier_ssl.manager import HIT_REWARD, SUCCESS_REWARD, encode_subgoal
 from hier_ssl.manager.neighbours import (
     NEIGHBOUR_OBS_SLICES,
@@ -18,6 +18,7 @@ from hier_ssl.manager.neighbours import (
     neighbour_obs_slice,
     neighbour_observation,
 )
+from hier_ssl.manager.planners import make_planner
 
 
 def _build_env(scenario: str = "crossing", **overrides: object) -> MultiRobotParallelEnv:
@@ -244,7 +245,7 @@ def test_config_errors_name_the_key() -> None:
 
 def test_evaluation_is_seeded_and_direct_crossing_collides() -> None:
     config = scenario_config("crossing", num_agents=4)
-    direct = planner_policy("direct", config)
+    direct = make_planner("direct", config)
     result = evaluate_scenario(direct, config, episodes=6, seed=3)
     again = evaluate_scenario(direct, config, episodes=6, seed=3)
     np.testing.assert_array_equal(result["per_robot"]["length"], again["per_robot"]["length"])

@@ -131,3 +131,24 @@ def test_bad_options_raise() -> None:
         task_reward("baseline", **_scene(), success_mode="sum")
     with pytest.raises(ValueError, match="success"):
         task_reward("baseline", **(_scene() | {"success": np.array([1.0])}))
+
+
+def test_success_and_hit_weights_scale_their_terms_only() -> None:
+    args = {
+        "target": np.zeros((2, 5)),
+        "robot_pos": np.zeros((2, 2)),
+        "robot_angle": np.zeros(2),
+        "subgoal": np.zeros((2, 5)),
+        "success": np.array([True, False]),
+        "obs_pos": np.full((2, 1, 2), 0.5),
+        "hit": np.array([False, True]),
+    }
+    _, plain = task_reward("obstacle", **args)
+    total, weighted = task_reward("obstacle", success_weight=20.0, hit_weight=5.0, **args)
+    assert weighted["success"].tolist() == [20 * plain["success"][0], 0.0]
+    assert weighted["hit"].tolist() == [0.0, 5 * plain["hit"][1]]
+    for name in ("distance", "angle", "obstacle"):
+        np.testing.assert_array_equal(weighted[name], plain[name])
+    np.testing.assert_allclose(total, sum(weighted.values()))
+    with pytest.raises(ValueError, match="hit_weight"):
+        task_reward("obstacle", hit_weight=-1.0, **args)

@@ -363,3 +363,23 @@ def test_sac_learns_to_reach_a_goal(tmp_path: Path, overrides: dict[str, object]
     learned_distance = _mean_final_distance(lambda obs: runner.sac.act(obs, deterministic=True))
     assert random_distance > 0.8  # about the mean distance between two uniform points of the square
     assert learned_distance < 0.2, (learned_distance, random_distance)
+
+
+def test_runner_stores_only_the_rows_of_robots_still_in_their_episode(tmp_path: Path) -> None:
+    from hier_ssl.envs.multi import MultiVectorEnv
+    from hier_ssl.envs.scenarios import scenario_config
+
+    env = MultiVectorEnv(scenario_config("crossing", num_agents=3, action_frame="target"), num_fields=2)
+    live_rows = []
+    step = env.step
+
+    def counting_step(actions: torch.Tensor) -> tuple:
+        out = step(actions)
+        live_rows.append(int(out[4]["live"].sum()))
+        return out
+
+    env.step = counting_step
+    runner = SACRunner(env, SACConfig(hidden=(8, 8), learning_starts=10**6), tmp_path, progress=False)
+    runner.learn(40)
+    assert min(live_rows) < 6  # robots left their episodes on the way
+    assert runner.sac.replay.size == sum(live_rows)

@@ -50,3 +50,23 @@ def test_render_picks_the_field_and_checks_its_arguments() -> None:
         render_fields(world.field, world.state, team=[0, 1])
     with pytest.raises(ValueError, match="targets must have shape"):
         render_fields(world.field, world.state, targets=np.zeros(3))
+
+
+def test_several_controlled_robots_each_get_their_own_colour() -> None:
+    from hier_ssl.world.render import ROBOT_COLORS
+
+    world = _world()
+    image = render_fields(world.field, world.state, team=[0, 0, 1], size=(330, 230))
+    hx, hy = world.field.wall_half_extent
+    px_per_m = 1 / max(2 * (hx + 0.05) / 330, 2 * (hy + 0.05) / 230)
+    for (x, y), color in [
+        ((-1.5, 0.5), ROBOT_COLORS[0]),
+        ((1.0, -1.0), ROBOT_COLORS[1]),
+        ((2.0, 1.2), TEAM_COLORS[1]),
+    ]:
+        col, row = round(165 + px_per_m * x), round(115 - px_per_m * y)
+        pixel = image[row - 2, col - 2].astype(int)
+        assert np.abs(pixel - _rgb(color)).max() < 40, (color, pixel)
+    assert len(set(ROBOT_COLORS)) == 11 and TEAM_COLORS[1] not in ROBOT_COLORS
+    with pytest.raises(ValueError, match="trail_robot"):
+        render_fields(world.field, world.state, trails=[np.zeros((2, 2))] * 4)

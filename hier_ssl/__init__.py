@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["env", "manager_env", "parallel_env", "vector_env"]
+__all__ = ["env", "manager_env", "parallel_env", "scenario_env", "scenario_vector_env", "vector_env"]
 __version__ = "0.1.0"
 
 

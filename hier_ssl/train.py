@@ -12,6 +12,7 @@ import csv
 import json
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -21,9 +22,10 @@ import torch
 from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml, parse_config
 from hier_ssl.envs.vector import TorchView, VectorEnv
 from hier_ssl.evaluate import Policy, evaluate
+from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
-CONFIG_FILE, BEST_FILE, CURVE_FILE, EVAL_FILE = "config.yaml", "best_actor.pt", "curve.csv", "eval.json"
+CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
 # Model selection and the final evaluation draw their episodes from different seeds, so the reported
 # figures are not biased by having picked the checkpoint on them.
 SELECTION_SEED, EVALUATION_SEED = 10_000, 20_000
@@ -62,24 +64,35 @@ def resume_config(run_dir: Path) -> TrainConfig:
 
 
 class _Selection:
-    """Evaluation hook: record the learning curve and keep the best actor."""
+    """Model selection: score the policy on the selection episodes, append the row to the learning curve
+    and keep the best policy's state in ``best_actor.pt`` (success rate first, then lower CPAD)."""
 
     def __init__(self, config: TrainConfig, run_dir: Path) -> None:
         self.config, self.run_dir = config, run_dir
         self.best: tuple[float, float] | None = None
+        self.last_step = -1
         curve = run_dir / CURVE_FILE
         if curve.is_file():
             rows = list(csv.DictReader(curve.open()))
             if rows:
                 self.best = max((float(r["success_rate"]), -float(r["cpad_median"])) for r in rows)
+                self.last_step = int(rows[-1]["step"])
 
-    def __call__(self, runner: SACRunner) -> dict[str, float]:
+    def record(
+        self,
+        policy: Policy,
+        step: int,
+        transitions: int,
+        train_time_s: float,
+        state: Callable[[], dict[str, Any]],
+    ) -> dict[str, float]:
+        """Score ``policy`` after ``step`` vector steps; ``state()`` is what ``best_actor.pt`` keeps."""
         cfg = self.config
-        result = evaluate_run(sac_policy(runner.sac.actor), cfg, SELECTION_SEED + cfg.seed)
+        result = evaluate_run(policy, cfg, SELECTION_SEED + cfg.seed)
         row = {
-            "step": runner.step,
-            "transitions": runner.num_transitions,
-            "train_time_s": round(runner.train_time_s, 2),
+            "step": step,
+            "transitions": transitions,
+            "train_time_s": round(train_time_s, 2),
             "success_rate": result["success_rate"],
             "collision_rate": result["collision_rate"],
             "episode_length_median": result["episode_length"]["median"],
@@ -92,13 +105,23 @@ class _Selection:
             if new:
                 writer.writeheader()
             writer.writerow(row)
+        self.last_step = step
         score = (row["success_rate"], -row["cpad_median"])
         if self.best is None or score > self.best:
             self.best = score
-            atomic_save(
-                {"actor": runner.sac.actor.state_dict(), "step": runner.step}, self.run_dir / BEST_FILE
-            )
+            atomic_save(state(), self.run_dir / BEST_ACTOR_FILE)
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
+
+    def __call__(self, runner: SACRunner) -> dict[str, float]:
+        """SACRunner's evaluation callback."""
+        actor = runner.sac.actor
+        return self.record(
+            sac_policy(actor),
+            runner.step,
+            runner.num_transitions,
+            runner.train_time_s,
+            lambda: {"actor": actor.state_dict(), "step": runner.step},
+        )
 
 
 def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, Any]:
@@ -167,26 +190,49 @@ def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
         runner.load(run_dir)
     runner.learn(config.total_steps)
     runner.close()
-    if (run_dir / BEST_FILE).is_file():
-        runner.sac.actor.load_state_dict(torch.load(run_dir / BEST_FILE, weights_only=True)["actor"])
+    if (run_dir / BEST_ACTOR_FILE).is_file():
+        runner.sac.actor.load_state_dict(torch.load(run_dir / BEST_ACTOR_FILE, weights_only=True)["actor"])
     return sac_policy(runner.sac.actor), runner.train_time_s
 
 
-def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool):
+def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, select: bool = True):
+    """PPO through rsl-rl. With ``select`` (managers) the policy is scored on the selection episodes at
+    every checkpoint (every ``eval_interval`` vector steps) and the best one is returned, as for SAC."""
     import time
 
     from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
 
-    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device)
+    steps_per_iteration = config.ppo.num_steps_per_env
+    every = max(1, config.eval_interval // steps_per_iteration)
+    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device, save_interval=every)
     if resume:
         saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
         if not saved:
             raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
         load_ppo(runner, saved[-1])
-    iterations = max(1, config.total_steps // config.ppo.num_steps_per_env)
-    start = time.perf_counter()
+    policy, selection = ppo_policy(runner), _Selection(config, run_dir)
+    start, evaluating = time.perf_counter(), 0.0
+
+    def state() -> dict[str, Any]:  # what runner.save writes, for load_ppo and load_actor
+        return {**runner.alg.save(), "iter": runner.current_learning_iteration}
+
+    def score(runner: Any) -> None:
+        nonlocal evaluating
+        step = (runner.current_learning_iteration + 1) * steps_per_iteration
+        if step == selection.last_step:  # the final save repeats the last periodic one
+            return
+        began = time.perf_counter()
+        selection.record(policy, step, step * env.num_envs, began - start - evaluating, state)
+        evaluating += time.perf_counter() - began
+
+    runner.on_save = score if select else None
+    iterations = max(1, config.total_steps // steps_per_iteration)
     runner.learn(max(0, iterations - runner.current_learning_iteration))
-    return ppo_policy(runner), time.perf_counter() - start
+    runner.on_save = None
+    train_time_s = time.perf_counter() - start - evaluating
+    if (run_dir / BEST_ACTOR_FILE).is_file():
+        load_ppo(runner, run_dir / BEST_ACTOR_FILE)
+    return policy, train_time_s
 
 
 def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str, Any]:
@@ -195,7 +241,7 @@ def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str,
 
     torch.manual_seed(config.seed)
     env = GoToPointEnv(config.env, config.gotopoint, config.num_envs, config.device, seed=config.seed)
-    policy, train_wall_s = _train_ppo(config, env, run_dir, resume)
+    policy, train_wall_s = _train_ppo(config, env, run_dir, resume, select=False)
     summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)
     summary["train_wall_s"] = round(train_wall_s, 1)
     atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)

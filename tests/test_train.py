@@ -170,3 +170,27 @@ def test_scenario_config_errors_name_the_key(change: dict[str, object], message:
 
     with pytest.raises(ConfigError, match=message):
         parse_config({**SCENARIO, **change})
+
+
+def test_a_ppo_run_keeps_its_best_policy_by_the_selection_curve(tmp_path: Path) -> None:
+    from hier_ssl.policies.actor import load_actor
+
+    config = {
+        "name": "tiny-ppo",
+        "env": {"task": "proposed", "frame_skip": 16},
+        "algo": "ppo",
+        "num_envs": 8,
+        "total_steps": 64,  # 4 iterations of 16 steps
+        "eval_interval": 32,  # a checkpoint, and a score, every 2 iterations
+        "eval_episodes": 10,
+        "threads": 1,
+        "ppo": {"hidden": [16, 16]},
+    }
+    run = tmp_path / "run"
+    summary = train(parse_config(config), run, progress=False)
+    rows = (run / "curve.csv").read_text().splitlines()
+    steps = [int(row.split(",")[0]) for row in rows[1:]]
+    assert steps == [16, 48, 64]  # after iteration 1, 3 and the last (rsl-rl saves at 0, 2 and the end)
+    assert (run / "best_actor.pt").is_file() and summary["episodes"] == 10
+    actor, _ = load_actor(run)
+    assert actor(torch.zeros(3, 13)).shape == (3, 4)

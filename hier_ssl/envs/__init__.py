@@ -7,9 +7,11 @@ from typing import Any
 
 from pettingzoo.utils.conversions import parallel_to_aec
 
-from hier_ssl.config import ConfigError, EnvConfig, load_yaml, parse_config
+from hier_ssl.config import EnvConfig, ScenarioConfig, load_yaml, parse_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.multi import MultiRobotParallelEnv, MultiVectorEnv
 from hier_ssl.envs.parallel import HierarchicalSSLEnv, ManagerEnv
+from hier_ssl.envs.scenarios import scenario_config
 from hier_ssl.envs.vector import RslRlVecEnv, VectorEnv
 
 
@@ -26,10 +28,7 @@ def env_config(config: str | Path | EnvConfig | None = None, **settings: Any) ->
     if "obstacles" not in settings and not data.get("obstacles") and settings.get("task") == "obstacle":
         settings.setdefault("obstacles", [{}])
         settings.setdefault("min_start_distance", 0.6)
-    try:
-        return parse_config({**data, **settings}, EnvConfig, root="env")
-    except ConfigError:
-        raise
+    return parse_config({**data, **settings}, EnvConfig, root="env")
 
 
 def parallel_env(
@@ -58,15 +57,34 @@ def manager_env(
     return ManagerEnv(env_config(config, **settings), render_mode=render_mode)
 
 
+def scenario_env(
+    scenario: str | Path | ScenarioConfig, render_mode: str | None = None, **settings: Any
+) -> MultiRobotParallelEnv:
+    """The PettingZoo ParallelEnv of a multi-robot scenario (a name, a YAML file or a config), e.g.
+    ``scenario_env("crossing", num_agents=4)``: agents ``manager_i`` leave as they finish."""
+    return MultiRobotParallelEnv(scenario_config(scenario, **settings), render_mode=render_mode)
+
+
+def scenario_vector_env(
+    scenario: str | Path | ScenarioConfig, num_fields: int = 16, device: str = "cpu", **settings: Any
+) -> MultiVectorEnv:
+    """The batched torch view of a scenario for a shared policy: one row per (field, controlled robot)."""
+    return MultiVectorEnv(scenario_config(scenario, **settings), num_fields, device)
+
+
 __all__ = [
     "HierarchicalCore",
     "HierarchicalSSLEnv",
     "ManagerEnv",
+    "MultiRobotParallelEnv",
+    "MultiVectorEnv",
     "RslRlVecEnv",
     "VectorEnv",
     "env",
     "env_config",
     "manager_env",
     "parallel_env",
+    "scenario_env",
+    "scenario_vector_env",
     "vector_env",
 ]

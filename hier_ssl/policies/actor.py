@@ -22,7 +22,7 @@ from torch import nn
 
 from hier_ssl.config import ConfigError, TrainConfig, load_yaml, parse_config
 
-CONFIG_FILE, SAC_ACTOR_FILE = "config.yaml", "best_actor.pt"
+CONFIG_FILE, BEST_ACTOR_FILE = "config.yaml", "best_actor.pt"
 _PPO_FILE = re.compile(r"model_(\d+)\.pt")
 
 
@@ -80,13 +80,16 @@ def run_config(run_dir: str | Path) -> TrainConfig:
 
 
 def checkpoint_path(run_dir: str | Path, config: TrainConfig) -> Path:
-    """The file ``load_actor`` reads: ``best_actor.pt`` (SAC) or the last ``model_<iteration>.pt`` (PPO)."""
+    """The file ``load_actor`` reads: ``best_actor.pt`` (the actor kept by model selection; SAC runs always
+    have one), else for PPO the last ``model_<iteration>.pt``."""
     run_dir = Path(run_dir)
     if config.algo == "sac":
-        path = run_dir / SAC_ACTOR_FILE
+        path = run_dir / BEST_ACTOR_FILE
         if not path.is_file():
-            raise ConfigError(f"{run_dir}: no usable checkpoint ({SAC_ACTOR_FILE} missing)")
+            raise ConfigError(f"{run_dir}: no usable checkpoint ({BEST_ACTOR_FILE} missing)")
         return path
+    if (run_dir / BEST_ACTOR_FILE).is_file():  # the best PPO policy on the selection episodes
+        return run_dir / BEST_ACTOR_FILE
     saved = [(int(m.group(1)), p) for p in run_dir.glob("model_*.pt") if (m := _PPO_FILE.fullmatch(p.name))]
     if not saved:
         raise ConfigError(f"{run_dir}: no usable checkpoint (no PPO model_<iteration>.pt)")

@@ -97,13 +97,25 @@ def ppo_train_cfg(
     }
 
 
+class SelectingRunner(OnPolicyRunner):
+    """rsl-rl's ``OnPolicyRunner`` that calls ``on_save(self)`` after every checkpoint it writes (every
+    ``save_interval`` iterations and at the end), so a run can score and keep its best policy there."""
+
+    on_save: Callable[[OnPolicyRunner], None] | None = None
+
+    def save(self, path: str, infos: dict | None = None) -> None:
+        super().save(path, infos)
+        if self.on_save is not None:
+            self.on_save(self)
+
+
 def make_ppo_runner(
     env: VectorEnv,
     cfg: PPOConfig,
     log_dir: str | Path | None = None,
     device: str | torch.device = "cpu",
     **train_cfg_settings: Any,
-) -> OnPolicyRunner:
+) -> SelectingRunner:
     """An ``OnPolicyRunner`` training on ``env`` (wrapped in ``RslRlVecEnv``).
 
     ``log_dir=None`` writes nothing: no TensorBoard, no console log, no checkpoints from ``learn``.
@@ -111,7 +123,9 @@ def make_ppo_runner(
     iteration collects ``cfg.num_steps_per_env`` decisions from every field.
     """
     train_cfg = ppo_train_cfg(cfg, **train_cfg_settings)
-    return OnPolicyRunner(RslRlVecEnv(env), train_cfg, None if log_dir is None else str(log_dir), str(device))
+    return SelectingRunner(
+        RslRlVecEnv(env), train_cfg, None if log_dir is None else str(log_dir), str(device)
+    )
 
 
 def ppo_policy(runner: OnPolicyRunner) -> NumpyPolicy:
@@ -153,4 +167,4 @@ def load_ppo(runner: OnPolicyRunner, path: str | Path, map_location: str | None 
         runner.current_learning_iteration = loaded["iter"]
 
 
-__all__ = ["NumpyPolicy", "load_ppo", "make_ppo_runner", "ppo_policy", "ppo_train_cfg"]
+__all__ = ["NumpyPolicy", "SelectingRunner", "load_ppo", "make_ppo_runner", "ppo_policy", "ppo_train_cfg"]

@@ -48,6 +48,15 @@ def test_pettingzoo_parallel_api(name: str) -> None:
     parallel_api_test(_build_env(name), num_cycles=100)
 
 
+@pytest.mark.parametrize("name", sorted(SCENARIOS))
+def test_shipped_scenario_configs_build_through_the_entry_point(name: str) -> None:
+    import hier_ssl
+
+    env = hier_ssl.scenario_env(f"configs/scenarios/{name}.yaml")
+    assert env.config.scenario == name and env.config.action_frame == "target"
+    parallel_api_test(env, num_cycles=20)
+
+
 def test_pettingzoo_seed() -> None:
     parallel_seed_test(lambda: _build_env("formation"), num_cycles=10)
 

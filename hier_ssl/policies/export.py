@@ -1,8 +1,9 @@
 """A trained manager as one self-contained file for robot software: TorchScript or ONNX.
 
 The exported graph takes the raw field-frame state and returns the sub-goal pose; the manager
-observation's normalisation (``hier_ssl.manager.observation``), the actor's deterministic (mean) action
-and the action decoding (``hier_ssl.manager.actions``) are all inside it::
+observation (``hier_ssl.manager.observation``, or the relative layout of ``hier_ssl.manager.neighbours``),
+the actor's deterministic (mean) action and the action decoding in the run's frame
+(``hier_ssl.manager.actions``) are all inside it::
 
     state (B, 11 + 5K) float32, metres, radians, m/s, rad/s, field frame:
         0-4    target x, y, theta, vx, vy
@@ -38,7 +39,12 @@ OBS_CLIP = 1.2
 
 
 class ExportedManager(nn.Module):
-    """Raw state (B, 11 + 5K) -> sub-goal (B, 5): observation, actor mean, decoding, in one module."""
+    """Raw state (B, 11 + 5K) -> sub-goal (B, 5): observation, actor mean, decoding, in one module.
+
+    ``neighbours`` None builds the paper's observation; an int builds the "neighbours" layout with that many
+    slots (``hier_ssl.manager.neighbours``: the obstacles nearest first, relative to the robot).
+    ``target_frame`` decodes actions as offsets from the target (``hier_ssl.manager.actions``).
+    """
 
     def __init__(
         self,
@@ -51,6 +57,8 @@ class ExportedManager(nn.Module):
         max_pos: float,
         max_v: float,
         max_w: float,
+        neighbours: int | None = None,
+        target_frame: bool = False,
     ) -> None:
         super().__init__()
         self.actor = actor
@@ -60,8 +68,35 @@ class ExportedManager(nn.Module):
         self.half_length, self.half_width = half_length, half_width
         self.max_pos, self.max_v, self.max_w = max_pos, max_v, max_w
         self.clip = OBS_CLIP
+        self.neighbours, self.target_frame = neighbours, target_frame
         per_obstacle = torch.tensor([max_pos, max_pos, max_v, max_v, max_w], dtype=torch.float64)
         self.register_buffer("obstacle_scale", per_obstacle.repeat(num_obstacles))
+
+    def _neighbour_slots(self, x: torch.Tensor, k: int) -> list[torch.Tensor]:
+        """The ``k`` neighbour slots of the "neighbours" layout: relative x, y / max_pos, relative vx, vy /
+        max_v (each clipped), teammate 0, present 1; all-zero padding past the obstacles there are."""
+        b, real = x.shape[0], min(k, self.num_obstacles)
+        slots: list[torch.Tensor] = []
+        if real > 0:
+            others = x[:, 11:].reshape(b, self.num_obstacles, 5)  # OBSTACLE_STATE_DIM
+            rel_pos, rel_vel = others[:, :, 0:2] - x[:, None, 5:7], others[:, :, 2:4] - x[:, None, 8:10]
+            # Nearest first (ONNX TopK; exact distance ties, which the numpy builder breaks by index, are
+            # measure-zero for real positions).
+            order = torch.topk(rel_pos.square().sum(dim=2), real, dim=1, largest=False, sorted=True)[1]
+            pick = order[:, :, None].expand(b, real, 2)
+            block = torch.cat(
+                [
+                    torch.clamp(torch.gather(rel_pos, 1, pick) / self.max_pos, -self.clip, self.clip),
+                    torch.clamp(torch.gather(rel_vel, 1, pick) / self.max_v, -self.clip, self.clip),
+                    torch.zeros_like(rel_pos[:, :real, 0:1]),
+                    torch.ones_like(rel_pos[:, :real, 0:1]),
+                ],
+                dim=2,
+            )
+            slots.append(block.reshape(b, 6 * real))
+        if k > real:
+            slots.append(torch.zeros(b, 6 * (k - real), dtype=x.dtype, device=x.device))
+        return slots
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         x = state.to(torch.float64)
@@ -76,20 +111,32 @@ class ExportedManager(nn.Module):
             x[:, 8:10] / self.max_v,
             x[:, 10:11] / self.max_w,
         ]
-        if self.num_obstacles > 0:  # a (B, 0) slice would make ONNX infer a reshape by dividing by 0
+        slots: list[torch.Tensor] = []
+        if self.neighbours is not None:
+            slots = self._neighbour_slots(x, self.neighbours)
+        elif self.num_obstacles > 0:  # a (B, 0) slice would make ONNX infer a reshape by dividing by 0
             parts.append(x[:, 11:] / self.obstacle_scale)
-        obs = torch.cat(parts, dim=1)
-        action = self.actor(torch.clamp(obs, -self.clip, self.clip).to(torch.float32))
-        xy = torch.clamp(action[:, 0:2], -1.0, 1.0)
+        pieces = [torch.clamp(torch.cat(parts, dim=1), -self.clip, self.clip)]
+        pieces.extend(slots)
+        obs = torch.cat(pieces, dim=1)
+        action = torch.clamp(self.actor(obs.to(torch.float32)), -1.0, 1.0)
+        xy, sin, cos = action[:, 0:2], action[:, -2:-1], action[:, -1:]
+        if self.target_frame:  # offsets cubed, a turn of atan2(sin, 1 + cos) from the target's heading
+            xy, cos = xy * xy * xy, cos + 1.0
         xy = torch.cat([xy[:, 0:1] * self.half_length, xy[:, 1:2] * self.half_width], dim=1)
-        if self.pose6:
-            theta = torch.atan2(action[:, 4:5], action[:, 5:6])
-            vel = torch.clamp(action[:, 2:4], -1.0, 1.0) * self.max_v
-        else:
-            theta = torch.atan2(action[:, 2:3], action[:, 3:4])
-            vel = torch.zeros_like(xy)
-        if self.zero_velocity:
-            vel = torch.zeros_like(xy)
+        theta = torch.atan2(sin, cos)
+        if self.target_frame:
+            target = x[:, 0:2].to(xy.dtype)
+            xy = torch.cat(
+                [
+                    torch.clamp(xy[:, 0:1] + target[:, 0:1], -self.half_length, self.half_length),
+                    torch.clamp(xy[:, 1:2] + target[:, 1:2], -self.half_width, self.half_width),
+                ],
+                dim=1,
+            )
+            heading = theta + x[:, 2:3].to(theta.dtype)
+            theta = torch.atan2(torch.sin(heading), torch.cos(heading))
+        vel = action[:, 2:4] * self.max_v if self.pose6 and not self.zero_velocity else torch.zeros_like(xy)
         return torch.cat([xy, theta, vel], dim=1)
 
 
@@ -110,6 +157,8 @@ def layout(config: TrainConfig) -> dict[str, object]:
         "task": config.env.task,
         "field": config.env.field,
         "action_form": config.env.action_form,
+        "observation": config.env.observation,
+        "action_frame": config.env.action_frame,
         "frame_skip": config.env.frame_skip,
     }
 
@@ -120,11 +169,6 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
     if config.kind != "manager":
         raise ValueError(f"{run_dir}: a {config.kind} run; export takes a manager run")
     env, k = config.env, len(config.env.obstacles)
-    if (env.observation, env.action_frame) != ("paper", "field"):
-        raise ValueError(
-            f"{run_dir}: export takes managers with env.observation 'paper' and env.action_frame 'field'; "
-            f"this one has {env.observation!r} and {env.action_frame!r}"
-        )
     in_dim, out_dim = actor[0].in_features, actor[-2].out_features
     if (in_dim, out_dim) != (env.obs_dim, env.act_dim):
         raise ValueError(
@@ -142,6 +186,8 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
         max_pos=field.max_pos,
         max_v=robot.max_speed,
         max_w=robot.max_ang_speed,
+        neighbours=env.neighbours if env.observation == "neighbours" else None,
+        target_frame=env.action_frame == "target",
     )
     return module.eval(), config
 

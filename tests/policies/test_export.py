@@ -12,7 +12,8 @@ import torch
 from hier_ssl import cli
 from hier_ssl.config import PPOConfig, TrainConfig, dump_config, parse_config
 from hier_ssl.envs import vector_env
-from hier_ssl.manager import decode_subgoal, manager_observation
+from hier_ssl.manager import decode_in_frame, manager_observation
+from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.policies.export import export_manager, layout
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
@@ -50,6 +51,19 @@ VARIANTS = {
     ),
     "sac_proposed": ("sac", {"task": "proposed", "frame_skip": 16}, ("torchscript",)),
     "sac_baseline_pose6": ("sac", {"task": "baseline", "action_form": "pose6"}, ("torchscript",)),
+    # Relative observation (two obstacles sorted into three slots, one padded) and target-frame sub-goals.
+    "sac_obstacle_target_frame": (
+        "sac",
+        {
+            "task": "obstacle",
+            "obstacles": [{}, {}],
+            "min_start_distance": 0.6,
+            "observation": "neighbours",
+            "neighbours": 3,
+            "action_frame": "target",
+        },
+        ("torchscript", "onnx"),
+    ),
 }
 
 
@@ -104,13 +118,27 @@ def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> np.ndar
     x = states.astype(np.float64)
     k = len(config.env.obstacles)
     obstacles = x[:, 11:].reshape(len(x), k, 5)
-    obs = manager_observation(
-        x[:, 0:5], x[:, 5:7], x[:, 7], x[:, 8:10], x[:, 10], obstacles[:, :, 0:2], obstacles[:, :, 2:4],
-        obstacles[:, :, 4], max_pos=3.8, max_v=2.5, max_w=10.0,
-    )  # fmt: skip
-    action = policy(obs)
-    form, zero = config.env.action_form, config.env.task != "baseline"
-    return decode_subgoal(np.clip(action, -1.0, 1.0), form, 3.0, 2.0, 2.5, zero_velocity=zero)
+    own, scales = (x[:, 0:5], x[:, 5:7], x[:, 7], x[:, 8:10], x[:, 10]), {"max_pos": 3.8, "max_v": 2.5}
+    if config.env.observation == "neighbours":
+        teammate = np.zeros((len(x), k), dtype=bool)
+        obs = neighbour_observation(
+            *own, obstacles[:, :, 0:2], obstacles[:, :, 2:4], teammate, config.env.neighbours, **scales
+        )
+    else:
+        obs = manager_observation(
+            *own, obstacles[:, :, 0:2], obstacles[:, :, 2:4], obstacles[:, :, 4], **scales
+        )
+    env = config.env
+    return decode_in_frame(
+        policy(obs),
+        env.action_form,
+        env.action_frame,
+        x[:, 0:5],
+        3.0,
+        2.0,
+        2.5,
+        zero_velocity=env.task != "baseline",
+    )
 
 
 @pytest.fixture(scope="module")

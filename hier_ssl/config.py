@@ -40,7 +40,7 @@ class TaskSettings(Strict):
 
     action_form: Literal["pose4", "pose6"] = "pose4"
     # "field": the paper's sub-goal in field coordinates; "target": an offset from the target pose, so the
-    # zero action is the direct sub-goal (``hier_ssl.manager.actions.decode_in_frame``).
+    # zero action is the direct sub-goal (``hier_ssl.manager.actions.decode_subgoal``).
     action_frame: Literal["field", "target"] = "field"
     frame_skip: int = Field(1, ge=1)
     frame_skip_reward: Literal["sum", "last"] = "sum"

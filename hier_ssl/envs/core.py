@@ -17,7 +17,7 @@ from hier_ssl.config import EnvConfig
 from hier_ssl.manager import (
     collided,
     cpad_increment,
-    decode_in_frame,
+    decode_subgoal,
     manager_observation,
     task_reward,
     task_success,
@@ -223,15 +223,15 @@ class HierarchicalCore:
         """
         action = check_action("manager", action, (self.num_fields, self.act_dim))
         clipped = np.count_nonzero(np.abs(action) > 1.0, axis=1)
-        subgoal = decode_in_frame(
+        subgoal = decode_subgoal(
             action,
             self.config.action_form,
-            self.config.action_frame,
-            self.target,
             self.field.half_length,
             self.field.half_width,
             self.robot.max_speed,
             zero_velocity=self.config.task != "baseline",
+            frame=self.config.action_frame,
+            target=self.target,
         )
         clipped = np.where(np.isin(np.arange(self.num_fields), fields), clipped, 0)
         moved = cpad_increment(self.subgoal[fields, 0:2], subgoal[fields, 0:2])

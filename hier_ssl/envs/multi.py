@@ -27,7 +27,7 @@ from pettingzoo import ParallelEnv
 from hier_ssl.envs.core import check_action
 from hier_ssl.envs.scenarios import ScenarioConfig, make_scenario
 from hier_ssl.envs.vector import TorchView
-from hier_ssl.manager import action_dim, collided, cpad_increment, decode_in_frame, task_reward, task_success
+from hier_ssl.manager import action_dim, collided, cpad_increment, decode_subgoal, task_reward, task_success
 from hier_ssl.manager.neighbours import neighbour_obs_dim, neighbour_observation
 from hier_ssl.worker import make_worker
 from hier_ssl.world.obstacles import make_obstacle
@@ -163,15 +163,15 @@ class MultiRobotCore:
         n, m = live.shape
         action = check_action("manager", action, (n, m, self.act_dim))
         clipped = np.where(live, np.count_nonzero(np.abs(action) > 1.0, axis=2), 0)
-        subgoal = decode_in_frame(
+        subgoal = decode_subgoal(
             action.reshape(n * m, self.act_dim),
             self.config.action_form,
-            self.config.action_frame,
-            self.target.reshape(n * m, 5),
             self.field.half_length,
             self.field.half_width,
             self.robot.max_speed,
             zero_velocity=True,
+            frame=self.config.action_frame,
+            target=self.target.reshape(n * m, 5),
         ).reshape(n, m, 5)
         moved = cpad_increment(self.subgoal[..., 0:2].reshape(-1, 2), subgoal[..., 0:2].reshape(-1, 2))
         self.ep_cpad += np.where(live & (self.decisions > 0), moved.reshape(n, m), 0.0)

@@ -9,9 +9,7 @@ from hier_ssl.manager.actions import (
     ACTION_DIMS,
     ACTION_FRAMES,
     action_dim,
-    decode_in_frame,
     decode_subgoal,
-    encode_in_frame,
     encode_subgoal,
 )
 from hier_ssl.manager.metrics import CPAD_VARIANTS, cpad, cpad_increment, min_time_to_pose, summarize
@@ -80,10 +78,8 @@ __all__ = [
     "collided",
     "cpad",
     "cpad_increment",
-    "decode_in_frame",
     "decode_subgoal",
     "distance_reward",
-    "encode_in_frame",
     "encode_subgoal",
     "manager_obs_dim",
     "manager_observation",

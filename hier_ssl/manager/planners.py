@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hier_ssl.manager.actions import action_dim, encode_in_frame
+from hier_ssl.manager.actions import action_dim, encode_subgoal
 from hier_ssl.manager.neighbours import as_obstacle_observation
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
@@ -102,21 +102,21 @@ class DirectPlanner:
     max_pos: float | None = None  # observation normaliser; default field.max_pos
     max_v: float = 2.5
     observation: str = "paper"  # layout of the observations read (``read_scene``)
-    action_frame: str = "field"  # frame of the actions written (``decode_in_frame``)
+    action_frame: str = "field"  # frame of the actions written (``decode_subgoal``)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions (N, A) for manager observations (N, O)."""
         max_pos = self.max_pos or self.field.max_pos
         scene = read_scene(obs, max_pos, self.max_v, self.observation)
         fld = self.field
-        return encode_in_frame(
+        return encode_subgoal(
             scene.target,
             self.action_form,
-            self.action_frame,
-            scene.target,
             fld.half_length,
             fld.half_width,
             self.max_v,
+            frame=self.action_frame,
+            target=scene.target,
         )
 
 
@@ -284,14 +284,14 @@ class SamplingPlanner:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions (N, A) for manager observations (N, O)."""
         fld = self.field
-        return encode_in_frame(
+        return encode_subgoal(
             self.plan(obs),
             self.action_form,
-            self.action_frame,
-            self.read(obs).target,
             fld.half_length,
             fld.half_width,
             self.robot.max_speed,
+            frame=self.action_frame,
+            target=self.read(obs).target,
         )
 
 

@@ -64,37 +64,37 @@ def test_bad_input_raises() -> None:
 
 
 def test_target_frame_zero_action_is_the_target_pose() -> None:
-    from hier_ssl.manager.actions import decode_in_frame
-
     target = np.array([[1.0, -0.5, 2.0, 0.0, 0.0], [-2.9, 1.9, -3.0, 0.0, 0.0]])
-    zero = decode_in_frame(np.zeros((2, 4)), "pose4", "target", target, HALF_LENGTH, HALF_WIDTH)
+    zero = decode_subgoal(np.zeros((2, 4)), "pose4", HALF_LENGTH, HALF_WIDTH, frame="target", target=target)
     np.testing.assert_allclose(zero, target, atol=1e-12)
     # Offsets are cubed: 0.5 of the way is an eighth of the half length; sub-goals stay on the field.
-    far = decode_in_frame(
-        np.array([[0.5, 0.0, 0.0, 1.0], [-1.0, 1.0, 0.0, 1.0]]), "pose4", "target", target, 3, 2
-    )
+    action = np.array([[0.5, 0.0, 0.0, 1.0], [-1.0, 1.0, 0.0, 1.0]])
+    far = decode_subgoal(action, "pose4", 3.0, 2.0, frame="target", target=target)
     assert far[0, 0] == pytest.approx(1.0 + 3.0 / 8) and far[1, 0:2].tolist() == [-3.0, 2.0]
     # The turn is atan2(sin, 1 + cos): sin = 1, cos = 0 turns 45 deg from the target heading.
-    turned = decode_in_frame(np.array([[0.0, 0.0, 1.0, 0.0]]), "pose4", "target", target[:1], 3, 2)
+    turned = decode_subgoal(
+        np.array([[0.0, 0.0, 1.0, 0.0]]), "pose4", 3.0, 2.0, frame="target", target=target[:1]
+    )
     assert turned[0, 2] == pytest.approx(2.0 + math.pi / 4)
+    with pytest.raises(ValueError, match="target"):
+        decode_subgoal(action, "pose4", 3.0, 2.0, frame="target")
 
 
 @pytest.mark.parametrize("form", ["pose4", "pose6"])
 @pytest.mark.parametrize("frame", ["field", "target"])
-def test_encode_in_frame_inverts_decode_in_frame(form: str, frame: str) -> None:
-    from hier_ssl.manager.actions import decode_in_frame, encode_in_frame
-
+def test_encode_inverts_decode_in_either_frame(form: str, frame: str) -> None:
     rng = np.random.default_rng(3)
     n, dim = 200, action_dim(form)
     target = np.column_stack([rng.uniform(-1, 1, (n, 2)), rng.uniform(-3, 3, n), np.zeros((n, 2))])
     action = rng.uniform(-0.6, 0.6, (n, dim))  # in reach of the frame from every target
     turn = rng.uniform(-1.2, 1.2, n)  # unit (sin, cos) pairs, within +-90 deg in the target frame
     action[:, -2], action[:, -1] = np.sin(turn), np.cos(turn)
-    subgoal = decode_in_frame(action, form, frame, target, HALF_LENGTH, HALF_WIDTH)
-    again = decode_in_frame(
-        encode_in_frame(subgoal, form, frame, target, HALF_LENGTH, HALF_WIDTH), form, frame, target, 3.0, 2.0
+    where = {"frame": frame, "target": target}
+    subgoal = decode_subgoal(action, form, HALF_LENGTH, HALF_WIDTH, **where)
+    again = decode_subgoal(
+        encode_subgoal(subgoal, form, HALF_LENGTH, HALF_WIDTH, **where), form, 3.0, 2.0, **where
     )
     np.testing.assert_allclose(again[:, 0:2], subgoal[:, 0:2], atol=1e-9)
     np.testing.assert_allclose(np.cos(again[:, 2] - subgoal[:, 2]), 1.0, atol=1e-9)
     with pytest.raises(ValueError, match="robot"):
-        decode_in_frame(action, form, "robot", target, HALF_LENGTH, HALF_WIDTH)
+        decode_subgoal(action, form, HALF_LENGTH, HALF_WIDTH, frame="robot", target=target)

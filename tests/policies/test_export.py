@@ -12,7 +12,7 @@ import torch
 from hier_ssl import cli
 from hier_ssl.config import PPOConfig, TrainConfig, dump_config, parse_config
 from hier_ssl.envs import vector_env
-from hier_ssl.manager import decode_in_frame, manager_observation
+from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.policies.export import export_manager, layout
 from hier_ssl.policies.networks import SquashedGaussianActor
@@ -129,15 +129,15 @@ def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> np.ndar
             *own, obstacles[:, :, 0:2], obstacles[:, :, 2:4], obstacles[:, :, 4], **scales
         )
     env = config.env
-    return decode_in_frame(
+    return decode_subgoal(
         policy(obs),
         env.action_form,
-        env.action_frame,
-        x[:, 0:5],
         3.0,
         2.0,
         2.5,
         zero_velocity=env.task != "baseline",
+        frame=env.action_frame,
+        target=x[:, 0:5],
     )
 
 

@@ -41,20 +41,8 @@ def evaluate(
     obs = core.reset(seed)
     recorder = Recorder(core, record) if record else None
     distance = np.linalg.norm(core.state.pos[:, 0] - core.target[:, :2], axis=1)
-    length = np.zeros(episodes, dtype=np.int64)
-    success, collision, cpad = np.zeros(episodes, bool), np.zeros(episodes, bool), np.zeros(episodes)
-    action = np.zeros((episodes, core.act_dim))
-    while not core.done.all():
-        live = ~core.done
-        action[live] = policy(obs[live])
-        result = core.step(action)
-        episode = result.info["episode"]
-        idx = episode["field"]
-        length[idx] = episode["length"]
-        success[idx] = episode["success"] > 0
-        collision[idx] = episode["collision"] > 0
-        cpad[idx] = episode["cpad"]
-        obs = result.obs
+    ends = play(core, policy, obs)
+    length, success, collision, cpad = ends["length"], ends["success"], ends["collision"], ends["cpad"]
     solved, nan = bool(success.any()), float("nan")
     summary: dict[str, object] = {
         "episodes": episodes,
@@ -77,6 +65,33 @@ def evaluate(
         summary["trajectories"] = [recorder.episode(j, int(length[i])) for j, i in enumerate(record)]
         summary["eval_wall_s"] = time.perf_counter() - start
     return summary
+
+
+def play(core: Any, policy: Policy, obs: np.ndarray) -> dict[str, np.ndarray]:
+    """Play every episode of a core built without auto-reset to its end, from its observations ``obs``;
+    the policy acts for the live rows only (its input shrinks as episodes end). One loop for
+    ``HierarchicalCore`` (a row per field, shape (N,)) and ``MultiRobotCore`` (a row per robot, (N, M)).
+
+    Returns length (control steps), success, collision and cpad, arrays of ``core.active``'s shape.
+    """
+    shape = core.active.shape
+    ends = {
+        "length": np.zeros(shape, dtype=np.int64),
+        "success": np.zeros(shape, dtype=bool),
+        "collision": np.zeros(shape, dtype=bool),
+        "cpad": np.zeros(shape),
+    }
+    action = np.zeros(shape + (core.act_dim,))
+    while core.active.any():
+        live = core.active
+        action[live] = policy(obs[live])
+        result = core.step(action)
+        episode = result.info["episode"]
+        at = tuple(episode[key] for key in ("field", "agent") if key in episode)
+        for key in ends:
+            ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]
+        obs = result.obs
+    return ends
 
 
 def check_record(record: Sequence[int], episodes: int) -> list[int]:

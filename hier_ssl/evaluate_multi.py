@@ -14,7 +14,7 @@ import numpy as np
 
 from hier_ssl.envs.multi import MultiRobotCore
 from hier_ssl.envs.scenarios import ScenarioConfig
-from hier_ssl.evaluate import Recorder, check_record, optimal_ratio_median
+from hier_ssl.evaluate import Recorder, check_record, optimal_ratio_median, play
 from hier_ssl.manager import summarize
 
 Policy = Callable[[np.ndarray], np.ndarray]
@@ -41,19 +41,8 @@ def evaluate_scenario(
     obs = core.reset(seed)
     recorder = Recorder(core, record) if record else None
     distance = np.linalg.norm(core.world.state.pos[:, : config.num_agents] - core.target[..., 0:2], axis=2)
-    shape = (episodes, config.num_agents)
-    length, cpad = np.zeros(shape, dtype=np.int64), np.zeros(shape)
-    success, collision = np.zeros(shape, dtype=bool), np.zeros(shape, dtype=bool)
-    action = np.zeros(shape + (core.act_dim,))
-    while not core.done.all():
-        live = core.active
-        action[live] = policy(obs[live])
-        result = core.step(action)
-        episode = result.info["episode"]
-        at = (episode["field"], episode["agent"])
-        length[at], cpad[at] = episode["length"], episode["cpad"]
-        success[at], collision[at] = episode["success"] > 0, episode["collision"] > 0
-        obs = result.obs
+    ends = play(core, policy, obs)
+    length, success, collision, cpad = ends["length"], ends["success"], ends["collision"], ends["cpad"]
     summary: dict[str, object] = {
         "episodes": episodes,
         "robots": int(success.size),

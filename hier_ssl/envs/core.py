@@ -169,6 +169,11 @@ class HierarchicalCore:
         for behaviour in self.obstacles:
             behaviour.reset(fields, self.rng)
 
+    @property
+    def active(self) -> np.ndarray:
+        """(N,) bool: fields whose episode is still running (``MultiRobotCore.active`` is per robot)."""
+        return ~self.done
+
     def _too_close(self, xy: np.ndarray, placed: list[np.ndarray]) -> np.ndarray:
         gap = 2 * self.config.collision_distance
         return np.any([np.linalg.norm(xy - other, axis=1) < gap for other in placed], axis=0)

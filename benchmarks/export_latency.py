@@ -20,8 +20,10 @@ import numpy as np
 import torch
 
 from hier_ssl.manager import decode_subgoal, manager_observation
+from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.policies.actor import load_actor
 from hier_ssl.policies.export import export_manager
+from hier_ssl.world.field import get_field
 
 
 def _time(call, calls: int) -> tuple[float, float]:
@@ -62,16 +64,27 @@ def main() -> None:
         def onnx_call() -> None:
             session.run(["subgoal"], {"state": state})
 
+        env, fld = config.env, get_field(config.env.field)
+
         def python() -> None:
             s = state.astype(np.float64)
-            obs = manager_observation(
-                s[:, 0:5], s[:, 5:7], s[:, 7], s[:, 8:10], s[:, 10], s[:, 11:].reshape(1, k, 5)[:, :, 0:2],
-                s[:, 11:].reshape(1, k, 5)[:, :, 2:4], s[:, 11:].reshape(1, k, 5)[:, :, 4], max_pos=3.8,
-            )  # fmt: skip
+            own, others = (s[:, 0:5], s[:, 5:7], s[:, 7], s[:, 8:10], s[:, 10]), s[:, 11:].reshape(1, k, 5)
+            if env.observation == "neighbours":
+                teammate = np.zeros((1, k), dtype=bool)
+                obs = neighbour_observation(
+                    *own, others[:, :, 0:2], others[:, :, 2:4], teammate, env.neighbours, max_pos=fld.max_pos
+                )
+            else:
+                obs = manager_observation(
+                    *own, others[:, :, 0:2], others[:, :, 2:4], others[:, :, 4], max_pos=fld.max_pos
+                )
             with torch.inference_mode():
                 action = actor(torch.from_numpy(obs)).numpy()
-            zero = config.env.task != "baseline"
-            decode_subgoal(action, config.env.action_form, 3.0, 2.0, zero_velocity=zero)
+            zero = env.task != "baseline"
+            decode_subgoal(
+                action, env.action_form, fld.half_length, fld.half_width, zero_velocity=zero,
+                frame=env.action_frame, target=s[:, 0:5],
+            )  # fmt: skip
 
         print(f"{args.run_dir}: {config.algo}, task {config.env.task}, {k} obstacle(s), batch 1, one thread")
         for name, call, size in (

@@ -29,19 +29,13 @@ def _positive_int(text: str) -> int:
 
 def _worker_spec(text: str) -> str:
     """A ``make_worker`` spec whose name part is a known worker or an existing directory."""
-    from pathlib import Path
 
-    from hier_ssl.worker import WORKERS, parse_worker_spec
+    from hier_ssl.worker import check_worker_spec
 
     try:
-        base, _ = parse_worker_spec(text)
+        return check_worker_spec(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
-    if base not in WORKERS and not Path(base).is_dir():
-        raise argparse.ArgumentTypeError(
-            f"unknown worker {base!r}; expected {'|'.join(WORKERS)} or a run directory"
-        )
-    return text
 
 
 # -- bench ------------------------------------------------------------------------------------------------
@@ -142,11 +136,23 @@ def _add_render(subparsers: argparse._SubParsersAction) -> None:
     render.set_defaults(func=_render)
 
 
+def _scenario(source: object, overrides: list[str]) -> object:
+    """The ScenarioConfig of ``source`` (a name, a YAML file or a config) with ``key=value`` overrides; one
+    that names another scenario starts from that scenario's defaults, not from ``source``'s keys."""
+    from hier_ssl.config import ScenarioConfig, apply_overrides, parse_config
+    from hier_ssl.envs.scenarios import scenario_config
+
+    data = scenario_config(source).model_dump(exclude_unset=True)
+    changed = apply_overrides(data, overrides)
+    if changed["scenario"] != data["scenario"]:
+        changed = apply_overrides({}, overrides)
+    return parse_config(changed, ScenarioConfig, root="scenario")
+
+
 def _render(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hier_ssl.config import ConfigError, apply_overrides
-    from hier_ssl.envs.scenarios import scenario_config
+    from hier_ssl.config import ConfigError
     from hier_ssl.managers import compare_scenario
     from hier_ssl.report import episode_video, figure3, panel_title
     from hier_ssl.world.field import get_field
@@ -154,8 +160,7 @@ def _render(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".gif", ".png"):
         raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
-    base = scenario_config(args.scenario)
-    scenario = scenario_config(**apply_overrides(base.model_dump(exclude_unset=True), args.set))
+    scenario = _scenario(args.scenario, args.set)
     (evaluation,) = compare_scenario([args.manager], scenario, episodes=1, seed=args.seed, record=[0])
     panels = [(evaluation.name, evaluation.result["trajectories"][0])]
     draw = episode_video if out.suffix.lower() == ".gif" else figure3
@@ -186,7 +191,7 @@ def _train(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from hier_ssl.config import apply_overrides, load_yaml, parse_config
+    from hier_ssl.config import ConfigError, apply_overrides, load_yaml, parse_config
     from hier_ssl.train import print_summary, resume_config, train
 
     # Everything is validated before the run directory is created, so a bad config writes nothing.
@@ -200,6 +205,8 @@ def _train(args: argparse.Namespace) -> int:
         config = parse_config(data)
         stamp = time.strftime("%Y%m%d-%H%M%S")
         run_dir = Path(args.out) if args.out else Path("runs") / f"{config.name}-s{config.seed}-{stamp}"
+        if run_dir.exists() and any(run_dir.iterdir()):  # its curve and best actor would mix with ours
+            raise ConfigError(f"run directory {run_dir} is not empty: --resume {run_dir}, or another --out")
     print(f"run directory: {run_dir}", flush=True)
     summary = train(config, run_dir, resume=bool(args.resume), progress=not args.no_progress)
     print_summary(summary)
@@ -282,8 +289,7 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
 def _eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hier_ssl.config import ConfigError, apply_overrides
-    from hier_ssl.envs.scenarios import scenario_config
+    from hier_ssl.config import ConfigError
     from hier_ssl.managers import compare, compare_scenario, is_planner, run_config
     from hier_ssl.report import markdown_table, write_evaluation
 
@@ -296,8 +302,7 @@ def _eval(args: argparse.Namespace) -> int:
             )
         scenario = None
         if args.scenario is not None or args.set:
-            base = scenario_config(args.scenario or run_config(runs[0]).scenario)
-            scenario = scenario_config(**apply_overrides(base.model_dump(exclude_unset=True), args.set))
+            scenario = _scenario(args.scenario or run_config(runs[0]).scenario, args.set)
         evaluations = compare_scenario(args.managers, scenario, args.episodes, args.seed, record)
         task = evaluations[0].env.scenario
         what = f"scenario {task} ({evaluations[0].record['robots'] // args.episodes} robots a field)"

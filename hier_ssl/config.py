@@ -7,12 +7,15 @@ An unknown, mistyped or out-of-range key is a ``ConfigError`` whose message name
 from __future__ import annotations
 
 import copy
+import re
 from pathlib import Path
 from typing import Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from hier_ssl.manager.rewards import DIST_THRESHOLD
+from hier_ssl.manager.success import COLLISION_DISTANCE, SPEED_THRESHOLD
 from hier_ssl.policies.sac import SACConfig
 from hier_ssl.world.field import FIELDS
 
@@ -48,8 +51,8 @@ class TaskSettings(Strict):
     success_mode: Literal["add", "replace"] = "add"
     hit_mode: Literal["add", "replace"] = "add"
     # Multiply R_t (+1000) and R_hit (-1000); see ``hier_ssl.manager.rewards.task_reward``.
-    success_weight: float = Field(1.0, ge=0)
-    hit_weight: float = Field(1.0, ge=0)
+    success_weight: float = Field(1.0, ge=0, allow_inf_nan=False)
+    hit_weight: float = Field(1.0, ge=0, allow_inf_nan=False)
     # "paper": 13 values + 5 per obstacle in field coordinates (SPEC); "neighbours": 13 + 6 per slot for
     # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``).
     observation: Literal["paper", "neighbours"] = "paper"
@@ -57,11 +60,21 @@ class TaskSettings(Strict):
     worker: str = "paper"
     dt: float = Field(0.025, gt=0)
     substeps: int = Field(2, ge=1)
-    d_th: float = Field(0.05, gt=0)
+    d_th: float = Field(DIST_THRESHOLD, gt=0)
     theta_th_deg: float = Field(5.0, gt=0)
-    speed_th: float = Field(0.05, gt=0)
-    collision_distance: float = Field(0.2, gt=0)
+    speed_th: float = Field(SPEED_THRESHOLD, gt=0)
+    collision_distance: float = Field(COLLISION_DISTANCE, gt=0)
     spawn_margin: float = Field(0.1, ge=0)
+
+    @model_validator(mode="after")
+    def _known_worker(self) -> TaskSettings:
+        from hier_ssl.worker import check_worker_spec
+
+        try:
+            check_worker_spec(self.worker)
+        except ValueError as err:
+            raise ValueError(f"worker: {err}") from None
+        return self
 
     @property
     def act_dim(self) -> int:
@@ -155,7 +168,7 @@ class ScenarioConfig(TaskSettings):
 
         if isinstance(data, dict) and "scenario" in data:
             name = data["scenario"]
-            if name not in SCENARIOS:
+            if not isinstance(name, str) or name not in SCENARIOS:
                 raise ValueError(f"scenario: unknown scenario {name!r}; known: {sorted(SCENARIOS)}")
             data = {**SCENARIOS[name].defaults, **data}
         return data
@@ -163,12 +176,9 @@ class ScenarioConfig(TaskSettings):
     @model_validator(mode="after")
     def _consistent(self) -> ScenarioConfig:
         from hier_ssl.envs.scenarios import SCENARIOS
-        from hier_ssl.worker import WORKERS
 
         if self.field not in FIELDS:
             raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
-        if self.worker not in WORKERS:
-            raise ValueError(f"worker: unknown worker {self.worker!r}; known: {list(WORKERS)}")
         try:
             SCENARIOS[self.scenario](self)  # checks the options and that the layout fits the field
         except ValidationError as err:
@@ -272,8 +282,12 @@ def _format(err: ValidationError, root: str) -> str:
     first = err.errors()[0]
     path = ".".join(str(p) for p in (root, *first["loc"]) if p != "")
     extra = "" if len(err.errors()) == 1 else f" (+{len(err.errors()) - 1} more)"
-    # Our validators' messages start with the key they are about; pydantic's prefix adds nothing.
+    # Our validators' messages start with the key they are about ("field: unknown preset ..."): that key
+    # joins the path. Pydantic's "Value error, " prefix adds nothing.
     msg = first["msg"].removeprefix("Value error, ")
+    if match := re.match(r"([A-Za-z_][\w.]*): (.*)", msg, re.DOTALL):
+        path = ".".join(p for p in (path, match.group(1)) if p)
+        msg = match.group(2)
     return f"{path}: {msg}{extra}" if path else f"{msg}{extra}"
 
 
@@ -322,5 +336,7 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> TrainCo
 
 
 def dump_config(config: BaseModel) -> str:
-    """The fully resolved config as YAML, written next to checkpoints."""
-    return yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False)
+    """The fully resolved config as YAML, written next to checkpoints (a scenario run without the ``env``
+    section it does not read)."""
+    exclude = {"env"} if isinstance(config, TrainConfig) and config.scenario is not None else None
+    return yaml.safe_dump(config.model_dump(mode="json", exclude=exclude), sort_keys=False)

@@ -2,8 +2,10 @@
 policy ``obs (N, O) -> actions (N, A)`` for ``hier_ssl.evaluate``, and ``compare``: several managers on
 the same seeded episodes.
 
-A run directory (``hier_ssl.train``) holds ``config.yaml`` and, for SAC, ``best_actor.pt`` (preferred) or
-``model.pt``; for PPO, rsl-rl's ``model_<iteration>.pt`` files (the latest is used).
+A run directory (``hier_ssl.train``) holds ``config.yaml`` and ``best_actor.pt``, the policy that scored
+best on the selection episodes (SAC always; PPO runs before model selection existed only have rsl-rl's
+``model_<iteration>.pt`` files, and the latest is used). ``compare_scenario`` does the same on a multi-robot
+scenario, per robot.
 """
 
 from __future__ import annotations
@@ -168,7 +170,8 @@ def compare_scenario(
     runs = [spec for spec in specs if not is_planner(spec)]
     for run in runs:
         if run_config(run).scenario is None:
-            raise ValueError(f"{run} was trained on a paper task, not a scenario; evaluate it with --task")
+            task = run_config(run).env.task
+            raise ValueError(f"{run} was trained on a paper task ({task}), not on a scenario")
     if scenario is None:
         if not runs:
             raise ValueError("planners alone need a scenario to act in (--scenario NAME_OR_YAML)")

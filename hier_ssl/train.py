@@ -197,19 +197,21 @@ def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
 
 def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, select: bool = True):
     """PPO through rsl-rl. With ``select`` (managers) the policy is scored on the selection episodes at
-    every checkpoint (every ``eval_interval`` vector steps) and the best one is returned, as for SAC."""
+    every rsl-rl checkpoint (after the first iteration, then every ``eval_interval`` vector steps, and at
+    the end) and the best one is returned, as for SAC; without it checkpoints follow ``save_interval``."""
     import time
 
     from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
 
     steps_per_iteration = config.ppo.num_steps_per_env
-    every = max(1, config.eval_interval // steps_per_iteration)
-    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device, save_interval=every)
+    every = (config.eval_interval if select else config.save_interval) // steps_per_iteration
+    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device, save_interval=max(1, every))
     if resume:
         saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
         if not saved:
             raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
         load_ppo(runner, saved[-1])
+        runner.current_learning_iteration += 1  # rsl-rl saves the index of the last finished iteration
     policy, selection = ppo_policy(runner), _Selection(config, run_dir)
     start, evaluating = time.perf_counter(), 0.0
 
@@ -226,8 +228,9 @@ def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
         evaluating += time.perf_counter() - began
 
     runner.on_save = score if select else None
-    iterations = max(1, config.total_steps // steps_per_iteration)
-    runner.learn(max(0, iterations - runner.current_learning_iteration))
+    remaining = max(1, config.total_steps // steps_per_iteration) - runner.current_learning_iteration
+    if remaining > 0:  # a resumed run that had finished has nothing left to learn
+        runner.learn(remaining)
     runner.on_save = None
     train_time_s = time.perf_counter() - start - evaluating
     if (run_dir / BEST_ACTOR_FILE).is_file():

@@ -194,3 +194,30 @@ def test_a_ppo_run_keeps_its_best_policy_by_the_selection_curve(tmp_path: Path) 
     assert (run / "best_actor.pt").is_file() and summary["episodes"] == 10
     actor, _ = load_actor(run)
     assert actor(torch.zeros(3, 13)).shape == (3, 4)
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        ({"env": {"success_weight": float("inf")}}, "env.success_weight: Input should be a finite number"),
+        ({"env": {"worker": "nope"}}, "env.worker: unknown worker 'nope'"),
+        ({"scenario": {"scenario": ["crossing"]}}, "scenario.scenario: unknown scenario"),
+        ({"scenario": {"scenario": "crossing", "field": "moon"}}, "scenario.field: unknown preset 'moon'"),
+    ],
+)
+def test_task_settings_errors_name_the_key(data: dict[str, object], message: str) -> None:
+    from hier_ssl.config import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        parse_config(data)
+    assert str(err.value).startswith(message)
+
+
+def test_train_refuses_a_run_directory_that_is_not_empty(tmp_path: Path) -> None:
+    (tmp_path / "curve.csv").write_text("step\n")
+    proc = _cli(
+        "train", "configs/proposed/fscaps.yaml", "--out", str(tmp_path), cwd=Path(__file__).parents[1]
+    )
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1 and "is not empty: --resume" in err and "Traceback" not in err
+    assert [p.name for p in tmp_path.iterdir()] == ["curve.csv"]

@@ -23,6 +23,7 @@ from pydantic import BaseModel, Field
 
 from hier_ssl.config import (
     BehaviourConfig,
+    ConfigError,
     ScenarioConfig,
     Strict,
     load_yaml,
@@ -244,6 +245,9 @@ def scenario_config(config: str | Path | ScenarioConfig | None = None, **setting
         data = config.model_dump(exclude_unset=True)
     elif isinstance(config, str) and config in SCENARIOS:
         data = {"scenario": config}
+    elif isinstance(config, str) and not Path(config).is_file() and not config.endswith((".yaml", ".yml")):
+        known = sorted(SCENARIOS)
+        raise ConfigError(f"scenario: unknown scenario {config!r}; known: {known}, or a YAML file")
     elif config is not None:
         data = load_yaml(config)
         if isinstance(data.get("scenario"), dict):  # a training config: its scenario section

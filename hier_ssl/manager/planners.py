@@ -262,9 +262,8 @@ class SamplingPlanner:
         arrival[late] = self.horizon + np.abs(goal - p)[late] / speed
         return arrival, clearance, hard, near
 
-    def plan(self, obs: np.ndarray) -> np.ndarray:
+    def plan(self, scene: Scene) -> np.ndarray:
         """The chosen sub-goal poses (N, 5): x, y, the target's heading, zero velocity."""
-        scene = self.read(obs)
         cand = self.candidates(scene)
         arrival, clearance, hard, near = self.rollout(scene, cand)
         # The fastest candidate clear of the growing safety distance; failing that, the fastest clear of
@@ -283,15 +282,15 @@ class SamplingPlanner:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions (N, A) for manager observations (N, O)."""
-        fld = self.field
+        fld, scene = self.field, self.read(obs)
         return encode_subgoal(
-            self.plan(obs),
+            self.plan(scene),
             self.action_form,
             fld.half_length,
             fld.half_width,
             self.robot.max_speed,
             frame=self.action_frame,
-            target=self.read(obs).target,
+            target=scene.target,
         )
 
 

@@ -168,6 +168,11 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
     actor, config = load_actor(run_dir)
     if config.kind != "manager":
         raise ValueError(f"{run_dir}: a {config.kind} run; export takes a manager run")
+    if config.scenario is not None:
+        raise ValueError(
+            f"{run_dir}: a shared manager of scenario {config.scenario.scenario!r}; export takes managers of "
+            "the paper's tasks (one robot, its obstacles), not yet of scenarios"
+        )
     env, k = config.env, len(config.env.obstacles)
     in_dim, out_dim = actor[0].in_features, actor[-2].out_features
     if (in_dim, out_dim) != (env.obs_dim, env.act_dim):

@@ -45,6 +45,14 @@ def _base_worker(name: str, robot: RobotSpec, dt: float) -> Worker:
     raise ValueError(f"unknown worker {name!r}; expected one of {list(WORKERS)} or a worker run directory")
 
 
+def check_worker_spec(spec: str) -> str:
+    """``spec`` if its name part is a scripted worker or an existing directory; a ValueError naming it."""
+    base, _ = parse_worker_spec(spec)
+    if base not in WORKERS and not Path(base).is_dir():
+        raise ValueError(f"unknown worker {base!r}; expected {'|'.join(WORKERS)} or a worker run directory")
+    return spec
+
+
 def make_worker(spec: str, robot: RobotSpec, dt: float) -> Worker:
     """The worker ``spec`` names (module docstring), tuned to the world's robot and control period.
 
@@ -71,6 +79,7 @@ __all__ = [
     "Perturbation",
     "PerturbedWorker",
     "Worker",
+    "check_worker_spec",
     "make_worker",
     "parse_worker_spec",
 ]

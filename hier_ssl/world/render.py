@@ -18,10 +18,10 @@ CARPET, LINE, WALL, GOAL = "#2e7d3b", "#f4f4f4", "#3a3a3a", "#111111"
 # Team 0: the controlled robots (SSL blue), team 1: obstacles (SSL yellow); further teams cycle.
 TEAM_COLORS = ("#1d4ed8", "#f5c400", "#d9480f", "#7048e8")
 # With several controlled robots in a field each has its own colour, shared by its path, target and
-# sub-goals (11 a side in SSL); none green (the field) or yellow (the obstacles).
+# sub-goals (11 a side in SSL); none green (the field), yellow (the obstacles), white (the lines) or black.
 ROBOT_COLORS = (
-    "#1d4ed8", "#e03131", "#212529", "#9c36b5", "#15aabf", "#f783ac",
-    "#fd7e14", "#f8f9fa", "#8b5a2b", "#b197fc", "#1c2f6e",
+    "#1d4ed8", "#e03131", "#9c36b5", "#15aabf", "#f783ac", "#fd7e14",
+    "#8b5a2b", "#b197fc", "#1c2f6e", "#74c0fc", "#868e96",
 )  # fmt: skip
 TARGET, SUBGOAL = "#e03131", "#ff922b"
 _LINE_WIDTH_M = 0.02  # SSL field lines are 10 mm wide; drawn a little wider so they survive small images
@@ -77,8 +77,10 @@ def render_fields(
         if not several:
             return [default] * rows
         owner = range(rows) if owner is None else owner
-        if len(owner) != rows:
-            raise ValueError(f"subgoal_robot has {len(owner)} entries for {rows} sub-goals")
+        if len(owner) != rows or not all(0 <= j < len(controlled) for j in owner):
+            raise ValueError(
+                f"subgoal_robot: {list(owner)} does not name one of {len(controlled)} robots per row"
+            )
         return [ROBOT_COLORS[j % len(ROBOT_COLORS)] for j in owner]
 
     dpi = 100

@@ -211,3 +211,11 @@ def test_export_command_and_its_errors(tmp_path: Path, capsys: pytest.CaptureFix
     (worker_run / "config.yaml").write_text(dump_config(parse_config({"kind": "worker", "algo": "ppo"})))
     assert cli.main(["export", str(worker_run)]) == 1
     assert "model_<iteration>.pt" in capsys.readouterr().err
+    scenario_run = tmp_path / "scenario"
+    scenario_run.mkdir()
+    config = parse_config({"scenario": {"scenario": "crossing"}, "sac": {"hidden": [8, 8]}})
+    (scenario_run / "config.yaml").write_text(dump_config(config))
+    actor = SquashedGaussianActor(config.scenario.obs_dim, config.scenario.act_dim, hidden=(8, 8))
+    torch.save({"actor": actor.state_dict(), "step": 0}, scenario_run / "best_actor.pt")
+    assert cli.main(["export", str(scenario_run)]) == 1
+    assert "shared manager of scenario 'crossing'" in capsys.readouterr().err

@@ -262,7 +262,12 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
         "figures are per robot",
     )
     ev.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key (repeatable)"
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key (repeatable); a run still acts with its own action_form, "
+        "action_frame and neighbours",
     )
     ev.add_argument("--episodes", type=_positive_int, default=1000, help="episodes (default: %(default)s)")
     ev.add_argument(

@@ -221,3 +221,30 @@ def test_train_refuses_a_run_directory_that_is_not_empty(tmp_path: Path) -> None
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 1 and "is not empty: --resume" in err and "Traceback" not in err
     assert [p.name for p in tmp_path.iterdir()] == ["curve.csv"]
+
+
+def test_a_resumed_ppo_run_continues_after_its_last_iteration(tmp_path: Path) -> None:
+    import yaml
+
+    from hier_ssl.train import resume_config
+
+    config = {
+        "name": "tiny-ppo",
+        "env": {"task": "proposed", "frame_skip": 16},
+        "algo": "ppo",
+        "num_envs": 4,
+        "total_steps": 32,  # 2 iterations of 16 steps, a checkpoint after each
+        "eval_interval": 16,
+        "eval_episodes": 4,
+        "ppo": {"hidden": [8, 8]},
+    }
+    run = tmp_path / "run"
+    train(parse_config(config), run, progress=False)
+    second = (run / "model_1.pt").read_bytes()
+    saved = yaml.safe_load((run / "config.yaml").read_text())
+    (run / "config.yaml").write_text(yaml.safe_dump({**saved, "total_steps": 64}))
+    train(resume_config(run), run, resume=True, progress=False)
+    # Iterations 2 and 3 ran; iteration 1 was not run (and saved) again.
+    assert (run / "model_1.pt").read_bytes() == second and (run / "model_3.pt").is_file()
+    steps = [int(row.split(",")[0]) for row in (run / "curve.csv").read_text().splitlines()[1:]]
+    assert steps == [16, 32, 48, 64]

@@ -172,20 +172,22 @@ def test_scenario_config_errors_name_the_key(change: dict[str, object], message:
         parse_config({**SCENARIO, **change})
 
 
+TINY_PPO = {
+    "name": "tiny-ppo",
+    "env": {"task": "proposed", "frame_skip": 16},
+    "algo": "ppo",
+    "num_envs": 8,
+    "eval_episodes": 10,
+    "threads": 1,
+    "ppo": {"hidden": [16, 16]},
+}
+
+
 def test_a_ppo_run_keeps_its_best_policy_by_the_selection_curve(tmp_path: Path) -> None:
     from hier_ssl.policies.actor import load_actor
 
-    config = {
-        "name": "tiny-ppo",
-        "env": {"task": "proposed", "frame_skip": 16},
-        "algo": "ppo",
-        "num_envs": 8,
-        "total_steps": 64,  # 4 iterations of 16 steps
-        "eval_interval": 32,  # a checkpoint, and a score, every 2 iterations
-        "eval_episodes": 10,
-        "threads": 1,
-        "ppo": {"hidden": [16, 16]},
-    }
+    # 4 iterations of 16 steps; a checkpoint, and a score, every 2 iterations.
+    config = {**TINY_PPO, "total_steps": 64, "eval_interval": 32}
     run = tmp_path / "run"
     summary = train(parse_config(config), run, progress=False)
     rows = (run / "curve.csv").read_text().splitlines()
@@ -228,16 +230,7 @@ def test_a_resumed_ppo_run_continues_after_its_last_iteration(tmp_path: Path) ->
 
     from hier_ssl.train import resume_config
 
-    config = {
-        "name": "tiny-ppo",
-        "env": {"task": "proposed", "frame_skip": 16},
-        "algo": "ppo",
-        "num_envs": 4,
-        "total_steps": 32,  # 2 iterations of 16 steps, a checkpoint after each
-        "eval_interval": 16,
-        "eval_episodes": 4,
-        "ppo": {"hidden": [8, 8]},
-    }
+    config = {**TINY_PPO, "total_steps": 32, "eval_interval": 16}  # 2 iterations, a checkpoint after each
     run = tmp_path / "run"
     train(parse_config(config), run, progress=False)
     second = (run / "model_1.pt").read_bytes()

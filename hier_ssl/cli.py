@@ -136,23 +136,11 @@ def _add_render(subparsers: argparse._SubParsersAction) -> None:
     render.set_defaults(func=_render)
 
 
-def _scenario(source: object, overrides: list[str]) -> object:
-    """The ScenarioConfig of ``source`` (a name, a YAML file or a config) with ``key=value`` overrides; one
-    that names another scenario starts from that scenario's defaults, not from ``source``'s keys."""
-    from hier_ssl.config import ScenarioConfig, apply_overrides, parse_config
-    from hier_ssl.envs.scenarios import scenario_config
-
-    data = scenario_config(source).model_dump(exclude_unset=True)
-    changed = apply_overrides(data, overrides)
-    if changed["scenario"] != data["scenario"]:
-        changed = apply_overrides({}, overrides)
-    return parse_config(changed, ScenarioConfig, root="scenario")
-
-
 def _render(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hier_ssl.config import ConfigError
+    from hier_ssl.envs.scenarios import scenario_config
     from hier_ssl.managers import compare_scenario
     from hier_ssl.report import episode_video, figure3, panel_title
     from hier_ssl.world.field import get_field
@@ -160,7 +148,7 @@ def _render(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".gif", ".png"):
         raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
-    scenario = _scenario(args.scenario, args.set)
+    scenario = scenario_config(args.scenario, args.set)
     (evaluation,) = compare_scenario([args.manager], scenario, episodes=1, seed=args.seed, record=[0])
     panels = [(evaluation.name, evaluation.result["trajectories"][0])]
     draw = episode_video if out.suffix.lower() == ".gif" else figure3
@@ -295,6 +283,7 @@ def _eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hier_ssl.config import ConfigError
+    from hier_ssl.envs.scenarios import scenario_config
     from hier_ssl.managers import compare, compare_scenario, is_planner, run_config
     from hier_ssl.report import markdown_table, write_evaluation
 
@@ -307,7 +296,7 @@ def _eval(args: argparse.Namespace) -> int:
             )
         scenario = None
         if args.scenario is not None or args.set:
-            scenario = _scenario(args.scenario or run_config(runs[0]).scenario, args.set)
+            scenario = scenario_config(args.scenario or run_config(runs[0]).scenario, args.set)
         evaluations = compare_scenario(args.managers, scenario, args.episodes, args.seed, record)
         task = evaluations[0].env.scenario
         what = f"scenario {task} ({evaluations[0].record['robots'] // args.episodes} robots a field)"

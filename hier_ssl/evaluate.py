@@ -35,14 +35,11 @@ def evaluate(
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    record = check_record(record, episodes)
     start = time.perf_counter()
     core = HierarchicalCore(config, episodes, autoreset=False)
-    obs = core.reset(seed)
-    recorder = Recorder(core, record) if record else None
-    distance = np.linalg.norm(core.state.pos[:, 0] - core.target[:, :2], axis=1)
-    ends = play(core, policy, obs)
+    ends = play(core, policy, seed, record)
     length, success, collision, cpad = ends["length"], ends["success"], ends["collision"], ends["cpad"]
+    distance = ends["distance"]
     solved, nan = bool(success.any()), float("nan")
     summary: dict[str, object] = {
         "episodes": episodes,
@@ -59,22 +56,28 @@ def evaluate(
             "cpad": cpad,
             "distance": distance,
         },
-        "eval_wall_s": time.perf_counter() - start,
     }
-    if recorder is not None:
-        summary["trajectories"] = [recorder.episode(j, int(length[i])) for j, i in enumerate(record)]
-        summary["eval_wall_s"] = time.perf_counter() - start
+    if record:
+        summary["trajectories"] = ends["trajectories"]
+    summary["eval_wall_s"] = time.perf_counter() - start
     return summary
 
 
-def play(core: Any, policy: Policy, obs: np.ndarray) -> dict[str, np.ndarray]:
-    """Play every episode of a core built without auto-reset to its end, from its observations ``obs``;
-    the policy acts for the live rows only (its input shrinks as episodes end). One loop for
+def play(core: Any, policy: Policy, seed: int, record: Sequence[int] = ()) -> dict[str, Any]:
+    """Reset a core built without auto-reset with ``seed`` (one episode per field) and play every episode
+    to its end; the policy acts for the live rows only (its input shrinks as episodes end). One loop for
     ``HierarchicalCore`` (a row per field, shape (N,)) and ``MultiRobotCore`` (a row per robot, (N, M)).
 
-    Returns length (control steps), success, collision and cpad, arrays of ``core.active``'s shape.
+    Returns length (control steps), success, collision, cpad and distance (start to target, m), arrays of
+    ``core.active``'s shape, and "trajectories": the ``record`` fields' episodes (``Recorder.episode``).
     """
+    record = check_record(record, core.num_fields)
+    obs = core.reset(seed)
+    recorder = Recorder(core, record) if record else None
     shape = core.active.shape
+    target = core.target.reshape(core.num_fields, -1, 5)
+    start = core.world.state.pos[:, : target.shape[1]]
+    distance = np.linalg.norm(start - target[..., 0:2], axis=2).reshape(shape)
     ends = {
         "length": np.zeros(shape, dtype=np.int64),
         "success": np.zeros(shape, dtype=bool),
@@ -91,7 +94,9 @@ def play(core: Any, policy: Policy, obs: np.ndarray) -> dict[str, np.ndarray]:
         for key in ends:
             ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]
         obs = result.obs
-    return ends
+    # A field's control steps stop counting when its last robot leaves: the recorded episode's length.
+    trajectories = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)] if recorder else []
+    return {**ends, "distance": distance, "trajectories": trajectories}
 
 
 def check_record(record: Sequence[int], episodes: int) -> list[int]:

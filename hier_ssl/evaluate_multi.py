@@ -8,17 +8,12 @@ figures. With the same seed every manager meets the same starts, targets and obs
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
-
-import numpy as np
+from collections.abc import Sequence
 
 from hier_ssl.envs.multi import MultiRobotCore
 from hier_ssl.envs.scenarios import ScenarioConfig
-from hier_ssl.evaluate import Recorder, check_record, optimal_ratio_median, play
+from hier_ssl.evaluate import Policy, optimal_ratio_median, play
 from hier_ssl.manager import summarize
-
-Policy = Callable[[np.ndarray], np.ndarray]
-"""Manager observations (B, obs_dim) -> actions (B, act_dim) in [-1, 1], one row per live robot."""
 
 
 def evaluate_scenario(
@@ -35,14 +30,11 @@ def evaluate_scenario(
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    record = check_record(record, episodes)
     start = time.perf_counter()
     core = MultiRobotCore(config, episodes, autoreset=False)
-    obs = core.reset(seed)
-    recorder = Recorder(core, record) if record else None
-    distance = np.linalg.norm(core.world.state.pos[:, : config.num_agents] - core.target[..., 0:2], axis=2)
-    ends = play(core, policy, obs)
+    ends = play(core, policy, seed, record)
     length, success, collision, cpad = ends["length"], ends["success"], ends["collision"], ends["cpad"]
+    distance = ends["distance"]
     summary: dict[str, object] = {
         "episodes": episodes,
         "robots": int(success.size),
@@ -54,8 +46,8 @@ def evaluate_scenario(
         "optimal_ratio_median": optimal_ratio_median(length, success, distance, core.robot, config.dt),
         "per_robot": {"length": length, "success": success, "collision": collision, "cpad": cpad},
     }
-    if recorder is not None:
-        summary["trajectories"] = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)]
+    if record:
+        summary["trajectories"] = ends["trajectories"]
     summary["eval_wall_s"] = time.perf_counter() - start
     return summary
 

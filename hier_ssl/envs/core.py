@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from hier_ssl.config import EnvConfig
+from hier_ssl.config import EnvConfig, TaskSettings
 from hier_ssl.manager import (
     collided,
     cpad_increment,
@@ -51,6 +51,46 @@ def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.nd
     if not np.isfinite(action).all():
         raise ValueError(f"action of {name} holds NaN or infinite values: {action.tolist()}")
     return action
+
+
+def score_control_step(
+    task: str,
+    config: TaskSettings,
+    target: np.ndarray,
+    subgoal: np.ndarray,
+    pos: np.ndarray,
+    angle: np.ndarray,
+    vel: np.ndarray,
+    others: np.ndarray,
+    touching: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """Success, collision and reward of one control step of B controlled robots (rows), by the pure
+    functions of ``hier_ssl.manager`` with ``config``'s thresholds, reward modes and weights. Shared by the
+    paper core and the multi-robot core.
+
+    Shapes: target, subgoal (B, 5); pos, vel (B, 2); angle (B,); others (B, J, 2), the robots each one can
+    hit; touching (B,) bool, a contact the physics reported. Returns reward, success, hit (B,) and the
+    reward terms.
+    """
+    thresholds = {"d_th": config.d_th, "theta_th": np.deg2rad(config.theta_th_deg)}
+    success = task_success(task, target, subgoal, pos, angle, vel, speed_th=config.speed_th, **thresholds)
+    hit = collided(pos, others, config.collision_distance) | touching
+    extra = {"obs_pos": others, "hit": hit} if task == "obstacle" else {}
+    reward, terms = task_reward(
+        task,
+        target,
+        pos,
+        angle,
+        subgoal,
+        success,
+        success_mode=config.success_mode,
+        hit_mode=config.hit_mode,
+        success_weight=config.success_weight,
+        hit_weight=config.hit_weight,
+        **extra,
+        **thresholds,
+    )
+    return reward, success, hit, terms
 
 
 def end_period(core: Any, ended: np.ndarray, info: dict[str, object]) -> np.ndarray:
@@ -272,28 +312,18 @@ class HierarchicalCore:
         s = self.world.step(command)
         self.steps += live
 
-        cfg, pos, angle, vel = self.config, s.pos[:, 0], s.angle[:, 0], s.vel[:, 0]
-        thresholds = {"d_th": cfg.d_th, "theta_th": self.theta_th}
-        success = task_success(
-            cfg.task, self.target, self.subgoal, pos, angle, vel, speed_th=cfg.speed_th, **thresholds
-        )
-        hit = collided(pos, s.pos[:, 1:], cfg.collision_distance) | self.world.robot_contacts[:, 0, 1:].any(
-            axis=1
-        )
-        extra = {"obs_pos": s.pos[:, 1:], "hit": hit} if cfg.task == "obstacle" else {}
-        reward, terms = task_reward(
+        cfg = self.config
+        touching = self.world.robot_contacts[:, 0, 1:].any(axis=1)
+        reward, success, hit, terms = score_control_step(
             cfg.task,
+            cfg,
             self.target,
-            pos,
-            angle,
             self.subgoal,
-            success,
-            success_mode=cfg.success_mode,
-            hit_mode=cfg.hit_mode,
-            success_weight=cfg.success_weight,
-            hit_weight=cfg.hit_weight,
-            **extra,
-            **thresholds,
+            s.pos[:, 0],
+            s.angle[:, 0],
+            s.vel[:, 0],
+            s.pos[:, 1:],
+            touching,
         )
         timeout = self.steps >= cfg.max_steps
         return reward, success & live, hit & live, timeout & live, terms

@@ -24,10 +24,10 @@ import torch
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from hier_ssl.envs.core import check_action
+from hier_ssl.envs.core import check_action, score_control_step
 from hier_ssl.envs.scenarios import ScenarioConfig, make_scenario
 from hier_ssl.envs.vector import TorchView
-from hier_ssl.manager import action_dim, collided, cpad_increment, decode_subgoal, task_reward, task_success
+from hier_ssl.manager import action_dim, cpad_increment, decode_subgoal
 from hier_ssl.manager.neighbours import neighbour_obs_dim, neighbour_observation
 from hier_ssl.worker import make_worker
 from hier_ssl.world.obstacles import make_obstacle
@@ -69,7 +69,6 @@ class MultiRobotCore:
         self.obstacles = make_obstacle(config.obstacles.behaviour, num_fields * k, **options) if k else None
         self.obs_dim = neighbour_obs_dim(config.neighbours)
         self.act_dim = action_dim(config.action_form)
-        self.theta_th = np.deg2rad(config.theta_th_deg)
         # A robot alone in its field has nothing to avoid: the obstacle terms would have no obstacle.
         self.task = "obstacle" if m + k > 1 else "proposed"
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
@@ -204,28 +203,18 @@ class MultiRobotCore:
         b, j = n * m, m + k - 1
         own = s.robots(slice(0, m))
         target, subgoal = self.target.reshape(b, 5), self.subgoal.reshape(b, 5)
-        pos, angle = own.pos.reshape(b, 2), own.angle.reshape(b)
-        thresholds = {"d_th": cfg.d_th, "theta_th": self.theta_th}
-        success = task_success(
-            self.task, target, subgoal, pos, angle, own.vel.reshape(b, 2), speed_th=cfg.speed_th, **thresholds
-        )
         others = s.pos[:, self._others].reshape(b, j, 2)
         touching = self.world.robot_contacts[:, :m].any(axis=2).reshape(b)
-        hit = collided(pos, others, cfg.collision_distance) | touching
-        extra = {"obs_pos": others, "hit": hit} if self.task == "obstacle" else {}
-        reward, terms = task_reward(
+        reward, success, hit, terms = score_control_step(
             self.task,
+            cfg,
             target,
-            pos,
-            angle,
             subgoal,
-            success,
-            success_mode=cfg.success_mode,
-            hit_mode=cfg.hit_mode,
-            success_weight=cfg.success_weight,
-            hit_weight=cfg.hit_weight,
-            **extra,
-            **thresholds,
+            own.pos.reshape(b, 2),
+            own.angle.reshape(b),
+            own.vel.reshape(b, 2),
+            others,
+            touching,
         )
         return (
             reward.reshape(n, m),

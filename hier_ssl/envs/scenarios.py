@@ -14,6 +14,7 @@ field: controlled robots 0..M-1, then obstacles M..M+K-1.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -26,6 +27,7 @@ from hier_ssl.config import (
     ConfigError,
     ScenarioConfig,
     Strict,
+    apply_overrides,
     load_yaml,
     parse_config,
 )
@@ -234,9 +236,13 @@ class Formation(Scenario):
 SCENARIOS: dict[str, type[Scenario]] = {cls.name: cls for cls in (Crossing, Crowd, Formation)}
 
 
-def scenario_config(config: str | Path | ScenarioConfig | None = None, **settings: Any) -> ScenarioConfig:
+def scenario_config(
+    config: str | Path | ScenarioConfig | None = None, overrides: Sequence[str] = (), **settings: Any
+) -> ScenarioConfig:
     """A ScenarioConfig from a registered name, a YAML file (a scenario, or a training config's
-    ``scenario`` section) or a config; ``settings`` override its keys.
+    ``scenario`` section) or a config; ``settings`` and then ``overrides`` (``key.sub=value`` strings, as
+    ``--set`` takes them) override its keys. One that names another scenario starts from that scenario's
+    defaults, not from ``config``'s keys.
 
     ``scenario_config("crossing", num_agents=4)``; ``scenario_config("configs/scenarios/crowd.yaml")``.
     Errors are ConfigErrors naming the key (``scenario.options.radius: ...``).
@@ -254,7 +260,10 @@ def scenario_config(config: str | Path | ScenarioConfig | None = None, **setting
             data = data["scenario"]
     else:
         data = {}
-    return parse_config({**data, **settings}, ScenarioConfig, root="scenario")
+    merged = apply_overrides({**data, **settings}, list(overrides))
+    if "scenario" in data and merged.get("scenario") != data["scenario"]:
+        merged = apply_overrides(dict(settings), list(overrides))
+    return parse_config(merged, ScenarioConfig, root="scenario")
 
 
 def make_scenario(config: ScenarioConfig) -> Scenario:

@@ -53,6 +53,8 @@ class TaskSettings(Strict):
     # Multiply R_t (+1000) and R_hit (-1000); see ``hier_ssl.manager.rewards.task_reward``.
     success_weight: float = Field(1.0, ge=0, allow_inf_nan=False)
     hit_weight: float = Field(1.0, ge=0, allow_inf_nan=False)
+    # R_obst's distance to the nearest obstacle: from the sub-goal (paper text) or the robot (public code).
+    obstacle_from: Literal["subgoal", "robot"] = "subgoal"
     # "paper": 13 values + 5 per obstacle in field coordinates (SPEC); "neighbours": 13 + 6 per slot for
     # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``).
     observation: Literal["paper", "neighbours"] = "paper"
@@ -93,6 +95,10 @@ class EnvConfig(TaskSettings):
     expose_worker: bool = False
     expose_obstacles: bool = False
     min_start_distance: float = Field(0.2, ge=0)
+    # The public code starts the robot 0.2 m from the target with the obstacle at the midpoint, 0.1 m from
+    # the robot: such an episode begins inside the collision distance and ends at its first control step
+    # as a collision. False refuses that combination; True plays such episodes and counts them.
+    allow_start_contact: bool = False
 
     @property
     def obs_dim(self) -> int:
@@ -110,11 +116,12 @@ class EnvConfig(TaskSettings):
             raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
         if self.task == "obstacle" and not self.obstacles:
             raise ValueError("obstacles: the 'obstacle' task needs at least one obstacle")
-        if any(o.placement == "midpoint" for o in self.obstacles):
+        if any(o.placement == "midpoint" for o in self.obstacles) and not self.allow_start_contact:
             if self.min_start_distance < 2 * self.collision_distance:
                 raise ValueError(
                     f"min_start_distance: {self.min_start_distance} m puts a midpoint obstacle inside the "
-                    f"collision distance at reset; use >= {2 * self.collision_distance}"
+                    f"collision distance at reset; use >= {2 * self.collision_distance}, or set "
+                    "allow_start_contact: true to play and count such episodes"
                 )
         return self
 

@@ -87,6 +87,7 @@ def score_control_step(
         hit_mode=config.hit_mode,
         success_weight=config.success_weight,
         hit_weight=config.hit_weight,
+        obstacle_from=config.obstacle_from,
         **extra,
         **thresholds,
     )

@@ -27,6 +27,9 @@ HIT_REWARD = -1000.0
 TASKS = ("baseline", "proposed", "obstacle")
 SUCCESS_MODES = ("add", "replace")
 HIT_MODES = ("add", "replace")
+# Where R_obst measures its distance to the nearest obstacle: the paper's text says the sub-goal, its public
+# code the robot.
+OBSTACLE_FROM = ("subgoal", "robot")
 REWARD_TERMS = ("distance", "angle", "success", "obstacle", "hit")
 
 
@@ -114,6 +117,7 @@ def task_reward(
     hit_mode: str = "add",
     success_weight: float = 1.0,
     hit_weight: float = 1.0,
+    obstacle_from: str = "subgoal",
     d_th: float = DIST_THRESHOLD,
     theta_th: float = ANGLE_THRESHOLD,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -136,6 +140,7 @@ def task_reward(
             shaping cost can exceed the expected cost of driving into an obstacle, and the in-threshold
             bonuses summed over a frame-skip period can pay more for dithering near the target than R_t
             pays for finishing: these re-price both.
+        obstacle_from: "subgoal" (paper text) or "robot" (public code): the point R_obst measures from.
         d_th, theta_th: thresholds of R_d (m) and R_theta (rad).
 
     Returns:
@@ -148,6 +153,8 @@ def task_reward(
         raise ValueError(f"unknown success_mode {success_mode!r}; expected one of {SUCCESS_MODES}")
     if hit_mode not in HIT_MODES:
         raise ValueError(f"unknown hit_mode {hit_mode!r}; expected one of {HIT_MODES}")
+    if obstacle_from not in OBSTACLE_FROM:
+        raise ValueError(f"unknown obstacle_from {obstacle_from!r}; expected one of {OBSTACLE_FROM}")
     for name, weight in (("success_weight", success_weight), ("hit_weight", hit_weight)):
         if not np.isfinite(weight) or weight < 0:
             raise ValueError(f"{name} must be finite and >= 0, got {weight}")
@@ -177,7 +184,8 @@ def task_reward(
         for name in ("distance", "angle"):
             terms[name] = np.where(success, 0.0, terms[name])
     if task == "obstacle":
-        terms["obstacle"] = obstacle_reward(nearest_obstacle_distance(subgoal[:, 0:2], obs_pos))
+        point = subgoal[:, 0:2] if obstacle_from == "subgoal" else robot_pos
+        terms["obstacle"] = obstacle_reward(nearest_obstacle_distance(point, obs_pos))
         terms["hit"] = np.where(hit, hit_weight * HIT_REWARD, 0.0)
         if hit_mode == "replace":
             for name in ("distance", "angle", "success", "obstacle"):

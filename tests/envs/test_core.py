@@ -145,3 +145,20 @@ def test_target_frame_zero_action_drives_to_the_target() -> None:
         result = core.step(np.zeros((4, 4)))
         success[result.info["episode"]["field"]] = result.info["episode"]["success"] > 0
     assert success.all() and core.ep_cpad.max() == 0.0  # the direct sub-goal, never moved
+
+
+def test_starts_in_contact_are_refused_unless_allowed_and_then_end_as_collisions() -> None:
+    from hier_ssl.config import ConfigError, parse_config
+
+    public_code = {"task": "obstacle", "obstacles": [{"behaviour": "stationary"}], "min_start_distance": 0.2}
+    with pytest.raises(ConfigError, match="env.min_start_distance: .*allow_start_contact"):
+        parse_config(public_code, EnvConfig, root="env")
+    core = HierarchicalCore(EnvConfig(**public_code, allow_start_contact=True, frame_skip=16), 512)
+    core.reset(seed=3)
+    gap = np.linalg.norm(core.state.pos[:, 0] - core.state.pos[:, 1], axis=1)
+    inside = gap < core.config.collision_distance
+    assert 0 < inside.sum() < 64  # about 2 % of uniform starts lie within 0.4 m of their target
+    result = core.step(_direct(core))
+    # Every episode that began inside the collision distance ended in its first period as a collision.
+    assert result.info["collision"][inside].all()
+    assert result.terminated[inside].all()

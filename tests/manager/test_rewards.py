@@ -152,3 +152,23 @@ def test_success_and_hit_weights_scale_their_terms_only() -> None:
     np.testing.assert_allclose(total, sum(weighted.values()))
     with pytest.raises(ValueError, match="hit_weight"):
         task_reward("obstacle", hit_weight=-1.0, **args)
+
+
+def test_obstacle_term_measured_from_the_robot_as_the_public_code() -> None:
+    # Sub-goal on the target at (1, 0): nearest obstacle (1, 1) is 1 m away. Robot at the origin: the
+    # nearest obstacle is (1, 1) at sqrt(2) m.
+    scene = {
+        "target": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]]),
+        "robot_pos": np.zeros((1, 2)),
+        "robot_angle": np.zeros(1),
+        "subgoal": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]]),
+        "success": np.array([False]),
+        "obs_pos": np.array([[[1.0, 1.0], [4.0, 0.0]]]),
+        "hit": np.array([False]),
+    }
+    _, from_subgoal = task_reward("obstacle", **scene)
+    _, from_robot = task_reward("obstacle", **scene, obstacle_from="robot")
+    np.testing.assert_allclose(from_subgoal["obstacle"], [-GAUSS_1])
+    np.testing.assert_allclose(from_robot["obstacle"], [-np.exp(-1.0) / np.sqrt(2 * np.pi)])
+    with pytest.raises(ValueError, match="obstacle_from"):
+        task_reward("obstacle", **scene, obstacle_from="target")

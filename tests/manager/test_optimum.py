@@ -1,0 +1,44 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hier_ssl.manager import task_reward
+from hier_ssl.manager.optimum import finish_value, finishing_wins, hover_value, in_threshold_bonus
+
+
+def _hover_stream(gamma: float, frame_skip: int, summation: str, decisions: int = 4000) -> float:
+    """Hovering played out with the task's own reward: the sub-goal 1 cm and 1 degree off the target,
+    the robot parked next to it and never meeting the success test, discounted per decision."""
+    target = np.zeros((1, 5))
+    subgoal = np.array([[0.01, 0.0, np.deg2rad(1.0), 0.0, 0.0]])
+    step, _ = task_reward("proposed", target, np.array([[0.3, 0.0]]), np.zeros(1), subgoal, np.array([False]))
+    per_decision = step[0] * (frame_skip if summation == "sum" else 1)
+    return float(sum(per_decision * gamma**k for k in range(decisions)))
+
+
+@pytest.mark.parametrize(
+    ("gamma", "frame_skip", "summation", "value"),
+    [
+        (0.99, 16, "sum", 17_600.0),
+        (0.95, 16, "sum", 3_520.0),
+        (0.99, 16, "last", 1_100.0),
+        (0.99, 1, "sum", 1_100.0),
+    ],
+)
+def test_hover_value_matches_the_discounted_stream_of_the_reward(
+    gamma: float, frame_skip: int, summation: str, value: float
+) -> None:
+    assert hover_value(gamma, frame_skip, summation) == pytest.approx(value)
+    assert _hover_stream(gamma, frame_skip, summation) == pytest.approx(value, rel=1e-9)
+
+
+def test_the_papers_reward_hovers_and_a_large_enough_success_reward_finishes() -> None:
+    assert in_threshold_bonus(16, "sum") == 176.0
+    # Public code: gamma 0.99, last reward, R_t = 1000: hovering (1,100) beats finishing.
+    assert not finishing_wins(0.99, 16, "last", 1.0)
+    # Summed over 16 steps at gamma 0.95, R_t must reach 3,520: x3.5 loses, x5 wins.
+    assert not finishing_wins(0.95, 16, "sum", 3.5)
+    assert finishing_wins(0.95, 16, "sum", 5.0) and finish_value(5.0) == 5000.0
+    with pytest.raises(ValueError, match="frame_skip_reward"):
+        in_threshold_bonus(16, "mean")

@@ -1,8 +1,11 @@
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from hier_ssl.config import load_config
 from hier_ssl.manager import task_reward
 from hier_ssl.manager.optimum import finish_value, finishing_wins, hover_value, in_threshold_bonus
 
@@ -42,3 +45,21 @@ def test_the_papers_reward_hovers_and_a_large_enough_success_reward_finishes() -
     assert finishing_wins(0.95, 16, "sum", 5.0) and finish_value(5.0) == 5000.0
     with pytest.raises(ValueError, match="frame_skip_reward"):
         in_threshold_bonus(16, "mean")
+
+
+SHIPPED = sorted(
+    p
+    for p in (Path(__file__).parents[2] / "configs").rglob("*.yaml")
+    if "paper" not in p.parts and "worker" not in p.parts
+)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_every_default_config_rewards_finishing_over_hovering(path: Path) -> None:
+    config = load_config(path)
+    task = config.scenario or config.env
+    gamma = config.sac.gamma if config.algo == "sac" else config.ppo.gamma
+    hover = hover_value(gamma, task.frame_skip, task.frame_skip_reward)
+    assert finishing_wins(gamma, task.frame_skip, task.frame_skip_reward, task.success_weight), (
+        f"{path.name}: R_t = {finish_value(task.success_weight):.0f} < hovering {hover:.0f}"
+    )

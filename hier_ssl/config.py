@@ -324,10 +324,37 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
     return data
 
 
-def load_yaml(path: str | Path) -> dict[str, Any]:
+def config_dir() -> Path:
+    """The shipped configs: ``hier_ssl/configs`` in an installed wheel (setup.py maps the repository's
+    ``configs/`` there), else the ``configs/`` beside the package in a checkout or editable install."""
+    package = Path(__file__).resolve().parent
+    installed = package / "configs"
+    return installed if installed.is_dir() else package.parent / "configs"
+
+
+def config_names() -> list[str]:
+    """Names of the shipped configs, e.g. ``proposed/fscaps`` for ``configs/proposed/fscaps.yaml``."""
+    root = config_dir()
+    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.yaml"))
+
+
+def find_config(path: str | Path) -> Path:
+    """``path`` if it is a file, else the shipped config it names: ``proposed/fscaps``, with or without
+    ``.yaml``, or the checkout's path ``configs/proposed/fscaps.yaml``; ConfigError when it is neither."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"config file not found: {path}")
+    if path.is_file():
+        return path
+    name = path.as_posix().removeprefix("configs/").removesuffix(".yaml")
+    root = config_dir().resolve()
+    shipped = (root / f"{name}.yaml").resolve()
+    if not path.is_absolute() and shipped.is_relative_to(root) and shipped.is_file():
+        return shipped
+    raise ConfigError(f"config file not found: {path} (nor a shipped config: `hier-ssl configs` lists them)")
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    """The mapping in the YAML file ``path`` (or the shipped config it names, ``find_config``)."""
+    path = find_config(path)
     try:
         data = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as err:
@@ -338,7 +365,7 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> TrainConfig:
-    """A TrainConfig from a YAML file with optional ``key=value`` overrides."""
+    """A TrainConfig from a YAML file or a shipped config's name, with optional ``key=value`` overrides."""
     return parse_config(apply_overrides(load_yaml(path), overrides or []))
 
 

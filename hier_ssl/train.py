@@ -205,7 +205,10 @@ def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
 
     steps_per_iteration = config.ppo.num_steps_per_env
     every = (config.eval_interval if select else config.save_interval) // steps_per_iteration
-    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device, save_interval=max(1, every))
+    torch.manual_seed(config.seed)  # the networks' initial weights and the policy's exploration noise
+    runner = make_ppo_runner(
+        env, config.ppo, str(run_dir), config.device, seed=config.seed, save_interval=max(1, every)
+    )
     if resume:
         saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
         if not saved:
@@ -242,7 +245,6 @@ def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str,
     """``kind: worker``: PPO on the goToPoint task, then the worker beside the scripted ones."""
     from hier_ssl.envs.gotopoint import GoToPointEnv, worker_summary
 
-    torch.manual_seed(config.seed)
     env = GoToPointEnv(config.env, config.gotopoint, config.num_envs, config.device, seed=config.seed)
     policy, train_wall_s = _train_ppo(config, env, run_dir, resume, select=False)
     summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)

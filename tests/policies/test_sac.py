@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import copy
 import io
 import math
 from collections.abc import Callable, Iterator
@@ -9,11 +10,13 @@ import pytest
 import torch
 from pydantic import ValidationError
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+from torch.overrides import TorchFunctionMode
 
 import hier_ssl
 from hier_ssl.policies import SAC, SACConfig, SACRunner, SquashedGaussianActor, TwinQ, caps_loss
 from hier_ssl.policies.networks import LOG_STD_MAX, LOG_STD_MIN
-from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, atomic_save
+from hier_ssl.policies.sac import SAMPLED_CAPS_OBS_BOUND, perturbed_obs
+from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, atomic_save, to_learner
 
 OBS_DIM, ACT_DIM = 4, 2
 TINY = {"hidden": (32, 32), "batch_size": 32, "buffer_size": 4096, "learning_starts": 0}
@@ -120,6 +123,16 @@ def test_config_defaults_are_the_public_code_settings() -> None:
     assert cfg.learns_alpha and not SACConfig(caps=True).learns_alpha
 
 
+def test_public_code_differences_default_to_ours_and_reject_unknown_values() -> None:
+    cfg = SACConfig()
+    assert (cfg.caps_actions, cfg.actor_schedule, cfg.reward_scale) == ("mean", "catch_up", 1.0)
+    public = SACConfig(caps=True, caps_actions="sampled", actor_schedule="delayed", learning_starts=80_000)
+    assert not public.learns_alpha and public.alpha == 0.2
+    for key, value in (("caps_actions", "noisy"), ("actor_schedule", "every")):
+        with pytest.raises(ValidationError, match=key):
+            SACConfig(**{key: value})
+
+
 @pytest.mark.parametrize(
     ("field", "value"),
     [("actor_lr", -1e-3), ("critic_lr", 0.0), ("tau", 1.5), ("batch_size", 0), ("hidden", (64, 0))],
@@ -219,7 +232,118 @@ def test_caps_changes_the_actor_update() -> None:
     assert torch.equal(plain.qf.weights[0], smooth.qf.weights[0])  # same seed, same batch, same critic step
 
 
+def _one_transition_sac(**overrides: object) -> tuple[SAC, torch.Tensor, torch.Tensor]:
+    """A SAC whose replay holds a single transition, so every batch row is that transition."""
+    sac = _build_sac(**overrides)
+    obs, next_obs = torch.tensor([[0.9, -1.1, 0.2, 1.0]]), torch.tensor([[-0.3, 0.8, 0.2, 0.1]])
+    sac.process_env_step(
+        obs, torch.zeros(1, ACT_DIM), torch.zeros(1), next_obs, torch.zeros(1, dtype=torch.bool)
+    )
+    return sac, obs, next_obs
+
+
+def test_sampled_caps_is_the_public_codes_formula_on_the_clamped_state() -> None:
+    lambda_t, lambda_s, sigma, batch = 3.0, 5.0, 0.5, 8
+    sac, obs, next_obs = _one_transition_sac(
+        caps=True,
+        caps_actions="sampled",
+        actor_schedule="delayed",
+        batch_size=batch,
+        caps_lambda_t=lambda_t,
+        caps_lambda_s=lambda_s,
+        caps_sigma=sigma,
+    )
+    actor = copy.deepcopy(sac.actor)
+    gen = torch.Generator()
+    gen.set_state(sac.generator.get_state())
+    logged = sac.update()
+    # The same draws by hand, in the update's order: replay indices, a'(s') of the critic target, the
+    # perturbation of s, then one sample at s and at s_bar.
+    torch.randint(1, (batch,), generator=gen)
+    with torch.no_grad():
+        next_action, _ = actor(next_obs.expand(batch, -1), gen)
+        raw_bar = obs + sigma * torch.randn((batch, OBS_DIM), generator=gen)
+        obs_bar = raw_bar.clamp(-1.2, 1.2)
+        pi, pi_bar = actor(torch.cat([obs.expand(batch, -1), obs_bar]), gen)[0].chunk(2)
+        unclamped_pi_bar = actor.deterministic(raw_bar)  # only to show that the clamp matters here
+    assert SAMPLED_CAPS_OBS_BOUND == 1.2 and (raw_bar.abs() > 1.2).any()
+    assert logged["caps_temporal"] == pytest.approx(lambda_t * (next_action - pi).norm(dim=1).mean().item())
+    assert logged["caps_spatial"] == pytest.approx(lambda_s * (pi_bar - pi).norm(dim=1).mean().item())
+    assert logged["caps_spatial"] != pytest.approx(
+        lambda_s * (unclamped_pi_bar - pi).norm(dim=1).mean().item()
+    )
+
+
+def test_perturbed_obs_clamps_only_when_given_a_bound() -> None:
+    obs = torch.tensor([[1.15, -1.15, 0.0]])
+    noise = torch.randn(obs.shape, generator=torch.Generator().manual_seed(3))
+    free = perturbed_obs(obs, 2.0, torch.Generator().manual_seed(3))
+    clamped = perturbed_obs(obs, 2.0, torch.Generator().manual_seed(3), bound=1.2)
+    torch.testing.assert_close(free, obs + 2.0 * noise)
+    torch.testing.assert_close(clamped, (obs + 2.0 * noise).clamp(-1.2, 1.2))
+
+
+def test_sampled_caps_terms_put_gradient_only_into_the_actor() -> None:
+    sac = _build_sac(caps=True, caps_actions="sampled")
+    _fill(sac)
+    data = sac.replay.sample(32, torch.Generator().manual_seed(0))
+    alpha = sac.log_alpha.detach().exp()
+    _, next_state_actions = sac._critic_step(data, alpha)
+    assert not next_state_actions.requires_grad  # a'(s') is a constant of the actor loss
+    sac.q_optimizer.zero_grad(set_to_none=True)
+    _, _, caps = sac.actor_loss(data, next_state_actions, alpha)
+    (caps["caps_temporal"] + caps["caps_spatial"]).backward()
+    assert all(p.grad is None for p in [*sac.qf.parameters(), *sac.qf_target.parameters(), sac.log_alpha])
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in sac.actor.parameters())
+
+
+# --- actor schedule -------------------------------------------------------------------------------
+
+
+def _adam_steps(optimizer: torch.optim.Optimizer) -> int:
+    return int(optimizer.state[optimizer.param_groups[0]["params"][0]]["step"])
+
+
+@pytest.mark.parametrize(
+    ("schedule", "policy_frequency", "actor_steps", "updates_that_step"),
+    [
+        ("catch_up", 1, 6, [0, 1, 2, 3, 4, 5]),
+        ("delayed", 1, 6, [0, 1, 2, 3, 4, 5]),
+        ("catch_up", 2, 6, [0, 2, 4]),  # 2 actor steps on each of updates 0, 2, 4
+        ("delayed", 2, 3, [0, 2, 4]),  # the public code: one actor step per two critic steps
+        ("catch_up", 3, 6, [0, 3]),
+        ("delayed", 3, 2, [0, 3]),
+    ],
+)
+def test_actor_schedule_counts(
+    schedule: str, policy_frequency: int, actor_steps: int, updates_that_step: list[int]
+) -> None:
+    sac = _build_sac(actor_schedule=schedule, policy_frequency=policy_frequency)
+    _fill(sac)
+    stepped = [i for i in range(6) if "actor_loss" in sac.update()]
+    assert stepped == updates_that_step
+    assert _adam_steps(sac.q_optimizer) == 6
+    assert _adam_steps(sac.actor_optimizer) == _adam_steps(sac.alpha_optimizer) == actor_steps
+
+
 # --- alpha ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("start", [0.2, 1.0])
+def test_learned_alpha_starts_at_the_configured_value(start: float) -> None:
+    learned = _build_sac(alpha=start, policy_frequency=1)
+    fixed_same = _build_sac(alpha=start, autotune_alpha=False, policy_frequency=1)
+    fixed_other = _build_sac(alpha=1.2 - start, autotune_alpha=False, policy_frequency=1)
+    assert learned.config.learns_alpha and learned.log_alpha.item() == pytest.approx(math.log(start))
+    for sac in (learned, fixed_same, fixed_other):
+        _fill(sac)
+    logged = learned.update()
+    fixed_same.update()
+    fixed_other.update()
+    # The first critic target used alpha = start; then one Adam step moved log alpha by at most its lr.
+    assert torch.equal(learned.qf.weights[0], fixed_same.qf.weights[0])
+    assert not torch.equal(learned.qf.weights[0], fixed_other.qf.weights[0])
+    assert logged["alpha"] != start and abs(math.log(logged["alpha"] / start)) < 1.01e-3
 
 
 def test_alpha_is_fixed_with_caps_and_learned_with_autotune() -> None:
@@ -309,6 +433,151 @@ def test_runner_checkpoints_resume_and_calls_back(tmp_path: Path) -> None:
     assert resumed.step == 40 and len(resumed.sac.replay) == 160 and resumed.sac.num_updates == 12
     resumed.close()
     runner.close()
+
+
+class FixedStartEnv(PointEnv):
+    """``PointEnv`` whose episodes all start from the same state (origin, one fixed goal per env), so that
+    at an episode boundary a fresh ``reset`` leaves the env exactly as its auto-reset would."""
+
+    def _reset_envs(self, mask: torch.Tensor) -> None:
+        self.pos[mask] = 0.0
+        self.goal[mask] = torch.linspace(-0.9, 0.9, 2 * self.num_envs).view(-1, 2)[mask]
+        self.t[mask] = 0
+        self.ret[mask] = 0.0
+
+
+def _learner_state(runner: SACRunner) -> dict[str, object]:
+    sac = runner.sac
+    return {
+        **{
+            f"{name}.{k}": v
+            for name in ("actor", "qf", "qf_target")
+            for k, v in sac.state_dict()[name].items()
+        },
+        "log_alpha": sac.log_alpha.detach(),
+        "replay": sac.replay.state_dict(),
+        "num_updates": sac.num_updates,
+    }
+
+
+@pytest.mark.parametrize("interrupt_at", [20, 40], ids=["in_warm_up", "after_warm_up"])
+def test_resume_across_the_warm_up_continues_as_an_uninterrupted_run(
+    tmp_path: Path, interrupt_at: int
+) -> None:
+    # Warm-up 120 transitions = 30 vector steps of 4 envs; episodes of 10 steps, so both interruptions
+    # fall on an episode boundary, where the resumed run's reset gives the state the uninterrupted run has.
+    cfg = SACConfig(**{**TINY, "learning_starts": 120, "updates_per_step": 0.5})
+    env = FixedStartEnv(num_envs=4, episode_length=10)
+    whole = SACRunner(env, cfg, tmp_path / "whole", seed=3, progress=False)
+    whole.learn(total_steps=50)
+    whole.close()
+    first = SACRunner(
+        FixedStartEnv(num_envs=4, episode_length=10), cfg, tmp_path / "split", seed=3, progress=False
+    )
+    first.learn(total_steps=interrupt_at)
+    first.close()
+    resumed = SACRunner(
+        FixedStartEnv(num_envs=4, episode_length=10), cfg, tmp_path / "split", seed=3, progress=False
+    )
+    resumed.load(tmp_path / "split")
+    resumed.learn(total_steps=50)
+    resumed.close()
+    # Updates at steps 31, 33, ..., 49: half an update per step from the step that completes the warm-up.
+    assert whole.sac.num_updates == 10 and len(whole.sac.replay) == 200
+    expected, got = _learner_state(whole), _learner_state(resumed)
+    assert expected.keys() == got.keys()
+    for key, value in expected.items():
+        if isinstance(value, dict):
+            assert all(torch.equal(torch.as_tensor(value[k]), torch.as_tensor(got[key][k])) for k in value), (
+                key
+            )
+        else:
+            assert torch.equal(torch.as_tensor(value), torch.as_tensor(got[key])), key
+
+
+def test_a_warm_up_longer_than_the_replay_and_the_run_counts_transitions_collected(tmp_path: Path) -> None:
+    # 200 transitions of warm-up against a replay of 64 rows: counted from the replay, it would never end.
+    cfg = SACConfig(**{**TINY, "buffer_size": 64, "learning_starts": 200})
+    runner = SACRunner(PointEnv(num_envs=4), cfg, tmp_path, log_interval=7, progress=False)
+    runner.learn(total_steps=40)  # 160 transitions: all warm-up
+    runner.close()
+    assert runner.sac.num_updates == 0 and len(runner.sac.replay) == 64
+    resumed = SACRunner(PointEnv(num_envs=4), cfg, tmp_path, log_interval=7, progress=False)
+    resumed.load(tmp_path)
+    assert resumed.num_transitions == 160 and resumed.sac.num_updates == 0
+    resumed.learn(total_steps=60)  # the warm-up ends at step 50; one update per step from there
+    resumed.close()
+    assert resumed.sac.num_updates == 11 and len(resumed.sac.replay) == 64
+
+
+class _DeviceCopies(TorchFunctionMode):
+    """Records every explicit device move (``Tensor.to`` with a device, ``.cpu``, ``.cuda``): its name,
+    the source shape, the arguments, and the result."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls: list[tuple[str, tuple[int, ...], tuple, dict, torch.Tensor]] = []
+
+    def __torch_function__(self, func, types, args=(), kwargs=None):
+        kwargs = kwargs or {}
+        out = func(*args, **kwargs)
+        moves = func in (torch.Tensor.cpu, torch.Tensor.cuda) or (
+            func is torch.Tensor.to
+            and ("device" in kwargs or any(isinstance(a, (str, torch.device)) for a in args[1:]))
+        )
+        if moves:
+            self.calls.append((func.__name__, tuple(args[0].shape), args[1:], kwargs, out))
+        return out
+
+
+def test_runner_moves_one_packed_tensor_to_the_learner_and_the_actions_back(tmp_path: Path) -> None:
+    num_envs, steps = 4, 6
+    runner = SACRunner(
+        PointEnv(num_envs=num_envs),
+        SACConfig(**{**TINY, "learning_starts": 12}),
+        tmp_path,
+        device="cpu",
+        log_interval=2,
+        progress=False,
+    )
+    stored: list[tuple[torch.Tensor, ...]] = []
+    store = runner.sac.process_env_step
+    runner.sac.process_env_step = lambda *rows: (stored.append(rows), store(*rows))[1]
+    with _DeviceCopies() as copies:
+        runner.learn(total_steps=steps)  # 3 warm-up steps of random actions, 3 of the policy with updates
+    runner.close()
+    assert runner.sac.num_updates == 4
+    reset, *per_step = copies.calls
+    assert reset[:3] == ("to", (num_envs, OBS_DIM), (runner.device,))
+    assert len(per_step) == 2 * steps  # nothing else crosses: one copy each way per vector step
+    for i in range(steps):
+        (a_name, a_shape, a_args, a_kwargs, _), (s_name, s_shape, s_args, s_kwargs, packed) = per_step[
+            2 * i : 2 * i + 2
+        ]
+        assert (a_name, a_shape, a_args, a_kwargs) == ("to", (num_envs, ACT_DIM), (runner.env.device,), {})
+        assert (s_name, s_shape, s_args, s_kwargs) == (
+            "to",
+            (num_envs, 2 * OBS_DIM + 3),
+            (runner.device,),
+            {"non_blocking": True},
+        )
+        # What is stored is the copy: reward, next obs and terminated are views of the packed tensor.
+        _, _, rewards, next_obs, terminated = stored[i]
+        pointer = packed.untyped_storage().data_ptr()
+        assert all(x.untyped_storage().data_ptr() == pointer for x in (rewards, next_obs, terminated))
+
+
+def test_to_learner_splits_what_it_packed() -> None:
+    gen = torch.Generator().manual_seed(0)
+    next_obs, final_obs = torch.rand(5, 3, generator=gen), torch.rand(5, 3, generator=gen)
+    rewards = torch.randn(5, generator=gen)
+    terminated = torch.tensor([True, False, False, True, False])
+    live = torch.tensor([True, True, False, True, False])
+    out = to_learner(torch.device("cpu"), next_obs, rewards, final_obs, terminated, live)
+    for got, want in zip(out, (next_obs, rewards, final_obs, terminated.float(), live), strict=True):
+        assert got.dtype == want.dtype
+        assert torch.equal(got, want)
+    assert to_learner(torch.device("cpu"), next_obs, rewards, final_obs, terminated, None)[4] is None
 
 
 def test_atomic_save_keeps_the_old_file_when_writing_fails(tmp_path: Path) -> None:

@@ -35,7 +35,10 @@ from hier_ssl.policies.replay import Batch, ReplayBuffer
 
 
 class SACConfig(BaseModel):
-    """Hyper-parameters; the defaults are those of the paper's public code (SPEC "SAC settings")."""
+    """Hyper-parameters. Networks, optimisers, gamma, tau, batch, buffer and policy_frequency default to
+    the paper's public code (SPEC "SAC settings"); the keys where ours differ say what the public code
+    uses: a config with ``caps_actions: sampled``, ``actor_schedule: delayed``, ``learning_starts: 80000``
+    and ``alpha: 1.0`` (learned, no CAPS) or ``alpha: 0.2`` (with CAPS) reproduces it."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -50,7 +53,8 @@ class SACConfig(BaseModel):
     learning_starts: int = Field(
         5000,
         ge=0,
-        description="transitions (vector steps x num_envs) of uniform random actions before the first update",
+        description="transitions (vector steps x num_envs) of uniform random actions before the first "
+        "update; the public code: 5,000 vector steps x 16 envs = 80,000",
     )
     policy_frequency: int = Field(2, ge=1, description="the actor steps on every policy_frequency-th update")
     actor_schedule: Literal["catch_up", "delayed"] = Field(
@@ -58,7 +62,12 @@ class SACConfig(BaseModel):
         description="actor steps on each policy_frequency-th update: catch_up runs policy_frequency of them "
         "(CleanRL: as many actor as critic steps), delayed runs one (TD3, the paper's public code)",
     )
-    alpha: float = Field(0.2, gt=0, description="entropy coefficient: fixed, or the start value if learned")
+    alpha: float = Field(
+        0.2,
+        gt=0,
+        description="entropy coefficient: fixed, or the start value if learned; the public code learns it "
+        "from 1.0 without CAPS and fixes it at 0.2 with CAPS",
+    )
     autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
     target_entropy: float | None = Field(None, description="None means -act_dim")
     caps: bool = False

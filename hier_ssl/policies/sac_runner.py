@@ -151,6 +151,8 @@ class SACRunner:
         self.env = env
         self.seed = seed
         self.device = torch.device(device) if device is not None else env.device
+        if self.device.type == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"device {str(self.device)!r}: torch sees no CUDA device on this machine")
         self.sac = SAC(env.num_obs, env.num_actions, config, device=self.device, seed=seed)
         self.run_dir = Path(run_dir)
         self.log_interval = log_interval

@@ -16,13 +16,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
 from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml, parse_config
 from hier_ssl.envs.vector import TorchView, VectorEnv
 from hier_ssl.evaluate import Policy, evaluate
-from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE
+from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE, sac_policy
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
@@ -40,16 +39,6 @@ def atomic_write_text(text: str, path: Path) -> None:
     except BaseException:
         os.unlink(tmp)
         raise
-
-
-def sac_policy(actor: torch.nn.Module) -> Policy:
-    """The actor's deterministic action (tanh of the mean) as a numpy policy."""
-
-    def policy(obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return actor.deterministic(torch.as_tensor(obs, dtype=torch.float32)).numpy()
-
-    return policy
 
 
 def resume_config(run_dir: Path) -> TrainConfig:
@@ -141,12 +130,14 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
         atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
+    # SAC keeps the world on the CPU; its runner puts the learner on config.device.
+    env_device = "cpu" if config.algo == "sac" else config.device
     if config.scenario is not None:
         from hier_ssl.envs.multi import MultiVectorEnv
 
-        env = MultiVectorEnv(config.scenario, config.num_envs, config.device)
+        env = MultiVectorEnv(config.scenario, config.num_envs, env_device)
     else:
-        env = VectorEnv(config.env, config.num_envs, config.device)
+        env = VectorEnv(config.env, config.num_envs, env_device)
     if config.algo == "sac":
         policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress)
     else:
@@ -181,6 +172,7 @@ def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
         config.sac,
         run_dir,
         seed=config.seed,
+        device=config.device,
         eval_interval=config.eval_interval,
         eval_callback=selection,
         progress=progress,

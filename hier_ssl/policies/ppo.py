@@ -24,9 +24,7 @@ from tensordict import TensorDict
 
 from hier_ssl.config import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, VectorEnv
-
-NumpyPolicy = Callable[[np.ndarray], np.ndarray]
-"""Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
+from hier_ssl.policies.actor import NumpyPolicy
 
 
 def ppo_train_cfg(

@@ -92,12 +92,11 @@ def sweep(
     launch_options: LaunchOptions | None = None,
     progress: bool = True,
 ) -> list[Path]:
-    """Train every run of the sweep that is not done, then write its tables; returns their paths.
+    """Train every run of the sweep that is not done, then write its tables; returns their paths. An empty
+    ``grid`` sweeps the seeds of the config alone.
 
     ``out`` defaults to ``runs/sweep/<config name>``: rerunning the same command resumes the same sweep.
     """
-    if not grid:
-        raise ConfigError("--grid: give at least one KEY=V1,V2,...")
     if out is None:
         out = Path("runs") / "sweep" / parse_config(load_yaml(config)).name
     out = Path(out)

@@ -62,14 +62,31 @@ def _trial(params: dict[str, Any], jobs: dict[str, Job], cwd: str) -> None:
 
 
 def asha(jobs: Sequence[Job]) -> Any:
-    """ASHA over vector steps: at a quarter and at half of the budget, trials in the worse half of the
-    success rates seen at that point stop."""
+    """ASHA over vector steps: at a quarter and at half of the longest run's budget, a trial stops if its
+    selection success rate is below the median of the trials that reached that rung before it.
+
+    Both rungs lie before every run's end, and reaching ``max_t`` stops nothing (``stop_last_trials``):
+    a trial stopped at its last selection evaluation would never write its final one, eval.json.
+    """
     from ray.tune.schedulers import ASHAScheduler
 
-    max_t = max(job.config.total_steps for job in jobs)
-    grace = max(min(job.config.eval_interval for job in jobs), max_t // 4)
+    grace = max(
+        max(job.config.eval_interval for job in jobs), max(job.config.total_steps for job in jobs) // 4
+    )
+    shortest = min(job.config.total_steps for job in jobs)
+    if 2 * grace >= shortest:
+        raise ValueError(
+            f"--asha: runs of {shortest} vector steps are too short for rungs at {grace} and {2 * grace} "
+            "(a quarter and half of the longest run, and at least one eval_interval)"
+        )
     return ASHAScheduler(
-        time_attr="step", metric=ASHA_METRIC, mode="max", max_t=max_t, grace_period=grace, reduction_factor=2
+        time_attr="step",
+        metric=ASHA_METRIC,
+        mode="max",
+        max_t=2 * grace,
+        grace_period=grace,
+        reduction_factor=2,
+        stop_last_trials=False,
     )
 
 
@@ -83,6 +100,7 @@ def run_trials(jobs: Sequence[Job], options: LaunchOptions, storage: Path) -> di
     by_name = {job.name: job for job in jobs}
     trainable = tune.with_parameters(_trial, jobs=by_name, cwd=os.getcwd())
     resources = {"cpu": options.cpus_per_run, "gpu": options.gpus_per_run}
+    scheduler = asha(jobs) if options.asha else None
     started = connect(ray, options.ray)
     try:
         tuner = tune.Tuner(
@@ -90,7 +108,7 @@ def run_trials(jobs: Sequence[Job], options: LaunchOptions, storage: Path) -> di
             param_space={"run": tune.grid_search(list(by_name))},
             tune_config=tune.TuneConfig(
                 max_concurrent_trials=options.jobs,
-                scheduler=asha(jobs) if options.asha else None,
+                scheduler=scheduler,
                 trial_name_creator=lambda trial: trial.config["run"],
                 trial_dirname_creator=lambda trial: trial.config["run"],
             ),

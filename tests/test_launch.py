@@ -131,29 +131,45 @@ def test_ray_listens_on_loopback_only(ray_instance) -> None:
 
 
 def test_a_sweep_on_ray_writes_its_table_with_the_figures_of_a_local_run(
-    ray_instance, tmp_path: Path
+    ray_instance, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    config = tmp_path / "tiny.yaml"
+    config, out = tmp_path / "tiny.yaml", tmp_path / "sweep"
     config.write_text(yaml.safe_dump(TINY))
-    grid = parse_grid(["sac.gamma=0.9,0.95"])
-    md, table = sweep(
-        config, grid, out=tmp_path / "sweep", launch_options=LaunchOptions(ray="auto"), progress=False
-    )
-    rows = list(csv.DictReader(table.open()))
+    args = ["sweep", str(config), "--grid", "sac.gamma=0.9,0.95", "--out", str(out), "--no-progress"]
+    assert main([*args, "--ray", "auto"]) == 0, capsys.readouterr().err
+    rows = list(csv.DictReader((out / "sweep.csv").open()))
     assert [(r["run"], r["status"]) for r in rows] == [
         ("tiny-sac.gamma=0.9-s0", "finished"),
         ("tiny-sac.gamma=0.95-s0", "finished"),
     ]
     assert all(r["success %"] != "" and r["CPAD median m"] != "" for r in rows)
-    assert "| tiny-sac.gamma=0.9-s0 | 0.9 | 0 | finished |" in md.read_text()
+    assert "| tiny-sac.gamma=0.9-s0 | 0.9 | 0 | finished |" in (out / "sweep.md").read_text()
 
     # The same config and seed trained here, in this process, gives the same numbers to the last digit.
     local = tmp_path / "local"
     train(parse_config({**TINY, "sac": {**TINY["sac"], "gamma": 0.9}}), local, progress=False)
-    on_ray = tmp_path / "sweep" / "runs" / "tiny-sac.gamma=0.9-s0"
+    on_ray = out / "runs" / "tiny-sac.gamma=0.9-s0"
     assert _without_times(on_ray) == _without_times(local)
     actors = [torch.load(d / MODEL_FILE, weights_only=True)["sac"]["actor"] for d in (on_ray, local)]
     assert all(torch.equal(actors[0][k], actors[1][k]) for k in actors[0])
+
+
+def test_asha_stops_the_weaker_trial_and_reruns_skip_it(ray_instance, tmp_path: Path) -> None:
+    # A 10 m success radius (any heading, any speed) succeeds at once; 5 cm does not within 20 steps.
+    config = tmp_path / "tiny.yaml"
+    config.write_text(yaml.safe_dump({**TINY, "env": {**TINY["env"], "theta_th_deg": 180, "speed_th": 10}}))
+    grid = parse_grid(["env.d_th=10,0.05"])
+    options = LaunchOptions(ray="auto", jobs=1, asha=True)  # one at a time: the strong trial sets the bar
+    sweep(config, grid, out=tmp_path, launch_options=options, progress=False)
+    weak = tmp_path / "runs" / "tiny-env.d_th=0.05-s0"
+    assert run_state(tmp_path / "runs" / "tiny-env.d_th=10-s0") == "finished"
+    assert run_state(weak) == "stopped" and _steps(weak) == [20]
+    rows = list(csv.DictReader((tmp_path / "sweep.csv").open()))
+    assert (
+        rows[1]["status"].startswith("stopped at step 20 (selection success") and rows[1]["success %"] == ""
+    )
+    sweep(config, grid, out=tmp_path, launch_options=options, progress=False)
+    assert _steps(weak) == [20]
 
 
 def test_a_trial_whose_process_dies_is_retried_by_tune_and_resumes(ray_instance, tmp_path: Path) -> None:

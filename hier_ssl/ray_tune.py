@@ -66,9 +66,22 @@ def asha(jobs: Sequence[Job]) -> Any:
     selection success rate is below the median of the trials that reached that rung before it.
 
     Both rungs lie before every run's end, and reaching ``max_t`` stops nothing (``stop_last_trials``):
-    a trial stopped at its last selection evaluation would never write its final one, eval.json.
+    a trial stopped at its last selection evaluation would never write its final one, eval.json. The
+    scheduler's ``stopped`` maps the runs it stopped to the step, so that an interrupted trial is not
+    mistaken for one that ASHA stopped.
     """
-    from ray.tune.schedulers import ASHAScheduler
+    from ray.tune.schedulers import ASHAScheduler, TrialScheduler
+
+    class RecordingASHA(ASHAScheduler):
+        def __init__(self, **kwargs: Any) -> None:
+            super().__init__(**kwargs)
+            self.stopped: dict[str, int] = {}
+
+        def on_trial_result(self, controller: Any, trial: Any, result: dict) -> str:
+            action = super().on_trial_result(controller, trial, result)
+            if action == TrialScheduler.STOP:
+                self.stopped[trial.config["run"]] = int(result["step"])
+            return action
 
     grace = max(
         max(job.config.eval_interval for job in jobs), max(job.config.total_steps for job in jobs) // 4
@@ -79,7 +92,7 @@ def asha(jobs: Sequence[Job]) -> Any:
             f"--asha: runs of {shortest} vector steps are too short for rungs at {grace} and {2 * grace} "
             "(a quarter and half of the longest run, and at least one eval_interval)"
         )
-    return ASHAScheduler(
+    return RecordingASHA(
         time_attr="step",
         metric=ASHA_METRIC,
         mode="max",
@@ -124,20 +137,20 @@ def run_trials(jobs: Sequence[Job], options: LaunchOptions, storage: Path) -> di
         if started:
             ray.shutdown()
     failures = {}
+    stopped = scheduler.stopped if scheduler is not None else {}
     for result in results:
         job = by_name[result.config["run"]]
         if result.error is not None:
-            failures[job.name] = _first_line(result.error)
+            failures[job.name] = _last_line(result.error)
+        elif job.name in stopped:
+            mark_stopped(job, stopped[job.name], f"ASHA on {ASHA_METRIC}")
+            print(f"{job.name}: stopped early by ASHA at step {stopped[job.name]}", flush=True)
         elif run_state(job.run_dir) != "finished":
-            if not options.asha:
-                failures[job.name] = "the trial ended without writing eval.json"
-            else:
-                mark_stopped(job, int((result.metrics or {}).get("step", 0)), f"ASHA on {ASHA_METRIC}")
-                print(f"{job.name}: stopped early by ASHA at step {result.metrics.get('step')}", flush=True)
+            failures[job.name] = "the trial ended without eval.json (interrupted? rerun to resume it)"
     return failures
 
 
-def _first_line(error: BaseException) -> str:
+def _last_line(error: BaseException) -> str:
     lines = [line for line in str(error).splitlines() if line.strip()]
     return f"{type(error).__name__}: {lines[-1] if lines else ''}"
 

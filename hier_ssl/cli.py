@@ -337,6 +337,8 @@ def _eval(args: argparse.Namespace) -> int:
 
 
 def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.launch_options import add_launch_flags
+
     rep = subparsers.add_parser(
         "reproduce", help="train and evaluate the paper's 12 configurations, write report.md (resumable)"
     )
@@ -353,10 +355,12 @@ def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
         "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every config"
     )
     rep.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_launch_flags(rep)
     rep.set_defaults(func=_reproduce)
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    from hier_ssl.launch_options import LaunchOptions
     from hier_ssl.reproduce import reproduce
 
     report = reproduce(
@@ -367,6 +371,7 @@ def _reproduce(args: argparse.Namespace) -> int:
         config_dir=args.config_dir,
         overrides=args.set,
         progress=not args.no_progress,
+        launch_options=LaunchOptions.from_args(args),
     )
     print(f"wrote {report}")
     return 0
@@ -390,6 +395,40 @@ def _configs(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- sweep ------------------------------------------------------------------------------------------------
+
+
+def _add_sweep(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.launch_options import add_launch_flags
+
+    sweep = subparsers.add_parser(
+        "sweep", help="train one config over a grid of key values and seeds, tabulate eval.json (resumable)"
+    )
+    sweep.add_argument("config", metavar="CONFIG", help="YAML config")
+    sweep.add_argument(
+        "--grid", action="append", default=[], metavar="KEY=V1,V2", help="values of a key (repeatable)"
+    )
+    sweep.add_argument("--seeds", type=_positive_int, default=1, help="training seeds per point (default: 1)")
+    sweep.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every run"
+    )
+    sweep.add_argument("--out", default=None, metavar="DIR", help="(default: runs/sweep/NAME)")
+    sweep.add_argument("--asha", action="store_true", help="with --ray: stop weak trials early (ASHA)")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_launch_flags(sweep)
+    sweep.set_defaults(func=_sweep)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from hier_ssl.launch_options import LaunchOptions
+    from hier_ssl.sweep import parse_grid, sweep
+
+    options, progress = LaunchOptions.from_args(args), not args.no_progress
+    paths = sweep(args.config, parse_grid(args.grid), args.seeds, args.set, args.out, options, progress)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 # -- entry point ------------------------------------------------------------------------------------------
 
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
@@ -401,6 +440,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_export,
     _add_eval,
     _add_reproduce,
+    _add_sweep,
 )
 
 

@@ -3,22 +3,23 @@ planners on the same episodes, and write one ``report.md`` with the paper's numb
 
 Layout under ``out``: ``runs/<name>-s<seed>/`` (one training run each, ``hier_ssl.train``), and per task
 ``<task>/table.{md,csv,tex}``, ``<task>/fig3.png``, ``<task>/eval.json``; ``report.md`` links them.
-Resumable: a run with ``eval.json`` is finished and skipped; a run killed part-way (config.yaml and a
-checkpoint, no eval.json) is resumed; anything else is trained from the start.
+Resumable: the runs train through ``hier_ssl.launch`` (in turn, as local processes or as Ray Tune trials),
+which skips finished runs, resumes killed ones and trains the rest.
 """
 
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import TrainConfig, apply_overrides, load_yaml, parse_config
+from hier_ssl.config import apply_overrides, load_yaml, parse_config
+from hier_ssl.launch import Job, launch
+from hier_ssl.launch_options import LaunchOptions
 from hier_ssl.config import config_dir as shipped_configs
 from hier_ssl.report import SETUP_TITLES, SETUPS, TASKS
-from hier_ssl.train import EVAL_FILE, resume_config, train
+from hier_ssl.train import EVAL_FILE
 
 PLANNER_ROWS = ("direct", "sampling")
 
@@ -47,12 +48,6 @@ def paper_configs(
     return every
 
 
-def _resumable(run_dir: Path) -> bool:
-    """A run killed part-way: its config and a checkpoint exist, its eval.json does not."""
-    has_checkpoint = (run_dir / "model.pt").is_file() or any(run_dir.glob("model_*.pt"))
-    return (run_dir / "config.yaml").is_file() and has_checkpoint
-
-
 def reproduce(
     only: Sequence[str] = (),
     seeds: int = 1,
@@ -62,11 +57,13 @@ def reproduce(
     overrides: Sequence[str] = (),
     eval_seed: int = 0,
     progress: bool = True,
+    launch_options: LaunchOptions | None = None,
 ) -> Path:
     """Train what is missing, evaluate everything, write ``out``/report.md; returns its path.
 
     ``seeds`` runs per configuration (training seeds config.seed, config.seed + 1, ...); ``overrides``
-    are ``key=value`` settings applied to every config (e.g. ``total_steps=2000`` for a quick pass).
+    are ``key=value`` settings applied to every config (e.g. ``total_steps=2000`` for a quick pass);
+    ``launch_options`` say where the runs train (``hier_ssl.launch``: in turn, as processes, on Ray).
     """
     from hier_ssl.managers import compare
     from hier_ssl.report import write_evaluation
@@ -75,28 +72,20 @@ def reproduce(
         raise ValueError(f"seeds must be >= 1, got {seeds}")
     out = Path(out)
     # Every config is validated before anything is trained.
-    plans: list[tuple[str, str, TrainConfig, Path]] = []
+    plans: list[tuple[str, str, Path]] = []
+    jobs = []
     for task, setup, path in paper_configs(config_dir, only):
         data = apply_overrides(load_yaml(path), list(overrides))
         base_seed = int(data.get("seed", 0))
         for k in range(seeds):
             config = parse_config({**data, "seed": base_seed + k})
-            plans.append((task, setup, config, out / "runs" / f"{config.name}-s{config.seed}"))
-
-    for i, (_, _, config, run_dir) in enumerate(plans, 1):
-        head = f"[{i}/{len(plans)}] {run_dir.name}"
-        if (run_dir / EVAL_FILE).is_file():
-            print(f"{head}: finished, skipped", flush=True)
-            continue
-        resume = _resumable(run_dir)
-        print(f"{head}: {'resuming' if resume else 'training'} in {run_dir}", flush=True)
-        start = time.perf_counter()
-        train(resume_config(run_dir) if resume else config, run_dir, resume=resume, progress=progress)
-        print(f"{head}: trained and evaluated in {time.perf_counter() - start:.0f} s", flush=True)
+            jobs.append(Job(config, out / "runs" / f"{config.name}-s{config.seed}"))
+            plans.append((task, setup, jobs[-1].run_dir))
+    launch(jobs, launch_options or LaunchOptions(), progress=progress, tune_dir=out / "tune")
 
     sections = []
     for task in TASKS:
-        runs = [(setup, run_dir) for t, setup, _, run_dir in plans if t == task]
+        runs = [(setup, run_dir) for t, setup, run_dir in plans if t == task]
         if not runs:
             continue
         print(f"evaluating the {task} managers on {episodes} episodes (seed {eval_seed})", flush=True)

@@ -56,8 +56,10 @@ class _Selection:
     """Model selection: score the policy on the selection episodes, append the row to the learning curve
     and keep the best policy's state in ``best_actor.pt`` (success rate first, then lower CPAD)."""
 
-    def __init__(self, config: TrainConfig, run_dir: Path) -> None:
-        self.config, self.run_dir = config, run_dir
+    def __init__(
+        self, config: TrainConfig, run_dir: Path, on_selection: Callable[[dict], None] | None = None
+    ) -> None:
+        self.config, self.run_dir, self.on_selection = config, run_dir, on_selection
         self.best: tuple[float, float] | None = None
         self.last_step = -1
         curve = run_dir / CURVE_FILE
@@ -99,6 +101,8 @@ class _Selection:
         if self.best is None or score > self.best:
             self.best = score
             atomic_save(state(), self.run_dir / BEST_ACTOR_FILE)
+        if self.on_selection is not None:
+            self.on_selection(row)
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
 
     def __call__(self, runner: SACRunner) -> dict[str, float]:
@@ -122,8 +126,17 @@ def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, An
     return evaluate(policy, config.env, config.eval_episodes, seed)
 
 
-def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bool = True) -> dict[str, Any]:
-    """Train as ``config`` says into ``run_dir`` (or continue it), then evaluate; returns eval.json's dict."""
+def train(
+    config: TrainConfig,
+    run_dir: Path,
+    resume: bool = False,
+    progress: bool = True,
+    on_selection: Callable[[dict], None] | None = None,
+) -> dict[str, Any]:
+    """Train as ``config`` says into ``run_dir`` (or continue it), then evaluate; returns eval.json's dict.
+
+    ``on_selection`` receives each row of the learning curve (curve.csv's columns) once it is written.
+    """
     torch.set_num_threads(config.threads)
     run_dir.mkdir(parents=True, exist_ok=True)
     if not resume:
@@ -139,9 +152,9 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
     else:
         env = VectorEnv(config.env, config.num_envs, env_device)
     if config.algo == "sac":
-        policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress)
+        policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress, on_selection)
     else:
-        policy, train_wall_s = _train_ppo(config, env, run_dir, resume)
+        policy, train_wall_s = _train_ppo(config, env, run_dir, resume, on_selection=on_selection)
     result = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
     summary = {
         "success_rate": result["success_rate"],
@@ -165,8 +178,10 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
     return summary
 
 
-def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, progress: bool):
-    selection = _Selection(config, run_dir)
+def _train_sac(
+    config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, progress: bool, on_selection=None
+):
+    selection = _Selection(config, run_dir, on_selection)
     runner = SACRunner(
         env,
         config.sac,
@@ -187,7 +202,9 @@ def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
     return sac_policy(runner.sac.actor), runner.train_time_s
 
 
-def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, select: bool = True):
+def _train_ppo(
+    config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, select: bool = True, on_selection=None
+):
     """PPO through rsl-rl. With ``select`` (managers) the policy is scored on the selection episodes at
     every rsl-rl checkpoint (after the first iteration, then every ``eval_interval`` vector steps, and at
     the end) and the best one is returned, as for SAC; without it checkpoints follow ``save_interval``."""
@@ -207,7 +224,7 @@ def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
             raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
         load_ppo(runner, saved[-1])
         runner.current_learning_iteration += 1  # rsl-rl saves the index of the last finished iteration
-    policy, selection = ppo_policy(runner), _Selection(config, run_dir)
+    policy, selection = ppo_policy(runner), _Selection(config, run_dir, on_selection)
     start, evaluating = time.perf_counter(), 0.0
 
     def state() -> dict[str, Any]:  # what runner.save writes, for load_ppo and load_actor

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+from hier_ssl import launch as launch_module
 from hier_ssl import reproduce as reproduce_module
 from hier_ssl.envs import env_config
 from hier_ssl.evaluate import evaluate
@@ -139,7 +140,7 @@ def test_reproduce_trains_missing_runs_once_and_reports(
 
     trained = []
 
-    def fake_train(config: object, run_dir: Path, resume: bool = False, progress: bool = True) -> None:
+    def fake_train(config: object, run_dir: Path, resume: bool = False, progress: bool = True, **_) -> None:
         trained.append(run_dir.name)
         run_dir.mkdir(parents=True)
         (run_dir / "config.yaml").write_text(dump_config(config))
@@ -147,7 +148,7 @@ def test_reproduce_trains_missing_runs_once_and_reports(
         torch.save({"actor": actor.state_dict()}, run_dir / "best_actor.pt")
         (run_dir / "eval.json").write_text(json.dumps({"train_wall_s": 1.0}))
 
-    monkeypatch.setattr(reproduce_module, "train", fake_train)
+    monkeypatch.setattr(launch_module, "train", fake_train)
     configs = Path(__file__).parents[1] / "configs"
     args = {"only": ["proposed/fscaps"], "out": tmp_path, "episodes": 3, "config_dir": configs}
     args["overrides"] = ["sac.hidden=[8, 8]"]

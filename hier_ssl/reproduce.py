@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from hier_ssl.config import apply_overrides, load_yaml, parse_config
+from hier_ssl.config import config_dir as shipped_configs
 from hier_ssl.launch import Job, launch
 from hier_ssl.launch_options import LaunchOptions
-from hier_ssl.config import config_dir as shipped_configs
 from hier_ssl.report import SETUP_TITLES, SETUPS, TASKS
 from hier_ssl.train import EVAL_FILE
 

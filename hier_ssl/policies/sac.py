@@ -16,58 +16,10 @@ import math
 from collections.abc import Callable
 
 import torch
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from hier_ssl.config import SACConfig
 from hier_ssl.policies.networks import SquashedGaussianActor, TwinQ
 from hier_ssl.policies.replay import ReplayBuffer
-
-
-class SACConfig(BaseModel):
-    """Hyper-parameters; the defaults are those of the paper's public code (SPEC "SAC settings")."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    hidden: tuple[int, ...] = (256, 256)
-    actor_lr: float = Field(3e-4, gt=0)
-    critic_lr: float = Field(1e-3, gt=0)
-    alpha_lr: float = Field(1e-3, gt=0)
-    gamma: float = Field(0.99, ge=0, le=1)
-    tau: float = Field(0.005, gt=0, le=1)
-    batch_size: int = Field(256, ge=1)
-    buffer_size: int = Field(1_000_000, ge=1)
-    learning_starts: int = Field(5000, ge=0, description="transitions of random actions before updates")
-    policy_frequency: int = Field(
-        2, ge=1, description="every policy_frequency-th update runs policy_frequency actor steps (CleanRL)"
-    )
-    alpha: float = Field(0.2, gt=0, description="entropy coefficient: fixed, or the start value if learned")
-    autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
-    target_entropy: float | None = Field(None, description="None means -act_dim")
-    caps: bool = False
-    caps_lambda_t: float = Field(1.0, ge=0)
-    caps_lambda_s: float = Field(5.0, ge=0)
-    caps_sigma: float = Field(0.05, ge=0)
-    updates_per_step: float = Field(1.0, gt=0, description="gradient updates per vector env step")
-    reward_scale: float = Field(
-        1.0, gt=0, description="multiplies rewards in the critic target; the env rewards stay as they are"
-    )
-
-    @field_validator("hidden")
-    @classmethod
-    def _hidden_positive(cls, hidden: tuple[int, ...]) -> tuple[int, ...]:
-        if not hidden or min(hidden) < 1:
-            raise ValueError(f"hidden must be a non-empty sequence of positive layer sizes, got {hidden}")
-        return hidden
-
-    @model_validator(mode="after")
-    def _caps_fixes_alpha(self) -> SACConfig:
-        if self.caps and self.autotune_alpha:
-            raise ValueError("autotune_alpha=True conflicts with caps=True: CAPS runs with a fixed alpha")
-        return self
-
-    @property
-    def learns_alpha(self) -> bool:
-        """Whether alpha is learned: ``autotune_alpha`` if given, else not ``caps``."""
-        return self.autotune_alpha if self.autotune_alpha is not None else not self.caps
 
 
 def caps_loss(

@@ -15,7 +15,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import TrainConfig, apply_overrides, load_yaml, parse_config
+from hier_ssl.config import TrainConfig, apply_overrides, load_yaml
+from hier_ssl.envs import parse_config
 from hier_ssl.report import SETUP_TITLES, SETUPS, TASKS
 from hier_ssl.train import EVAL_FILE, resume_config, train
 
@@ -66,7 +67,7 @@ def reproduce(
     ``seeds`` runs per configuration (training seeds config.seed, config.seed + 1, ...); ``overrides``
     are ``key=value`` settings applied to every config (e.g. ``total_steps=2000`` for a quick pass).
     """
-    from hier_ssl.managers import compare
+    from hier_ssl.compare import compare
     from hier_ssl.report import write_evaluation
 
     if seeds < 1:

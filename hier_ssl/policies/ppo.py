@@ -23,7 +23,7 @@ from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
 from hier_ssl.config import PPOConfig
-from hier_ssl.envs.vector import RslRlVecEnv, VectorEnv
+from hier_ssl.envs.vector import RslRlVecEnv, TorchView
 
 NumpyPolicy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
@@ -110,7 +110,7 @@ class SelectingRunner(OnPolicyRunner):
 
 
 def make_ppo_runner(
-    env: VectorEnv,
+    env: TorchView,
     cfg: PPOConfig,
     log_dir: str | Path | None = None,
     device: str | torch.device = "cpu",

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hier_ssl.config import load_config
+from hier_ssl.envs import load_config
 from hier_ssl.manager import task_reward
 from hier_ssl.manager.optimum import finish_value, finishing_wins, hover_value, in_threshold_bonus
 

@@ -8,8 +8,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Callable, Sequence
+
+from hier_ssl import __version__
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,8 +30,12 @@ def _positive_int(text: str) -> int:
     return value
 
 
+WORKER_HELP = "paper|bangbang|RUN_DIR|package.module:Name, optionally perturbed: paper+latency=2+noise=0.2"
+
+
 def _worker_spec(text: str) -> str:
-    """A ``make_worker`` spec whose name part is a known worker or an existing directory."""
+    """A ``make_worker`` spec whose name part is a known worker, an importable class or factory, or an
+    existing directory."""
 
     from hier_ssl.worker import check_worker_spec
 
@@ -83,8 +90,6 @@ def _bench_world(args: argparse.Namespace) -> int:
 
 
 def _add_demo(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.worker import WORKERS
-
     demo = subparsers.add_parser("demo", help="drive a robot to random targets past an obstacle, write a PNG")
     demo.add_argument("--out", default="runs/demo.png", help="PNG to write (default: %(default)s)")
     demo.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
@@ -92,7 +97,7 @@ def _add_demo(subparsers: argparse._SubParsersAction) -> None:
         "--worker",
         type=_worker_spec,
         default="paper",
-        help=f"{'|'.join(WORKERS)}|RUN_DIR, optionally +latency=K+noise=F... (default: %(default)s)",
+        help=f"{WORKER_HELP} (default: %(default)s)",
     )
     demo.add_argument(
         "--targets", type=_positive_int, default=4, help="targets to visit (default: %(default)s)"
@@ -159,12 +164,17 @@ def _render(args: argparse.Namespace) -> int:
 
 # -- train ------------------------------------------------------------------------------------------------
 
-DEFAULT_CONFIG = "configs/proposed/fscaps.yaml"
+DEFAULT_CONFIG = "proposed/fscaps"
 
 
 def _add_train(subparsers: argparse._SubParsersAction) -> None:
     train = subparsers.add_parser("train", help="train a manager, then evaluate it and write eval.json")
-    train.add_argument("config", nargs="?", default=DEFAULT_CONFIG, help="YAML config (default: %(default)s)")
+    train.add_argument(
+        "config",
+        nargs="?",
+        default=DEFAULT_CONFIG,
+        help="a YAML file, or a shipped config's name (hier-ssl configs) (default: %(default)s)",
+    )
     train.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key"
     )
@@ -233,7 +243,6 @@ def _export(args: argparse.Namespace) -> int:
 def _add_eval(subparsers: argparse._SubParsersAction) -> None:
     from hier_ssl.manager.planners import PLANNERS
     from hier_ssl.report import TASKS
-    from hier_ssl.worker import WORKERS
 
     ev = subparsers.add_parser(
         "eval",
@@ -265,8 +274,7 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
         type=_worker_spec,
         default=None,
         metavar="WORKER",
-        help=f"{'|'.join(WORKERS)}|RUN_DIR, optionally perturbed: paper+latency=2+noise=0.2 "
-        "(keys: hier_ssl.worker.perturbed); repeatable; default: the run's own",
+        help=f"{WORKER_HELP} (keys: hier_ssl.worker.perturbed); repeatable; default: the run's own",
     )
     ev.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
     ev.add_argument(
@@ -337,7 +345,7 @@ def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument(
         "--episodes", type=_positive_int, default=1000, help="evaluation episodes (default: 1000)"
     )
-    rep.add_argument("--config-dir", default="configs", metavar="DIR", help="(default: %(default)s)")
+    rep.add_argument("--config-dir", default=None, metavar="DIR", help="(default: the shipped configs)")
     rep.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every config"
     )
@@ -361,10 +369,29 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- configs ----------------------------------------------------------------------------------------------
+
+
+def _add_configs(subparsers: argparse._SubParsersAction) -> None:
+    configs = subparsers.add_parser(
+        "configs", help="list the shipped configs, by the names train, eval and render accept"
+    )
+    configs.add_argument("--dir", action="store_true", help="print the directory holding them instead")
+    configs.set_defaults(func=_configs)
+
+
+def _configs(args: argparse.Namespace) -> int:
+    from hier_ssl.config import config_dir, config_names
+
+    print(config_dir() if args.dir else "\n".join(config_names()))
+    return 0
+
+
 # -- entry point ------------------------------------------------------------------------------------------
 
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     _add_bench,
+    _add_configs,
     _add_demo,
     _add_render,
     _add_train,
@@ -376,6 +403,7 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="hier-ssl", description="Hierarchical RL path planning for RoboCup SSL.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in COMMANDS:
         add(subparsers)
@@ -384,6 +412,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``hier-ssl`` with ``argv`` (default: the process arguments); returns the exit status."""
+    # A worker named package.module:Name may live in the current directory, which a console script does
+    # not search (``python -m`` does). Appended, so a local file never shadows an installed module.
+    if os.getcwd() not in sys.path:
+        sys.path.append(os.getcwd())
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)

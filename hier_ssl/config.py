@@ -130,7 +130,10 @@ TaskConfig = EnvConfig | ScenarioConfig
 
 
 class SACConfig(BaseModel):
-    """Hyper-parameters; the defaults are those of the paper's public code (SPEC "SAC settings")."""
+    """Hyper-parameters. Networks, optimisers, gamma, tau, batch, buffer and policy_frequency default to
+    the paper's public code (SPEC "SAC settings"); the keys where ours differ say what the public code
+    uses: a config with ``caps_actions: sampled``, ``actor_schedule: delayed``, ``learning_starts: 80000``
+    and ``alpha: 1.0`` (learned, no CAPS) or ``alpha: 0.2`` (with CAPS) reproduces it."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -142,17 +145,35 @@ class SACConfig(BaseModel):
     tau: float = Field(0.005, gt=0, le=1)
     batch_size: int = Field(256, ge=1)
     buffer_size: int = Field(1_000_000, ge=1)
-    learning_starts: int = Field(5000, ge=0, description="transitions of random actions before updates")
-    policy_frequency: int = Field(
-        2, ge=1, description="every policy_frequency-th update runs policy_frequency actor steps (CleanRL)"
+    learning_starts: int = Field(
+        5000,
+        ge=0,
+        description="transitions (vector steps x num_envs) of uniform random actions before the first "
+        "update; the public code: 5,000 vector steps x 16 envs = 80,000",
     )
-    alpha: float = Field(0.2, gt=0, description="entropy coefficient: fixed, or the start value if learned")
+    policy_frequency: int = Field(2, ge=1, description="the actor steps on every policy_frequency-th update")
+    actor_schedule: Literal["catch_up", "delayed"] = Field(
+        "catch_up",
+        description="actor steps on each policy_frequency-th update: catch_up runs policy_frequency of them "
+        "(CleanRL: as many actor as critic steps), delayed runs one (TD3, the paper's public code)",
+    )
+    alpha: float = Field(
+        0.2,
+        gt=0,
+        description="entropy coefficient: fixed, or the start value if learned; the public code learns it "
+        "from 1.0 without CAPS and fixes it at 0.2 with CAPS",
+    )
     autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
     target_entropy: float | None = Field(None, description="None means -act_dim")
     caps: bool = False
     caps_lambda_t: float = Field(1.0, ge=0)
     caps_lambda_s: float = Field(5.0, ge=0)
     caps_sigma: float = Field(0.05, ge=0)
+    caps_actions: Literal["mean", "sampled"] = Field(
+        "mean",
+        description="CAPS on the mean actions tanh(mean) at s, s', s_bar; or as the public code on sampled "
+        "actions, a'(s') the critic target's next action, s_bar clamped to +-SAMPLED_CAPS_OBS_BOUND",
+    )
     updates_per_step: float = Field(1.0, gt=0, description="gradient updates per vector env step")
     reward_scale: float = Field(
         1.0, gt=0, description="multiplies rewards in the critic target; the env rewards stay as they are"
@@ -317,10 +338,37 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
     return data
 
 
-def load_yaml(path: str | Path) -> dict[str, Any]:
+def config_dir() -> Path:
+    """The shipped configs: ``hier_ssl/configs`` in an installed wheel (setup.py maps the repository's
+    ``configs/`` there), else the ``configs/`` beside the package in a checkout or editable install."""
+    package = Path(__file__).resolve().parent
+    installed = package / "configs"
+    return installed if installed.is_dir() else package.parent / "configs"
+
+
+def config_names() -> list[str]:
+    """Names of the shipped configs, e.g. ``proposed/fscaps`` for ``configs/proposed/fscaps.yaml``."""
+    root = config_dir()
+    return sorted(p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.yaml"))
+
+
+def find_config(path: str | Path) -> Path:
+    """``path`` if it is a file, else the shipped config it names: ``proposed/fscaps``, with or without
+    ``.yaml``, or the checkout's path ``configs/proposed/fscaps.yaml``; ConfigError when it is neither."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"config file not found: {path}")
+    if path.is_file():
+        return path
+    name = path.as_posix().removeprefix("configs/").removesuffix(".yaml")
+    root = config_dir().resolve()
+    shipped = (root / f"{name}.yaml").resolve()
+    if not path.is_absolute() and shipped.is_relative_to(root) and shipped.is_file():
+        return shipped
+    raise ConfigError(f"config file not found: {path} (nor a shipped config: `hier-ssl configs` lists them)")
+
+
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    """The mapping in the YAML file ``path`` (or the shipped config it names, ``find_config``)."""
+    path = find_config(path)
     try:
         data = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as err:

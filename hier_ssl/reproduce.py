@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from hier_ssl.config import TrainConfig, apply_overrides, load_yaml
+from hier_ssl.config import config_dir as shipped_configs
 from hier_ssl.envs import parse_config
 from hier_ssl.report import SETUP_TITLES, SETUPS, TASKS
 from hier_ssl.train import EVAL_FILE, resume_config, train
@@ -24,11 +25,12 @@ PLANNER_ROWS = ("direct", "sampling")
 
 
 def paper_configs(
-    config_dir: str | Path = "configs", only: Sequence[str] = ()
+    config_dir: str | Path | None = None, only: Sequence[str] = ()
 ) -> list[tuple[str, str, Path]]:
     """(task, setup, config path) of the paper's configurations, in the paper's order, or of those named
-    in ``only`` ("proposed/fscaps" or "proposed-fscaps"; a bare task such as "obstacle" names its four)."""
-    config_dir = Path(config_dir)
+    in ``only`` ("proposed/fscaps" or "proposed-fscaps"; a bare task such as "obstacle" names its four).
+    ``config_dir`` defaults to the shipped configs."""
+    config_dir = Path(config_dir) if config_dir is not None else shipped_configs()
     every = [(task, setup, config_dir / task / f"{setup}.yaml") for task in TASKS for setup in SETUPS]
     if only:
         wanted = set()
@@ -57,7 +59,7 @@ def reproduce(
     seeds: int = 1,
     out: str | Path = "runs/reproduce",
     episodes: int = 1000,
-    config_dir: str | Path = "configs",
+    config_dir: str | Path | None = None,
     overrides: Sequence[str] = (),
     eval_seed: int = 0,
     progress: bool = True,

@@ -16,14 +16,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
 from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.vector import TorchVectorEnv, TorchView
 from hier_ssl.evaluate import Policy, evaluate
-from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE
+from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE, sac_policy
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
@@ -41,16 +40,6 @@ def atomic_write_text(text: str, path: Path) -> None:
     except BaseException:
         os.unlink(tmp)
         raise
-
-
-def sac_policy(actor: torch.nn.Module) -> Policy:
-    """The actor's deterministic action (tanh of the mean) as a numpy policy."""
-
-    def policy(obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return actor.deterministic(torch.as_tensor(obs, dtype=torch.float32)).numpy()
-
-    return policy
 
 
 def resume_config(run_dir: Path) -> TrainConfig:
@@ -138,7 +127,9 @@ def train(config: TrainConfig, run_dir: Path, resume: bool = False, progress: bo
         atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
-    env = TorchVectorEnv(config.task_config, config.num_envs, config.device)
+    # SAC keeps the world on the CPU; its runner puts the learner on config.device.
+    env_device = "cpu" if config.algo == "sac" else config.device
+    env = TorchVectorEnv(config.task_config, config.num_envs, env_device)
     if config.algo == "sac":
         policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress)
     else:
@@ -171,6 +162,7 @@ def _train_sac(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
         config.sac,
         run_dir,
         seed=config.seed,
+        device=config.device,
         eval_interval=config.eval_interval,
         eval_callback=selection,
         progress=progress,
@@ -195,7 +187,10 @@ def _train_ppo(config: TrainConfig, env: TorchView, run_dir: Path, resume: bool,
 
     steps_per_iteration = config.ppo.num_steps_per_env
     every = (config.eval_interval if select else config.save_interval) // steps_per_iteration
-    runner = make_ppo_runner(env, config.ppo, str(run_dir), config.device, save_interval=max(1, every))
+    torch.manual_seed(config.seed)  # the networks' initial weights and the policy's exploration noise
+    runner = make_ppo_runner(
+        env, config.ppo, str(run_dir), config.device, seed=config.seed, save_interval=max(1, every)
+    )
     if resume:
         saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
         if not saved:
@@ -232,7 +227,6 @@ def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str,
     """``kind: worker``: PPO on the goToPoint task, then the worker beside the scripted ones."""
     from hier_ssl.envs.gotopoint import GoToPointEnv, worker_summary
 
-    torch.manual_seed(config.seed)
     env = GoToPointEnv(config.env, config.gotopoint, config.num_envs, config.device, seed=config.seed)
     policy, train_wall_s = _train_ppo(config, env, run_dir, resume, select=False)
     summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)

@@ -241,3 +241,22 @@ def test_a_resumed_ppo_run_continues_after_its_last_iteration(tmp_path: Path) ->
     assert (run / "model_1.pt").read_bytes() == second and (run / "model_3.pt").is_file()
     steps = [int(row.split(",")[0]) for row in (run / "curve.csv").read_text().splitlines()[1:]]
     assert steps == [16, 32, 48, 64]
+
+
+def test_ppo_runs_with_one_seed_give_the_same_curve_and_weights(tmp_path: Path) -> None:
+    import csv
+
+    def run(name: str) -> tuple[list[dict[str, str]], dict[str, torch.Tensor]]:
+        config = {**TINY_PPO, "total_steps": 32, "eval_interval": 16, "seed": 3}
+        train(parse_config(config), tmp_path / name, progress=False)
+        rows = list(csv.DictReader((tmp_path / name / "curve.csv").open()))
+        for row in rows:
+            del row["train_time_s"]  # wall time: the one column that may differ
+        weights = torch.load(tmp_path / name / "model_1.pt", weights_only=True)["actor_state_dict"]
+        return rows, weights
+
+    (curve_a, weights_a), (curve_b, weights_b) = run("a"), run("b")
+    assert len(curve_a) == 2 and curve_a == curve_b
+    assert weights_a.keys() == weights_b.keys()
+    for key, value in weights_a.items():
+        assert torch.equal(value, weights_b[key]), key

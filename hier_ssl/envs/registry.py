@@ -22,6 +22,7 @@ from hier_ssl.config import (
     TaskConfig,
     TrainConfig,
     apply_overrides,
+    find_config,
     load_yaml,
     validate_config,
 )
@@ -138,6 +139,20 @@ def env_config(config: str | Path | EnvConfig | None = None, **settings: Any) ->
     return parse_config({**data, **settings}, EnvConfig, root="env")
 
 
+def _config_file(spec: str | Path) -> Path:
+    """The YAML file ``spec`` names (a path or a shipped config's name); a ConfigError lists what a task
+    or scenario may be named when it is neither."""
+    try:
+        return find_config(spec)
+    except ConfigError:
+        if str(spec).endswith((".yaml", ".yml")):
+            raise
+        known = sorted(SCENARIOS)
+        raise ConfigError(
+            f"scenario: unknown scenario {str(spec)!r}; known: {known}, a task {sorted(TASKS)} or a YAML file"
+        ) from None
+
+
 def scenario_config(
     config: str | Path | ScenarioConfig | None = None, overrides: Sequence[str] = (), **settings: Any
 ) -> ScenarioConfig:
@@ -153,13 +168,8 @@ def scenario_config(
         data = config.model_dump(exclude_unset=True)
     elif isinstance(config, str) and config in SCENARIOS:
         data = {"scenario": config}
-    elif isinstance(config, str) and not Path(config).is_file() and not config.endswith((".yaml", ".yml")):
-        known = sorted(SCENARIOS)
-        raise ConfigError(
-            f"scenario: unknown scenario {config!r}; known: {known}, a task {sorted(TASKS)} or a YAML file"
-        )
     elif config is not None:
-        data = load_yaml(config)
+        data = load_yaml(_config_file(config))
         if isinstance(data.get("scenario"), dict):  # a training config: its scenario section
             data = data["scenario"]
     else:
@@ -181,10 +191,10 @@ def task_config(
         return scenario_config(spec, overrides, **settings)
     if isinstance(spec, str) and spec in TASKS:
         spec, settings = None, {"task": spec, **settings}
-    elif isinstance(spec, (str, Path)) and Path(spec).is_file() and "scenario" in load_yaml(spec):
-        return scenario_config(spec, overrides, **settings)
-    elif isinstance(spec, (str, Path)) and not Path(spec).is_file():
-        return scenario_config(spec, overrides, **settings)  # an unknown name: the error lists the known
+    elif isinstance(spec, (str, Path)):
+        spec = _config_file(spec)
+        if "scenario" in load_yaml(spec):
+            return scenario_config(spec, overrides, **settings)
     settings = {**settings, **apply_overrides({}, list(overrides))}
     return env_config(spec, **settings)
 

@@ -128,9 +128,10 @@ class TorchVectorEnv(TorchView):
 
 class RslRlVecEnv(VecEnv):
     """rsl-rl-lib 5.x's VecEnv over a torch view: observations as a TensorDict with group "policy",
-    ``extras["time_outs"]`` for truncation, episode means in ``extras["log"]``."""
+    ``extras["time_outs"]`` for truncation, episode means in ``extras["log"]``. The first reset takes
+    ``seed``, so a run's episodes follow its seed."""
 
-    def __init__(self, env: TorchView) -> None:
+    def __init__(self, env: TorchView, seed: int | None = None) -> None:
         self.env = env
         self.num_envs = env.num_envs
         self.num_actions = env.num_actions
@@ -138,7 +139,7 @@ class RslRlVecEnv(VecEnv):
         self.device = env.device
         self.cfg = env.config.model_dump()
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
-        self._obs = env.reset()
+        self._obs = env.reset(seed)
 
     def _group(self, obs: torch.Tensor) -> TensorDict:
         return TensorDict({"policy": obs}, batch_size=[self.num_envs], device=self.device)

@@ -298,8 +298,9 @@ def make_planner(name: str, config: TaskSettings, **options: object) -> DirectPl
     """The scripted manager ``name`` ("direct" or "sampling") for environments built from ``config``.
 
     The sampling planner's rollout uses the world's robot limits, its speed capped by the configured
-    worker's own cap (the paper's worker stops at 2.2 m/s) and its braking by the worker's braking
-    acceleration where it has one. ``options`` override planner settings (e.g. ``margin=0.1``).
+    worker's own cap where it states one (``max_speed``: the paper's worker stops at 2.2 m/s) and its
+    braking by the worker's braking acceleration where it has one. ``options`` override planner settings
+    (e.g. ``margin=0.1``).
     """
     from hier_ssl.worker import make_worker
 
@@ -312,7 +313,7 @@ def make_planner(name: str, config: TaskSettings, **options: object) -> DirectPl
     worker = make_worker(config.worker, robot, config.dt)
     brake = getattr(worker, "brake_accel", None)
     settings = {
-        "max_speed": worker.max_speed,
+        "max_speed": getattr(worker, "max_speed", robot.max_speed),
         "brake_accel": brake if brake is not None else robot.max_accel * getattr(worker, "margin", 1.0),
         "collision_distance": config.collision_distance,
         "arrive_radius": config.d_th,

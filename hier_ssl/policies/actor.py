@@ -1,4 +1,5 @@
-"""A trained run's deterministic policy as a plain, frozen torch module, read from its run directory.
+"""A trained run's policy read from its run directory: deterministic as a plain, frozen torch module
+(``load_actor``), or as a numpy policy that samples or not (``load_policy``).
 
 Both learners' actors are an MLP whose mean action is squashed into [-1, 1]: SAC's
 ``SquashedGaussianActor`` (ReLU, output mean and log-std, action tanh(mean)) and rsl-rl's ``MLPModel``
@@ -9,18 +10,29 @@ sizes are read from the weights, so a checkpoint cannot disagree with the config
 
 Checkpoints are read with ``torch.load(weights_only=True)``: ``best_actor.pt`` for SAC, the
 highest-numbered ``model_*.pt`` for PPO (rsl-rl keeps no "best"; the last is what training ended with).
+
+The paper's test script evaluates *sampled* actions (SPEC "Public-code details"): ``load_policy(run_dir,
+sample=True, seed=...)`` draws them from the whole SAC actor (``SquashedGaussianActor``, log-std head
+included) or from PPO's Gaussian with its saved standard deviation, with a seeded generator of its own.
 """
 
 from __future__ import annotations
 
 import pickle
 import re
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 
 from hier_ssl.config import ConfigError, TrainConfig, load_yaml, validate_config
+from hier_ssl.policies.networks import SquashedGaussianActor
+
+NumpyPolicy = Callable[[np.ndarray], np.ndarray]
+"""Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1], float32."""
 
 CONFIG_FILE, BEST_ACTOR_FILE = "config.yaml", "best_actor.pt"
 _PPO_FILE = re.compile(r"model_(\d+)\.pt")
@@ -97,6 +109,22 @@ def checkpoint_path(run_dir: str | Path, config: TrainConfig) -> Path:
     return max(saved)[1]
 
 
+@contextmanager
+def _reading(path: Path, algo: str) -> Iterator[None]:
+    """Turns what a malformed checkpoint raises into a ``ConfigError`` naming the file."""
+    try:
+        yield
+    except (KeyError, IndexError, RuntimeError, ValueError, EOFError, pickle.UnpicklingError) as err:
+        raise ConfigError(f"{path}: not a usable {algo} checkpoint ({type(err).__name__}: {err})") from None
+
+
+def _ppo_actor_state(saved: dict) -> dict[str, torch.Tensor]:
+    state = saved["actor_state_dict"]
+    if any(key.startswith("obs_normalizer.") for key in state):
+        raise ValueError("actors with empirical observation normalisation are not supported")
+    return state
+
+
 def load_actor(run_dir: str | Path) -> tuple[nn.Sequential, TrainConfig]:
     """The run's deterministic actor, frozen (eval mode, no gradients), and its config.
 
@@ -105,23 +133,99 @@ def load_actor(run_dir: str | Path) -> tuple[nn.Sequential, TrainConfig]:
     """
     config = run_config(run_dir)
     path = checkpoint_path(run_dir, config)
-    try:
+    with _reading(path, config.algo):
         saved = torch.load(path, map_location="cpu", weights_only=True)
         if config.algo == "sac":
             state = saved["actor"]
             act_dim = _linear_layers(state, "net.")[-1][0].shape[0] // 2
             actor = mean_actor(state, "net.", nn.ReLU, act_dim, nn.Tanh())
         else:
-            state = saved["actor_state_dict"]
-            if any(key.startswith("obs_normalizer.") for key in state):
-                raise ValueError("actors with empirical observation normalisation are not supported")
+            state = _ppo_actor_state(saved)
             act_dim = _linear_layers(state, "mlp.")[-1][0].shape[0]
             actor = mean_actor(state, "mlp.", nn.ELU, act_dim, nn.Hardtanh(-1.0, 1.0))
-    except (KeyError, IndexError, RuntimeError, ValueError, EOFError, pickle.UnpicklingError) as err:
-        raise ConfigError(
-            f"{path}: not a usable {config.algo} checkpoint ({type(err).__name__}: {err})"
-        ) from None
     return freeze(actor), config
 
 
-__all__ = ["checkpoint_path", "freeze", "load_actor", "mean_actor", "run_config"]
+def sac_policy(actor: SquashedGaussianActor, generator: torch.Generator | None = None) -> NumpyPolicy:
+    """A SAC actor as a numpy policy: tanh(mean), or with ``generator`` a sample of its squashed Gaussian
+    drawn from that generator (which must live on the actor's device).
+
+    A live view: it acts with the actor's current weights, on the device they are on.
+    """
+    device = next(actor.parameters()).device
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            x = torch.as_tensor(obs, dtype=torch.float32, device=device)
+            action = actor.deterministic(x) if generator is None else actor(x, generator)[0]
+            return action.cpu().numpy()
+
+    return policy
+
+
+def _sampling_sac_policy(state: dict[str, torch.Tensor], generator: torch.Generator) -> NumpyPolicy:
+    """The full SAC actor rebuilt from its state dict (sizes read from the weights), sampling."""
+    layers = _linear_layers(state, "net.")
+    hidden = tuple(weight.shape[0] for weight, _ in layers[:-1])
+    actor = SquashedGaussianActor(layers[0][0].shape[1], layers[-1][0].shape[0] // 2, hidden)
+    actor.load_state_dict(state)
+    return sac_policy(freeze(actor), generator)
+
+
+def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Generator) -> NumpyPolicy:
+    """rsl-rl's Gaussian: mean + std * N(0, 1) with the saved state-independent std (scalar or log form,
+    clamped at rsl-rl's floor 1e-6), clipped to [-1, 1] as the env clips the actions it is given."""
+    act_dim = _linear_layers(state, "mlp.")[-1][0].shape[0]
+    mean = freeze(mean_actor(state, "mlp.", nn.ELU, act_dim, nn.Identity()))
+    if "distribution.std_param" in state:
+        std = state["distribution.std_param"].clamp(min=1e-6)
+    elif "distribution.log_std_param" in state:
+        std = state["distribution.log_std_param"].exp().clamp(min=1e-6)
+    else:
+        raise ValueError("no state-independent std (distribution.std_param or distribution.log_std_param)")
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            mu = mean(torch.as_tensor(obs, dtype=torch.float32))
+            noise = torch.randn(mu.shape, generator=generator)
+            return (mu + std * noise).clamp(-1.0, 1.0).numpy()
+
+    return policy
+
+
+def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0) -> NumpyPolicy:
+    """The run's policy as a numpy function, on the CPU.
+
+    ``sample=False``: the deterministic actor of ``load_actor``. ``sample=True``: actions drawn from the
+    policy's distribution (SAC: tanh of a Gaussian sample; PPO: the Gaussian, clipped to [-1, 1]) with a
+    generator seeded by ``seed``, so the same seed and the same calls give the same actions. Input
+    (N, obs_dim), output (N, act_dim) float32 in [-1, 1]. ``ConfigError`` names an unusable run or file.
+    """
+    if not sample:
+        actor, _ = load_actor(run_dir)
+
+        def policy(obs: np.ndarray) -> np.ndarray:
+            with torch.no_grad():
+                return actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
+
+        return policy
+    config = run_config(run_dir)
+    path = checkpoint_path(run_dir, config)
+    generator = torch.Generator().manual_seed(seed)
+    with _reading(path, config.algo):
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+        if config.algo == "sac":
+            return _sampling_sac_policy(saved["actor"], generator)
+        return _sampling_ppo_policy(_ppo_actor_state(saved), generator)
+
+
+__all__ = [
+    "NumpyPolicy",
+    "checkpoint_path",
+    "freeze",
+    "load_actor",
+    "load_policy",
+    "mean_actor",
+    "run_config",
+    "sac_policy",
+]

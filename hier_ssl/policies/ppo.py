@@ -24,9 +24,7 @@ from tensordict import TensorDict
 
 from hier_ssl.config import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
-
-NumpyPolicy = Callable[[np.ndarray], np.ndarray]
-"""Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
+from hier_ssl.policies.actor import NumpyPolicy
 
 
 def ppo_train_cfg(
@@ -114,9 +112,10 @@ def make_ppo_runner(
     cfg: PPOConfig,
     log_dir: str | Path | None = None,
     device: str | torch.device = "cpu",
+    seed: int | None = None,
     **train_cfg_settings: Any,
 ) -> SelectingRunner:
-    """An ``OnPolicyRunner`` training on ``env`` (wrapped in ``RslRlVecEnv``).
+    """An ``OnPolicyRunner`` training on ``env`` (wrapped in ``RslRlVecEnv``, first reset with ``seed``).
 
     ``log_dir=None`` writes nothing: no TensorBoard, no console log, no checkpoints from ``learn``.
     ``train_cfg_settings`` go to ``ppo_train_cfg``. Train with ``runner.learn(iterations)``; each
@@ -124,7 +123,7 @@ def make_ppo_runner(
     """
     train_cfg = ppo_train_cfg(cfg, **train_cfg_settings)
     return SelectingRunner(
-        RslRlVecEnv(env), train_cfg, None if log_dir is None else str(log_dir), str(device)
+        RslRlVecEnv(env, seed), train_cfg, None if log_dir is None else str(log_dir), str(device)
     )
 
 

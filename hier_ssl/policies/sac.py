@@ -3,7 +3,18 @@
 Follows CleanRL's ``sac_continuous_action.py`` (whose defaults the paper's public code uses) with two
 changes for speed: both critics live in one batched module (``TwinQ``), and the Polyak update and Adam
 run on foreach kernels. CAPS (Mysore et al. 2021) adds a temporal and a spatial smoothness term to the
-actor loss, computed on the deterministic actions tanh(mean).
+actor loss.
+
+Where this SAC and the paper's public code differ (SPEC "Public-code details"), a key of ``SACConfig``
+chooses; the default is ours, the public code's value is given in brackets:
+
+- ``caps_actions``: "mean" takes CAPS on the deterministic actions tanh(mean) at s, s' and an unclamped
+  s_bar ["sampled": on sampled actions, the critic target's next action a'(s') without gradient, and
+  s_bar clamped to [-1.2, 1.2]].
+- ``actor_schedule``: "catch_up" runs ``policy_frequency`` actor steps on every ``policy_frequency``-th
+  critic update, as many actor steps as critic steps ["delayed": one actor step there, TD3's schedule].
+- ``learning_starts`` counts transitions [80,000: 5,000 vector steps x 16 envs]; ``alpha`` with a learned
+  alpha is its start value [1.0 without CAPS]; ``reward_scale`` [1].
 
 Rule: with ``caps=True`` the entropy coefficient alpha is fixed at ``SACConfig.alpha`` and not learned,
 as in the paper (section 5: a learned alpha works against the smoothness loss).
@@ -19,7 +30,39 @@ import torch
 
 from hier_ssl.config import SACConfig
 from hier_ssl.policies.networks import SquashedGaussianActor, TwinQ
-from hier_ssl.policies.replay import ReplayBuffer
+from hier_ssl.policies.replay import Batch, ReplayBuffer
+
+# The public code clamps the perturbed state s_bar of sampled CAPS to this box; observations are scaled to
+# about [-1, 1] (SPEC "Manager observation").
+SAMPLED_CAPS_OBS_BOUND = 1.2
+
+
+def perturbed_obs(
+    obs: torch.Tensor, sigma: float, generator: torch.Generator | None = None, bound: float | None = None
+) -> torch.Tensor:
+    """CAPS's perturbed state s_bar ~ N(s, sigma^2 I), clamped to [-bound, bound] when ``bound`` is given.
+
+    Shape: obs (B, obs_dim) -> (B, obs_dim).
+    """
+    obs_bar = obs + sigma * torch.randn(obs.shape, generator=generator, device=obs.device, dtype=obs.dtype)
+    return obs_bar if bound is None else obs_bar.clamp(-bound, bound)
+
+
+def caps_terms(
+    action: torch.Tensor,
+    next_action: torch.Tensor,
+    perturbed_action: torch.Tensor,
+    lambda_t: float,
+    lambda_s: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """CAPS's temporal and spatial terms, weighted: lambda_t * mean_b ||a(s'_b) - a(s_b)||_2 and
+    lambda_s * mean_b ||a(s_bar_b) - a(s_b)||_2 (unsquared norms, as the public code).
+
+    Shapes: the three actions (B, act_dim); returns two scalars.
+    """
+    temporal = lambda_t * torch.linalg.vector_norm(next_action - action, dim=-1).mean()
+    spatial = lambda_s * torch.linalg.vector_norm(perturbed_action - action, dim=-1).mean()
+    return temporal, spatial
 
 
 def caps_loss(
@@ -31,19 +74,14 @@ def caps_loss(
     sigma: float,
     generator: torch.Generator | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """CAPS temporal and spatial smoothness terms, already weighted by their lambdas.
-
-    temporal = lambda_t * mean_b ||mu(s'_b) - mu(s_b)||_2
-    spatial  = lambda_s * mean_b ||mu(s_bar_b) - mu(s_b)||_2,  s_bar ~ N(s, sigma^2 I)
+    """CAPS on the deterministic actions mu: ``caps_terms`` of mu(s), mu(s'), mu(s_bar), s_bar ~ N(s, sigma).
 
     Shapes: obs, next_obs (B, obs_dim); ``actor_mean_fn`` maps (N, obs_dim) -> (N, act_dim). Returns two
     scalars. The three policy evaluations share one call of ``actor_mean_fn`` on 3B rows.
     """
-    obs_bar = obs + sigma * torch.randn(obs.shape, generator=generator, device=obs.device, dtype=obs.dtype)
+    obs_bar = perturbed_obs(obs, sigma, generator)
     mu, mu_next, mu_bar = actor_mean_fn(torch.cat([obs, next_obs, obs_bar])).chunk(3)
-    temporal = lambda_t * torch.linalg.vector_norm(mu_next - mu, dim=-1).mean()
-    spatial = lambda_s * torch.linalg.vector_norm(mu_bar - mu, dim=-1).mean()
-    return temporal, spatial
+    return caps_terms(mu, mu_next, mu_bar, lambda_t, lambda_s)
 
 
 class SAC:
@@ -113,51 +151,22 @@ class SAC:
 
         Returns qf_loss, qf_values (mean Q of the batch) and alpha; on updates that step the actor also
         actor_loss, alpha_loss (when alpha is learned) and caps_temporal, caps_spatial (with CAPS), each
-        from the last of the ``policy_frequency`` actor steps.
+        from the last actor step of the update.
         """
         cfg = self.config
         data = self.replay.sample(cfg.batch_size, self.generator)
         alpha = self.log_alpha.detach().exp()
+        logged, next_state_actions = self._critic_step(data, alpha)
 
-        # Critic: soft Bellman target from the target critics, bootstrapped only through non-terminal ends.
-        with torch.no_grad():
-            next_state_actions, next_state_log_pi = self.actor(data.next_obs, self.generator)
-            qf_next_target = self.qf_target(data.next_obs, next_state_actions).min(dim=0).values
-            min_qf_next_target = qf_next_target - alpha * next_state_log_pi
-            rewards = cfg.reward_scale * data.rewards
-            target_q = rewards + (1.0 - data.terminated) * cfg.gamma * min_qf_next_target
-        qf_a_values = self.qf(data.obs, data.actions)  # (2, B)
-        qf_loss = (qf_a_values - target_q).pow(2).mean(dim=1).sum()  # qf1_loss + qf2_loss
-        self.q_optimizer.zero_grad(set_to_none=True)
-        qf_loss.backward()
-        self.q_optimizer.step()
-        # Kept as tensors so that logging costs one host sync, when `update` returns.
-        logged = {"qf_loss": qf_loss.detach(), "qf_values": qf_a_values.detach().mean()}
-
-        # Actor: delayed like TD3, but CleanRL-style it then takes policy_frequency steps to keep the count.
+        # Actor: delayed like TD3; catch_up then takes policy_frequency steps to keep the count (CleanRL).
         if self.num_updates % cfg.policy_frequency == 0:
-            for _ in range(cfg.policy_frequency):
-                pi, log_pi = self.actor(data.obs, self.generator)
-                min_qf_pi = self.qf(data.obs, pi).min(dim=0).values
-                actor_loss = (alpha * log_pi - min_qf_pi).mean()
-                if cfg.caps:
-                    caps_temporal, caps_spatial = caps_loss(
-                        self.actor.deterministic,
-                        data.obs,
-                        data.next_obs,
-                        cfg.caps_lambda_t,
-                        cfg.caps_lambda_s,
-                        cfg.caps_sigma,
-                        self.generator,
-                    )
-                    actor_loss = actor_loss + caps_temporal + caps_spatial
-                    logged["caps_temporal"] = caps_temporal.detach()
-                    logged["caps_spatial"] = caps_spatial.detach()
+            for _ in range(cfg.policy_frequency if cfg.actor_schedule == "catch_up" else 1):
+                actor_loss, log_pi, caps = self.actor_loss(data, next_state_actions, alpha)
                 self.actor_optimizer.zero_grad(set_to_none=True)
                 # `inputs` restricts backward to the actor: the critic's weight gradients are never computed.
                 actor_loss.backward(inputs=self._actor_params)
                 self.actor_optimizer.step()
-                logged["actor_loss"] = actor_loss.detach()
+                logged |= {"actor_loss": actor_loss.detach(), **{k: v.detach() for k, v in caps.items()}}
 
                 if self.alpha_optimizer is not None:
                     alpha_loss = (-self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
@@ -173,6 +182,63 @@ class SAC:
 
         logged["alpha"] = alpha
         return dict(zip(logged, torch.stack(list(logged.values())).tolist(), strict=True))
+
+    def _critic_step(self, data: Batch, alpha: torch.Tensor) -> tuple[dict[str, torch.Tensor], torch.Tensor]:
+        """One step of both critics on ``data``. Returns the logged tensors and the next-state actions
+        a'(s') its target was computed with, shape (B, num_actions), without gradient."""
+        cfg = self.config
+        # Soft Bellman target from the target critics, bootstrapped only through non-terminal ends.
+        with torch.no_grad():
+            next_state_actions, next_state_log_pi = self.actor(data.next_obs, self.generator)
+            qf_next_target = self.qf_target(data.next_obs, next_state_actions).min(dim=0).values
+            min_qf_next_target = qf_next_target - alpha * next_state_log_pi
+            rewards = cfg.reward_scale * data.rewards
+            target_q = rewards + (1.0 - data.terminated) * cfg.gamma * min_qf_next_target
+        qf_a_values = self.qf(data.obs, data.actions)  # (2, B)
+        qf_loss = (qf_a_values - target_q).pow(2).mean(dim=1).sum()  # qf1_loss + qf2_loss
+        self.q_optimizer.zero_grad(set_to_none=True)
+        qf_loss.backward()
+        self.q_optimizer.step()
+        # Kept as tensors so that logging costs one host sync, when `update` returns.
+        return {"qf_loss": qf_loss.detach(), "qf_values": qf_a_values.detach().mean()}, next_state_actions
+
+    def actor_loss(
+        self, data: Batch, next_state_actions: torch.Tensor, alpha: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
+        """SAC's actor loss on ``data``, plus the CAPS terms with ``caps``.
+
+        ``next_state_actions`` (B, num_actions) are the critic target's a'(s'), used by sampled CAPS.
+        Returns the loss (scalar), log pi(a|s) of the sampled actions (B,) and the CAPS terms by name
+        (empty without CAPS).
+        """
+        cfg = self.config
+        sampled_caps = cfg.caps and cfg.caps_actions == "sampled"
+        if sampled_caps:  # a(s) and a(s_bar) from one forward pass over 2B rows
+            obs_bar = perturbed_obs(data.obs, cfg.caps_sigma, self.generator, SAMPLED_CAPS_OBS_BOUND)
+            actions, log_probs = self.actor(torch.cat([data.obs, obs_bar]), self.generator)
+            (pi, pi_bar), log_pi = actions.chunk(2), log_probs.chunk(2)[0]
+        else:
+            pi, log_pi = self.actor(data.obs, self.generator)
+        min_qf_pi = self.qf(data.obs, pi).min(dim=0).values
+        actor_loss = (alpha * log_pi - min_qf_pi).mean()
+        if not cfg.caps:
+            return actor_loss, log_pi, {}
+        if sampled_caps:
+            caps_temporal, caps_spatial = caps_terms(
+                pi, next_state_actions, pi_bar, cfg.caps_lambda_t, cfg.caps_lambda_s
+            )
+        else:
+            caps_temporal, caps_spatial = caps_loss(
+                self.actor.deterministic,
+                data.obs,
+                data.next_obs,
+                cfg.caps_lambda_t,
+                cfg.caps_lambda_s,
+                cfg.caps_sigma,
+                self.generator,
+            )
+        actor_loss = actor_loss + caps_temporal + caps_spatial
+        return actor_loss, log_pi, {"caps_temporal": caps_temporal, "caps_spatial": caps_spatial}
 
     def state_dict(self) -> dict[str, object]:
         """Everything needed to resume learning except the replay buffer (``self.replay.state_dict()``)."""

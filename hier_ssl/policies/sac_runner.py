@@ -50,6 +50,35 @@ class VectorEnv(Protocol):
 EvalCallback = Callable[["SACRunner"], Mapping[str, float] | None]
 
 
+def to_learner(
+    device: torch.device,
+    next_obs: torch.Tensor,
+    rewards: torch.Tensor,
+    final_obs: torch.Tensor,
+    terminated: torch.Tensor,
+    live: torch.Tensor | None,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None]:
+    """What a vector step gives the learner, moved to ``device`` in one copy.
+
+    Shapes: next_obs, final_obs (N, num_obs); rewards, terminated, live (N,). The five are packed as
+    float32 columns of one (N, 2 num_obs + 3) tensor (in pinned memory when it goes from the CPU to a
+    GPU, so that the copy runs asynchronously), copied with one ``.to``, and split there. Returns them in
+    the same order on ``device``, terminated as float32 (0/1) and live as bool (None stays None).
+    """
+    n, num_obs = next_obs.shape
+    source = next_obs.device
+    all_live = torch.ones(n, dtype=torch.bool, device=source)
+    flags = [rewards, terminated, live if live is not None else all_live]
+    # The caching host allocator keeps a pinned block until the copy that reads it has finished.
+    pin = source.type == "cpu" and device.type == "cuda"
+    packed = torch.empty((n, 2 * num_obs + 3), device=source, pin_memory=pin)
+    torch.cat([next_obs, final_obs, torch.stack(flags, dim=1)], dim=1, out=packed)
+    packed = packed.to(device, non_blocking=True)
+    next_obs, final_obs, flags = packed.split([num_obs, num_obs, 3], dim=1)
+    live_mask = flags[:, 2] > 0.5 if live is not None else None
+    return next_obs, flags[:, 0], final_obs, flags[:, 1], live_mask
+
+
 def atomic_save(obj: object, path: Path) -> None:
     """``torch.save`` to a temporary file in the same folder, then rename over ``path``.
 
@@ -70,15 +99,26 @@ def atomic_save(obj: object, path: Path) -> None:
 class SACRunner:
     """Owns the SAC training loop over a ``VectorEnv``.
 
-    Step counts are vector steps (one call of ``env.step``, ``num_envs`` transitions); ``learning_starts``
-    in the config counts transitions. The run directory receives TensorBoard events, ``model.pt``
-    (plain state dicts, loadable with ``torch.load(weights_only=True)``) and ``replay.pt``.
+    Step counts are vector steps (one call of ``env.step``, ``num_envs`` transitions). ``learning_starts``
+    in the config counts transitions collected, vector steps x num_envs (rows of robots that have left
+    their episode included, though not stored): actions are uniform random through the vector step that
+    reaches it, and the first update follows that step. The paper's public code warms up for 5,000
+    vector steps x 16 envs, ``learning_starts: 80000``. A warm-up longer than the run only collects; a
+    resumed run continues the warm-up from its saved step counter. The run directory receives
+    TensorBoard events, ``model.pt`` (plain state dicts, loadable with ``torch.load(weights_only=True)``)
+    and ``replay.pt``.
+
+    The learner (networks, optimisers, replay buffer) lives on ``device``, the env on its own device
+    (the CPU for the batched world). Each vector step then costs one copy each way: the actions to the
+    env, and what is stored (obs, reward, final_obs, terminated, live mask) packed into one tensor to the
+    learner (``to_learner``).
 
     Args:
         env: the vector env.
         config: SAC hyper-parameters.
         run_dir: folder for logs and checkpoints (created if missing).
         seed: seeds the networks, SAC's generator and the first ``env.reset``.
+        device: where the learner lives; None means the env's device.
         log_interval: vector steps between TensorBoard writes.
         save_interval: vector steps between checkpoints (one is always written when ``learn`` returns).
         eval_interval: vector steps between calls of ``eval_callback``.
@@ -94,6 +134,7 @@ class SACRunner:
         run_dir: str | os.PathLike[str],
         *,
         seed: int = 0,
+        device: str | torch.device | None = None,
         log_interval: int = 100,
         save_interval: int = 10_000,
         eval_interval: int | None = None,
@@ -109,7 +150,10 @@ class SACRunner:
             raise ValueError(f"eval_interval must be >= 1, got {eval_interval}")
         self.env = env
         self.seed = seed
-        self.sac = SAC(env.num_obs, env.num_actions, config, device=env.device, seed=seed)
+        self.device = torch.device(device) if device is not None else env.device
+        if self.device.type == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"device {str(self.device)!r}: torch sees no CUDA device on this machine")
+        self.sac = SAC(env.num_obs, env.num_actions, config, device=self.device, seed=seed)
         self.run_dir = Path(run_dir)
         self.log_interval = log_interval
         self.save_interval = save_interval
@@ -119,7 +163,7 @@ class SACRunner:
         self.step = 0  # vector steps taken
         self.train_time_s = 0.0  # wall time spent collecting and learning, summed over resumes
         self._update_debt = 0.0  # fractional updates owed when updates_per_step is not an integer
-        self._obs: torch.Tensor | None = None
+        self._obs: torch.Tensor | None = None  # on the learner's device
         self._writer: SummaryWriter | None = None
 
     @property
@@ -135,7 +179,7 @@ class SACRunner:
             # purge_step drops events a killed run wrote after its last checkpoint.
             self._writer = SummaryWriter(self.run_dir, purge_step=self.step)
         if self._obs is None:
-            self._obs = self.env.reset(seed=self.seed + self.step)
+            self._obs = self.env.reset(seed=self.seed + self.step).to(self.device)
         update_stats: dict[str, list[float]] = defaultdict(list)
         episode_stats: dict[str, list[torch.Tensor]] = defaultdict(list)
         bar = tqdm(
@@ -150,9 +194,11 @@ class SACRunner:
                 else:
                     actions = self.sac.act(self._obs)
                 # Step and store; the true last observation is the next_obs of finished episodes.
-                next_obs, rewards, terminated, _truncated, info = self.env.step(actions)
-                rows = (self._obs, actions, rewards, info["final_obs"], terminated)
-                live = info.get("live")
+                next_obs, rewards, terminated, _truncated, info = self.env.step(actions.to(self.env.device))
+                next_obs, rewards, final_obs, terminated, live = to_learner(
+                    self.device, next_obs, rewards, info["final_obs"], terminated, info.get("live")
+                )
+                rows = (self._obs, actions, rewards, final_obs, terminated)
                 if live is not None:  # rows of robots that have left their episode are not transitions
                     rows = tuple(x[live] for x in rows)
                 self.sac.process_env_step(*rows)
@@ -185,9 +231,10 @@ class SACRunner:
             self._writer.flush()
 
     def _random_actions(self) -> torch.Tensor:
-        """Uniform actions in [-1, 1], shape (num_envs, num_actions), from SAC's checkpointed generator."""
+        """Uniform actions in [-1, 1], shape (num_envs, num_actions), from SAC's checkpointed generator
+        (on the learner's device, where the generator lives)."""
         shape = (self.env.num_envs, self.env.num_actions)
-        return torch.rand(shape, generator=self.sac.generator, device=self.env.device) * 2.0 - 1.0
+        return torch.rand(shape, generator=self.sac.generator, device=self.device) * 2.0 - 1.0
 
     def _log(
         self,
@@ -242,7 +289,7 @@ class SACRunner:
         The env's in-progress episodes are not saved: the next ``learn`` starts from a fresh reset.
         """
         run_dir = Path(run_dir)
-        # On CPU: the generator state must stay there; load_state_dict moves the rest to the env's device.
+        # On CPU: the generator state must stay there; load_state_dict moves the rest to the learner's device.
         model = torch.load(run_dir / MODEL_FILE, weights_only=True, map_location="cpu")
         if SACConfig(**model["config"]) != self.sac.config:
             raise ValueError(f"config in {run_dir / MODEL_FILE} differs from this runner's config")

@@ -1,31 +1,21 @@
 from __future__ import annotations
 
+import copy
 import io
 import math
-from collections.abc import Callable, Iterator
-from pathlib import Path
 
 import pytest
 import torch
 from pydantic import ValidationError
-from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-import hier_ssl
-from hier_ssl.policies import SAC, SACConfig, SACRunner, SquashedGaussianActor, TwinQ, caps_loss
+from hier_ssl.policies import SAC, SACConfig, SquashedGaussianActor, TwinQ, caps_loss
 from hier_ssl.policies.networks import LOG_STD_MAX, LOG_STD_MIN
-from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, atomic_save
+from hier_ssl.policies.sac import SAMPLED_CAPS_OBS_BOUND, perturbed_obs
 
 OBS_DIM, ACT_DIM = 4, 2
 TINY = {"hidden": (32, 32), "batch_size": 32, "buffer_size": 4096, "learning_starts": 0}
 
-
-@pytest.fixture(autouse=True)
-def _one_thread() -> Iterator[None]:
-    """Tiny networks run fastest on one thread, and two OpenMP threads stall badly on a busy 2-core CPU."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def _build_sac(seed: int = 0, **overrides: object) -> SAC:
@@ -43,71 +33,6 @@ def _fill(sac: SAC, n: int = 256, seed: int = 0) -> None:
     )
 
 
-class PointEnv:
-    """Vector env of 2-D points that must reach a random goal (the ``VectorEnv`` protocol).
-
-    obs = (x, y, goal_x, goal_y) in [-1, 1]^4; action = velocity in [-1, 1]^2 times ``speed`` per step;
-    reward = -distance to the goal after the move; episodes are truncated after ``episode_length`` steps
-    and never terminate. ``info["episode"]["final_distance"]`` reports the distance at the end.
-    """
-
-    def __init__(self, num_envs: int = 16, episode_length: int = 20, speed: float = 0.2) -> None:
-        self.num_envs, self.num_obs, self.num_actions = num_envs, 4, 2
-        self.device = torch.device("cpu")
-        self.episode_length, self.speed = episode_length, speed
-        self.generator = torch.Generator()
-        self.pos = torch.zeros(num_envs, 2)
-        self.goal = torch.zeros(num_envs, 2)
-        self.t = torch.zeros(num_envs, dtype=torch.long)
-        self.ret = torch.zeros(num_envs)
-
-    def _obs(self) -> torch.Tensor:
-        return torch.cat([self.pos, self.goal], dim=1)
-
-    def _reset_envs(self, mask: torch.Tensor) -> None:
-        n = int(mask.sum())
-        self.pos[mask] = torch.rand(n, 2, generator=self.generator) * 2 - 1
-        self.goal[mask] = torch.rand(n, 2, generator=self.generator) * 2 - 1
-        self.t[mask] = 0
-        self.ret[mask] = 0.0
-
-    def reset(self, seed: int | None = None) -> torch.Tensor:
-        if seed is not None:
-            self.generator.manual_seed(seed)
-        self._reset_envs(torch.ones(self.num_envs, dtype=torch.bool))
-        return self._obs()
-
-    def step(
-        self, actions: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict]:
-        self.pos = (self.pos + self.speed * actions.clamp(-1, 1)).clamp(-1, 1)
-        distance = torch.linalg.vector_norm(self.pos - self.goal, dim=1)
-        reward = -distance
-        self.t += 1
-        self.ret += reward
-        truncated = self.t >= self.episode_length
-        terminated = torch.zeros(self.num_envs, dtype=torch.bool)
-        final_obs = self._obs()
-        episode = {
-            "return": self.ret[truncated].clone(),
-            "length": self.t[truncated].float(),
-            "final_distance": distance[truncated],
-        }
-        self._reset_envs(truncated)
-        return self._obs(), reward, terminated, truncated, {"final_obs": final_obs, "episode": episode}
-
-
-def _mean_final_distance(policy: Callable[[torch.Tensor], torch.Tensor], episodes: int = 4) -> float:
-    """Mean distance to the goal at the end of ``episodes`` x 16 fresh episodes."""
-    env = PointEnv()
-    obs = env.reset(seed=12345)
-    distances = []
-    for _ in range(episodes * env.episode_length):
-        obs, _, _, _, info = env.step(policy(obs))
-        distances.append(info["episode"]["final_distance"])
-    return torch.cat(distances).mean().item()
-
-
 # --- config ---------------------------------------------------------------------------------------
 
 
@@ -118,6 +43,16 @@ def test_config_defaults_are_the_public_code_settings() -> None:
     assert (cfg.learning_starts, cfg.policy_frequency, cfg.alpha) == (5000, 2, 0.2)
     assert (cfg.caps_lambda_t, cfg.caps_lambda_s, cfg.caps_sigma) == (1.0, 5.0, 0.05)
     assert cfg.learns_alpha and not SACConfig(caps=True).learns_alpha
+
+
+def test_public_code_differences_default_to_ours_and_reject_unknown_values() -> None:
+    cfg = SACConfig()
+    assert (cfg.caps_actions, cfg.actor_schedule, cfg.reward_scale) == ("mean", "catch_up", 1.0)
+    public = SACConfig(caps=True, caps_actions="sampled", actor_schedule="delayed", learning_starts=80_000)
+    assert not public.learns_alpha and public.alpha == 0.2
+    for key, value in (("caps_actions", "noisy"), ("actor_schedule", "every")):
+        with pytest.raises(ValidationError, match=key):
+            SACConfig(**{key: value})
 
 
 @pytest.mark.parametrize(
@@ -219,7 +154,118 @@ def test_caps_changes_the_actor_update() -> None:
     assert torch.equal(plain.qf.weights[0], smooth.qf.weights[0])  # same seed, same batch, same critic step
 
 
+def _one_transition_sac(**overrides: object) -> tuple[SAC, torch.Tensor, torch.Tensor]:
+    """A SAC whose replay holds a single transition, so every batch row is that transition."""
+    sac = _build_sac(**overrides)
+    obs, next_obs = torch.tensor([[0.9, -1.1, 0.2, 1.0]]), torch.tensor([[-0.3, 0.8, 0.2, 0.1]])
+    sac.process_env_step(
+        obs, torch.zeros(1, ACT_DIM), torch.zeros(1), next_obs, torch.zeros(1, dtype=torch.bool)
+    )
+    return sac, obs, next_obs
+
+
+def test_sampled_caps_is_the_public_codes_formula_on_the_clamped_state() -> None:
+    lambda_t, lambda_s, sigma, batch = 3.0, 5.0, 0.5, 8
+    sac, obs, next_obs = _one_transition_sac(
+        caps=True,
+        caps_actions="sampled",
+        actor_schedule="delayed",
+        batch_size=batch,
+        caps_lambda_t=lambda_t,
+        caps_lambda_s=lambda_s,
+        caps_sigma=sigma,
+    )
+    actor = copy.deepcopy(sac.actor)
+    gen = torch.Generator()
+    gen.set_state(sac.generator.get_state())
+    logged = sac.update()
+    # The same draws by hand, in the update's order: replay indices, a'(s') of the critic target, the
+    # perturbation of s, then one sample at s and at s_bar.
+    torch.randint(1, (batch,), generator=gen)
+    with torch.no_grad():
+        next_action, _ = actor(next_obs.expand(batch, -1), gen)
+        raw_bar = obs + sigma * torch.randn((batch, OBS_DIM), generator=gen)
+        obs_bar = raw_bar.clamp(-1.2, 1.2)
+        pi, pi_bar = actor(torch.cat([obs.expand(batch, -1), obs_bar]), gen)[0].chunk(2)
+        unclamped_pi_bar = actor.deterministic(raw_bar)  # only to show that the clamp matters here
+    assert SAMPLED_CAPS_OBS_BOUND == 1.2 and (raw_bar.abs() > 1.2).any()
+    assert logged["caps_temporal"] == pytest.approx(lambda_t * (next_action - pi).norm(dim=1).mean().item())
+    assert logged["caps_spatial"] == pytest.approx(lambda_s * (pi_bar - pi).norm(dim=1).mean().item())
+    assert logged["caps_spatial"] != pytest.approx(
+        lambda_s * (unclamped_pi_bar - pi).norm(dim=1).mean().item()
+    )
+
+
+def test_perturbed_obs_clamps_only_when_given_a_bound() -> None:
+    obs = torch.tensor([[1.15, -1.15, 0.0]])
+    noise = torch.randn(obs.shape, generator=torch.Generator().manual_seed(3))
+    free = perturbed_obs(obs, 2.0, torch.Generator().manual_seed(3))
+    clamped = perturbed_obs(obs, 2.0, torch.Generator().manual_seed(3), bound=1.2)
+    torch.testing.assert_close(free, obs + 2.0 * noise)
+    torch.testing.assert_close(clamped, (obs + 2.0 * noise).clamp(-1.2, 1.2))
+
+
+def test_sampled_caps_terms_put_gradient_only_into_the_actor() -> None:
+    sac = _build_sac(caps=True, caps_actions="sampled")
+    _fill(sac)
+    data = sac.replay.sample(32, torch.Generator().manual_seed(0))
+    alpha = sac.log_alpha.detach().exp()
+    _, next_state_actions = sac._critic_step(data, alpha)
+    assert not next_state_actions.requires_grad  # a'(s') is a constant of the actor loss
+    sac.q_optimizer.zero_grad(set_to_none=True)
+    _, _, caps = sac.actor_loss(data, next_state_actions, alpha)
+    (caps["caps_temporal"] + caps["caps_spatial"]).backward()
+    assert all(p.grad is None for p in [*sac.qf.parameters(), *sac.qf_target.parameters(), sac.log_alpha])
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in sac.actor.parameters())
+
+
+# --- actor schedule -------------------------------------------------------------------------------
+
+
+def _adam_steps(optimizer: torch.optim.Optimizer) -> int:
+    return int(optimizer.state[optimizer.param_groups[0]["params"][0]]["step"])
+
+
+@pytest.mark.parametrize(
+    ("schedule", "policy_frequency", "actor_steps", "updates_that_step"),
+    [
+        ("catch_up", 1, 6, [0, 1, 2, 3, 4, 5]),
+        ("delayed", 1, 6, [0, 1, 2, 3, 4, 5]),
+        ("catch_up", 2, 6, [0, 2, 4]),  # 2 actor steps on each of updates 0, 2, 4
+        ("delayed", 2, 3, [0, 2, 4]),  # the public code: one actor step per two critic steps
+        ("catch_up", 3, 6, [0, 3]),
+        ("delayed", 3, 2, [0, 3]),
+    ],
+)
+def test_actor_schedule_counts(
+    schedule: str, policy_frequency: int, actor_steps: int, updates_that_step: list[int]
+) -> None:
+    sac = _build_sac(actor_schedule=schedule, policy_frequency=policy_frequency)
+    _fill(sac)
+    stepped = [i for i in range(6) if "actor_loss" in sac.update()]
+    assert stepped == updates_that_step
+    assert _adam_steps(sac.q_optimizer) == 6
+    assert _adam_steps(sac.actor_optimizer) == _adam_steps(sac.alpha_optimizer) == actor_steps
+
+
 # --- alpha ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("start", [0.2, 1.0])
+def test_learned_alpha_starts_at_the_configured_value(start: float) -> None:
+    learned = _build_sac(alpha=start, policy_frequency=1)
+    fixed_same = _build_sac(alpha=start, autotune_alpha=False, policy_frequency=1)
+    fixed_other = _build_sac(alpha=1.2 - start, autotune_alpha=False, policy_frequency=1)
+    assert learned.config.learns_alpha and learned.log_alpha.item() == pytest.approx(math.log(start))
+    for sac in (learned, fixed_same, fixed_other):
+        _fill(sac)
+    logged = learned.update()
+    fixed_same.update()
+    fixed_other.update()
+    # The first critic target used alpha = start; then one Adam step moved log alpha by at most its lr.
+    assert torch.equal(learned.qf.weights[0], fixed_same.qf.weights[0])
+    assert not torch.equal(learned.qf.weights[0], fixed_other.qf.weights[0])
+    assert logged["alpha"] != start and abs(math.log(logged["alpha"] / start)) < 1.01e-3
 
 
 def test_alpha_is_fixed_with_caps_and_learned_with_autotune() -> None:
@@ -261,124 +307,3 @@ def test_state_dict_round_trip_continues_identically() -> None:
 def test_load_rejects_a_different_alpha_rule() -> None:
     with pytest.raises(ValueError, match="alpha"):
         _build_sac(caps=True).load_state_dict(_build_sac().state_dict())
-
-
-# --- runner ---------------------------------------------------------------------------------------
-
-
-def test_runner_checkpoints_resume_and_calls_back(tmp_path: Path) -> None:
-    cfg = SACConfig(**{**TINY, "learning_starts": 64, "updates_per_step": 0.5})
-    calls: list[int] = []
-
-    def on_eval(runner: SACRunner) -> dict[str, float]:
-        calls.append(runner.step)
-        return {"steps": float(runner.step)}
-
-    runner = SACRunner(
-        PointEnv(num_envs=4),
-        cfg,
-        tmp_path,
-        seed=1,
-        log_interval=5,
-        save_interval=10,
-        eval_interval=15,
-        eval_callback=on_eval,
-        progress=False,
-    )
-    runner.learn(total_steps=32)
-    # Warm-up is 64 transitions = 16 vector steps; then half an update per step.
-    assert runner.step == 32 and runner.sac.num_updates == 8 and calls == [15, 30]
-    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("events")) == [
-        MODEL_FILE,
-        REPLAY_FILE,
-    ]
-    scalars = EventAccumulator(str(tmp_path)).Reload().Tags()["scalars"]
-    assert {"losses/qf_loss", "losses/actor_loss", "losses/alpha", "episode/return", "eval/steps"} <= set(
-        scalars
-    )
-    model = torch.load(tmp_path / MODEL_FILE, weights_only=True)
-    assert model["step"] == 32 and set(model["sac"]) >= {"actor", "qf", "qf_target", "log_alpha"}
-
-    resumed = SACRunner(PointEnv(num_envs=4), cfg, tmp_path, seed=1, progress=False)
-    resumed.load(tmp_path)
-    assert resumed.step == 32 and resumed.sac.num_updates == 8
-    assert torch.equal(resumed.sac.replay.obs, runner.sac.replay.obs)
-    obs = torch.rand(3, OBS_DIM)
-    assert torch.equal(resumed.sac.act(obs, deterministic=True), runner.sac.act(obs, deterministic=True))
-    resumed.learn(total_steps=40)
-    assert resumed.step == 40 and len(resumed.sac.replay) == 160 and resumed.sac.num_updates == 12
-    resumed.close()
-    runner.close()
-
-
-def test_atomic_save_keeps_the_old_file_when_writing_fails(tmp_path: Path) -> None:
-    path = tmp_path / MODEL_FILE
-    atomic_save({"step": 1}, path)
-    with pytest.raises(Exception, match="pickle"):
-        atomic_save({"step": 2, "bad": lambda: None}, path)  # fails halfway through pickling
-    assert torch.load(path, weights_only=True) == {"step": 1}
-    assert [p.name for p in tmp_path.iterdir()] == [MODEL_FILE]
-
-
-def test_runner_drives_the_real_vector_env(tmp_path: Path) -> None:
-    env = hier_ssl.vector_env(task="proposed", frame_skip=16, num_envs=4)
-    runner = SACRunner(env, SACConfig(**{**TINY, "learning_starts": 32}), tmp_path, progress=False)
-    runner.learn(total_steps=12)
-    runner.close()
-    assert len(runner.sac.replay) == 48 and runner.sac.num_updates == 5
-    assert torch.isfinite(runner.sac.replay.rewards[:48]).all()
-
-
-def test_runner_load_rejects_a_different_config(tmp_path: Path) -> None:
-    runner = SACRunner(PointEnv(num_envs=2), SACConfig(**TINY), tmp_path, progress=False)
-    runner.save()
-    other = SACRunner(PointEnv(num_envs=2), SACConfig(**{**TINY, "gamma": 0.5}), tmp_path, progress=False)
-    with pytest.raises(ValueError, match="config"):
-        other.load(tmp_path)
-
-
-@pytest.mark.parametrize(
-    "overrides",
-    [{}, {"caps": True, "caps_lambda_t": 0.1, "caps_lambda_s": 0.5}],
-    ids=["sac", "sac_caps"],
-)
-def test_sac_learns_to_reach_a_goal(tmp_path: Path, overrides: dict[str, object]) -> None:
-    # Rewards here are ~0.2 per step apart, far smaller than the paper's, so CAPS gets lambdas scaled down
-    # to match: at the paper's 1 and 5 the smoothness terms outweigh the Q gradient and the point stays put.
-    cfg = SACConfig(
-        hidden=(64, 64),
-        batch_size=64,
-        buffer_size=20_000,
-        learning_starts=640,
-        gamma=0.9,
-        updates_per_step=2.0,
-        **overrides,
-    )
-    runner = SACRunner(PointEnv(), cfg, tmp_path, seed=0, log_interval=50, progress=False)
-    runner.learn(total_steps=400)  # 6,400 transitions, 720 updates after the 640-transition warm-up
-    runner.close()
-    assert runner.sac.num_updates == 722
-    gen = torch.Generator().manual_seed(0)
-    random_distance = _mean_final_distance(lambda obs: torch.rand(obs.shape[0], 2, generator=gen) * 2 - 1)
-    learned_distance = _mean_final_distance(lambda obs: runner.sac.act(obs, deterministic=True))
-    assert random_distance > 0.8  # about the mean distance between two uniform points of the square
-    assert learned_distance < 0.2, (learned_distance, random_distance)
-
-
-def test_runner_stores_only_the_rows_of_robots_still_in_their_episode(tmp_path: Path) -> None:
-    from hier_ssl.envs import TorchVectorEnv, scenario_config
-
-    env = TorchVectorEnv(scenario_config("crossing", num_agents=3, action_frame="target"), num_fields=2)
-    live_rows = []
-    step = env.step
-
-    def counting_step(actions: torch.Tensor) -> tuple:
-        out = step(actions)
-        live_rows.append(int(out[4]["live"].sum()))
-        return out
-
-    env.step = counting_step
-    runner = SACRunner(env, SACConfig(hidden=(8, 8), learning_starts=10**6), tmp_path, progress=False)
-    runner.learn(40)
-    assert min(live_rows) < 6  # robots left their episodes on the way
-    assert runner.sac.replay.size == sum(live_rows)

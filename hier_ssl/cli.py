@@ -146,18 +146,21 @@ def _render(args: argparse.Namespace) -> int:
 
     from hier_ssl.compare import compare
     from hier_ssl.config import ConfigError
-    from hier_ssl.envs import task_config
+    from hier_ssl.envs import TASKS, task_config
     from hier_ssl.report import episode_video, figure3, panel_title
     from hier_ssl.world.field import get_field
 
     out = Path(args.out)
     if out.suffix.lower() not in (".gif", ".png"):
         raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
-    config = task_config(args.scenario, args.set)
-    (evaluation,) = compare([args.manager], config, episodes=1, seed=args.seed, record=[0])
+    # A paper task by name is evaluated as `eval --task` would (a planner deciding every 16 steps).
+    by_name = args.scenario in TASKS and not args.set
+    config = None if by_name else task_config(args.scenario, args.set)
+    task = args.scenario if by_name else None
+    (evaluation,) = compare([args.manager], config, task=task, episodes=1, seed=args.seed, record=[0])
     panels = [(evaluation.name, evaluation.result["trajectories"][0])]
     draw = episode_video if out.suffix.lower() == ".gif" else figure3
-    path = draw(panels, get_field(config.field), out)
+    path = draw(panels, get_field(evaluation.env.field), out)
     print(f"wrote {path}: {panel_title(*panels[0]).replace(chr(10), ': ')}")
     return 0
 

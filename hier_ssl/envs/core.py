@@ -41,7 +41,8 @@ OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``Hierarchic
 class StepResult:
     """One manager decision period (or one control step) of every field. Shapes: obs (N, M, O) float32;
     reward (N, M) float32; terminated, truncated (N, M) bool, True for robots that left in this period;
-    info as documented in ``HierarchicalCore.step``."""
+    info as documented in ``HierarchicalCore.step``. (The goToPoint learning task's core, one robot a
+    field, returns it without the M axis.)"""
 
     obs: np.ndarray
     reward: np.ndarray

@@ -76,6 +76,14 @@ class Scenario:
         self.gap = 2 * config.collision_distance
         margin = config.spawn_margin
         self.half = np.array([self.field.half_length - margin, self.field.half_width - margin])
+        # The observation's normalisers (m, m/s, rad/s) and the field's half size that actions scale to.
+        self.scales = {
+            "max_pos": self.field.max_pos,
+            "max_v": self.robot.max_speed,
+            "max_w": self.robot.max_ang_speed,
+            "half_length": self.field.half_length,
+            "half_width": self.field.half_width,
+        }
 
     @property
     def observation(self) -> str:
@@ -93,17 +101,6 @@ class Scenario:
     def act_dim(self) -> int:
         """Length of each manager action."""
         return action_dim(self.config.action_form)
-
-    @property
-    def scales(self) -> dict[str, float]:
-        """The observation's normalisers (m, m/s, rad/s) and the field's half size that actions scale to."""
-        return {
-            "max_pos": self.field.max_pos,
-            "max_v": self.robot.max_speed,
-            "max_w": self.robot.max_ang_speed,
-            "half_length": self.field.half_length,
-            "half_width": self.field.half_width,
-        }
 
     def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
         """Starts and targets of ``m`` new episodes."""

@@ -30,10 +30,10 @@ def main() -> None:
 
     import torch
 
-    from hier_ssl.envs.multi import MultiVectorEnv
-    from hier_ssl.envs.scenarios import scenario_config
+    from hier_ssl.envs import scenario_config
+    from hier_ssl.envs.vector import TorchVectorEnv
 
-    env = MultiVectorEnv(scenario_config(args.scenario), args.fields)
+    env = TorchVectorEnv(scenario_config(args.scenario), args.fields)
     core, world = env.core, env.core.world
     robots = core.num_agents + core.num_obstacles
     # Time spent in the physics, measured by wrapping this one World's step.

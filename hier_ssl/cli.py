@@ -123,16 +123,16 @@ def _add_render(subparsers: argparse._SubParsersAction) -> None:
     from hier_ssl.manager.planners import PLANNERS
 
     render = subparsers.add_parser(
-        "render", help="one episode of a multi-robot scenario under a manager, as a GIF or a PNG"
+        "render", help="one episode of a task or scenario under a manager: GIF or PNG"
     )
-    render.add_argument("scenario", metavar="SCENARIO", help="a scenario name or YAML (configs/scenarios/)")
+    render.add_argument("scenario", metavar="SCENARIO", help="a task or scenario name, or a YAML (configs/)")
     render.add_argument(
         "--manager",
         default="sampling",
         help=f"a planner {PLANNERS} or a run directory (default: %(default)s)",
     )
     render.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key (repeatable)"
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a task key (repeatable)"
     )
     render.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
     render.add_argument(
@@ -144,20 +144,23 @@ def _add_render(subparsers: argparse._SubParsersAction) -> None:
 def _render(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from hier_ssl.compare import compare
     from hier_ssl.config import ConfigError
-    from hier_ssl.envs.scenarios import scenario_config
-    from hier_ssl.managers import compare_scenario
+    from hier_ssl.envs import TASKS, task_config
     from hier_ssl.report import episode_video, figure3, panel_title
     from hier_ssl.world.field import get_field
 
     out = Path(args.out)
     if out.suffix.lower() not in (".gif", ".png"):
         raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
-    scenario = scenario_config(args.scenario, args.set)
-    (evaluation,) = compare_scenario([args.manager], scenario, episodes=1, seed=args.seed, record=[0])
+    # A paper task by name is evaluated as `eval --task` would (a planner deciding every 16 steps).
+    by_name = args.scenario in TASKS and not args.set
+    config = None if by_name else task_config(args.scenario, args.set)
+    task = args.scenario if by_name else None
+    (evaluation,) = compare([args.manager], config, task=task, episodes=1, seed=args.seed, record=[0])
     panels = [(evaluation.name, evaluation.result["trajectories"][0])]
     draw = episode_video if out.suffix.lower() == ".gif" else figure3
-    path = draw(panels, get_field(scenario.field), out)
+    path = draw(panels, get_field(evaluation.env.field), out)
     print(f"wrote {path}: {panel_title(*panels[0]).replace(chr(10), ': ')}")
     return 0
 
@@ -189,7 +192,8 @@ def _train(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from hier_ssl.config import ConfigError, apply_overrides, load_yaml, parse_config
+    from hier_ssl.config import ConfigError, apply_overrides, load_yaml
+    from hier_ssl.envs import parse_config
     from hier_ssl.train import print_summary, resume_config, train
 
     # Everything is validated before the run directory is created, so a bad config writes nothing.
@@ -255,16 +259,16 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
         "--scenario",
         default=None,
         metavar="NAME_OR_YAML",
-        help="a multi-robot scenario instead of a task (default for runs trained on one: their own); "
-        "figures are per robot",
+        help="a multi-robot scenario, or a YAML of any task, instead of --task (default for runs trained on "
+        "a scenario: their own); figures are per robot",
     )
     ev.add_argument(
         "--set",
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="override a scenario key (repeatable); a run still acts with its own action_form, "
-        "action_frame and neighbours",
+        help="override a key of the task or scenario (repeatable); a run still acts with its own "
+        "action_form, action_frame, observation and neighbours",
     )
     ev.add_argument("--episodes", type=_positive_int, default=1000, help="episodes (default: %(default)s)")
     ev.add_argument(
@@ -290,38 +294,34 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
 def _eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hier_ssl.config import ConfigError
-    from hier_ssl.envs.scenarios import scenario_config
-    from hier_ssl.managers import compare, compare_scenario, is_planner, run_config
+    from hier_ssl.compare import compare, is_planner, run_config
+    from hier_ssl.config import ConfigError, ScenarioConfig
+    from hier_ssl.envs import task_config
     from hier_ssl.report import markdown_table, write_evaluation
 
+    if args.task is not None and args.scenario is not None:
+        raise ConfigError("--task names a paper task and --scenario a scenario: give one of them")
     record = range(min(16, args.episodes))
     runs = [spec for spec in args.managers if not is_planner(spec)]
-    if args.scenario is not None or (runs and run_config(runs[0]).scenario is not None):
-        if args.task is not None or args.worker or args.frame_skip is not None:
-            raise ConfigError(
-                "--task, --worker and --frame-skip are for paper tasks; set scenario keys with --set"
-            )
-        scenario = None
-        if args.scenario is not None or args.set:
-            scenario = scenario_config(args.scenario or run_config(runs[0]).scenario, args.set)
-        evaluations = compare_scenario(args.managers, scenario, args.episodes, args.seed, record)
-        task = evaluations[0].env.scenario
-        what = f"scenario {task} ({evaluations[0].record['robots'] // args.episodes} robots a field)"
-    else:
-        if args.set:
-            raise ConfigError("--set overrides scenario keys; give --scenario (or a run trained on one)")
-        evaluations = compare(
-            args.managers,
-            task=args.task,
-            workers=args.worker or [None],
-            episodes=args.episodes,
-            seed=args.seed,
-            frame_skip=args.frame_skip,
-            record=record,
-        )
-        task = evaluations[0].env.task
-        what = f"task {task}"
+    config = None  # every manager acts in the one task given; else each run in its own (compare)
+    if args.scenario is not None or args.set:
+        base = args.scenario or args.task or (run_config(runs[0]).task_config if runs else None)
+        config = task_config(base, args.set)
+    evaluations = compare(
+        args.managers,
+        config,
+        task=args.task if config is None else None,
+        workers=args.worker or [None],
+        episodes=args.episodes,
+        seed=args.seed,
+        frame_skip=args.frame_skip,
+        record=record,
+    )
+    first = evaluations[0]
+    task = first.env.scenario_name
+    what = f"task {task}"
+    if isinstance(first.env, ScenarioConfig):
+        what = f"scenario {task} ({first.record['robots'] // args.episodes} robots a field)"
     out = Path(args.out) if args.out else Path("runs") / "eval" / f"{task}-s{args.seed}"
     print(f"{what}, {args.episodes} episodes, seed {args.seed}; lengths in 25 ms control steps\n")
     print(markdown_table([e.record for e in evaluations]))

@@ -1,7 +1,10 @@
 """Configs are YAML data validated into typed objects; every key is a constructor argument.
 
-An unknown, mistyped or out-of-range key is a ``ConfigError`` whose message names the key's full path
-(e.g. ``env.frame_skip``). Loading never mutates what the caller passed in.
+This module is data: models that check types and ranges, and nothing from the rest of the package. What
+needs a registry (known fields, workers, obstacle behaviours, scenario classes and their defaults) is
+checked where the registries live, by ``hier_ssl.envs.parse_config``, the one place configs enter. An
+unknown, mistyped or out-of-range key is a ``ConfigError`` whose message names the key's full path (e.g.
+``env.frame_skip``). Loading never mutates what the caller passed in.
 """
 
 from __future__ import annotations
@@ -12,12 +15,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
-
-from hier_ssl.manager.rewards import DIST_THRESHOLD
-from hier_ssl.manager.success import COLLISION_DISTANCE, SPEED_THRESHOLD
-from hier_ssl.policies.sac import SACConfig
-from hier_ssl.world.field import FIELDS
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 
 class ConfigError(ValueError):
@@ -29,9 +27,9 @@ class Strict(BaseModel):
 
 
 class ObstacleConfig(Strict):
-    """One scripted obstacle robot: how it moves (world/obstacles.py) and where it starts."""
+    """One scripted obstacle robot: how it moves (a behaviour of world/obstacles.py) and where it starts."""
 
-    behaviour: Literal["stationary", "random_walk", "public_code"] = "public_code"
+    behaviour: str = "public_code"
     options: dict[str, Any] = Field(default_factory=dict)
     # "midpoint": between robot and target (public code); "uniform": anywhere clear of both.
     placement: Literal["midpoint", "uniform"] = "midpoint"
@@ -59,41 +57,30 @@ class TaskSettings(Strict):
     # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``).
     observation: Literal["paper", "neighbours"] = "paper"
     neighbours: int = Field(6, ge=0)
+    # A spec of hier_ssl.worker.make_worker: "paper", "bangbang", a worker run directory, "+key=value"s.
     worker: str = "paper"
+    # The PettingZoo view's agents besides the managers: worker_i and obstacle_j act, one control step a
+    # step, in place of the scripted ones.
+    expose_worker: bool = False
+    expose_obstacles: bool = False
     dt: float = Field(0.025, gt=0)
     substeps: int = Field(2, ge=1)
-    d_th: float = Field(DIST_THRESHOLD, gt=0)
+    # SPEC "Thresholds" (hier_ssl.manager.rewards.DIST_THRESHOLD, .success.SPEED_THRESHOLD and
+    # .COLLISION_DISTANCE are the same numbers).
+    d_th: float = Field(0.05, gt=0)
     theta_th_deg: float = Field(5.0, gt=0)
-    speed_th: float = Field(SPEED_THRESHOLD, gt=0)
-    collision_distance: float = Field(COLLISION_DISTANCE, gt=0)
+    speed_th: float = Field(0.05, gt=0)
+    collision_distance: float = Field(0.2, gt=0)
     spawn_margin: float = Field(0.1, ge=0)
-
-    @model_validator(mode="after")
-    def _known_worker(self) -> TaskSettings:
-        from hier_ssl.worker import check_worker_spec
-
-        try:
-            check_worker_spec(self.worker)
-        except ValueError as err:
-            raise ValueError(f"worker: {err}") from None
-        return self
-
-    @property
-    def act_dim(self) -> int:
-        """Length of the manager action."""
-        from hier_ssl.manager import action_dim
-
-        return action_dim(self.action_form)
+    field: str = "hardware_challenge"
 
 
 class EnvConfig(TaskSettings):
-    """One learning environment of the paper (SPEC.md), over N fields."""
+    """One learning environment of the paper (SPEC.md): the Baseline, Proposed or Obstacle task
+    (``hier_ssl.envs.tasks``), one controlled robot and the obstacles listed here."""
 
-    task: Literal["baseline", "proposed", "obstacle"] = "proposed"
-    field: str = "hardware_challenge"
+    task: str = "proposed"
     obstacles: list[ObstacleConfig] = Field(default_factory=list)
-    expose_worker: bool = False
-    expose_obstacles: bool = False
     min_start_distance: float = Field(0.2, ge=0)
     # The public code starts the robot 0.2 m from the target with the obstacle at the midpoint, 0.1 m from
     # the robot: such an episode begins inside the collision distance and ends at its first control step
@@ -101,29 +88,9 @@ class EnvConfig(TaskSettings):
     allow_start_contact: bool = False
 
     @property
-    def obs_dim(self) -> int:
-        """Length of the manager observation of this environment."""
-        from hier_ssl.manager import manager_obs_dim
-        from hier_ssl.manager.neighbours import neighbour_obs_dim
-
-        if self.observation == "neighbours":
-            return neighbour_obs_dim(self.neighbours)
-        return manager_obs_dim(len(self.obstacles))
-
-    @model_validator(mode="after")
-    def _consistent(self) -> EnvConfig:
-        if self.field not in FIELDS:
-            raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
-        if self.task == "obstacle" and not self.obstacles:
-            raise ValueError("obstacles: the 'obstacle' task needs at least one obstacle")
-        if any(o.placement == "midpoint" for o in self.obstacles) and not self.allow_start_contact:
-            if self.min_start_distance < 2 * self.collision_distance:
-                raise ValueError(
-                    f"min_start_distance: {self.min_start_distance} m puts a midpoint obstacle inside the "
-                    f"collision distance at reset; use >= {2 * self.collision_distance}, or set "
-                    "allow_start_contact: true to play and count such episodes"
-                )
-        return self
+    def scenario_name(self) -> str:
+        """The class that runs this config: the task."""
+        return self.task
 
 
 MAX_AGENTS, MAX_OBSTACLES = 11, 11  # robots a side in an SSL Division A game
@@ -135,22 +102,13 @@ class BehaviourConfig(Strict):
     behaviour: str = "random_walk"
     options: dict[str, Any] = Field(default_factory=dict)
 
-    @model_validator(mode="after")
-    def _known(self) -> BehaviourConfig:
-        from hier_ssl.world.obstacles import OBSTACLES, make_obstacle
-
-        if self.behaviour not in OBSTACLES:
-            known = sorted(OBSTACLES)
-            raise ValueError(f"behaviour: unknown obstacle behaviour {self.behaviour!r}; known: {known}")
-        make_obstacle(self.behaviour, 1, **self.options)  # rejects unknown or bad options, naming them
-        return self
-
 
 class ScenarioConfig(TaskSettings):
-    """One multi-robot scenario over N fields. Keys left out take the scenario class's ``defaults``, then
-    the values below; ``options`` are the scenario's own settings (its ``Options`` model). The task
-    settings mean what they mean in ``EnvConfig``; the task is always action-centric ("obstacle" rules, or
-    "proposed" when a field holds a single robot) and the observation always "neighbours"."""
+    """One multi-robot scenario over N fields (``hier_ssl.envs.scenarios``). Keys left out take the
+    scenario class's ``defaults``, then the values below; ``options`` are the scenario's own settings (its
+    ``Options`` model). The task settings mean what they mean in ``EnvConfig``; the task is always
+    action-centric ("obstacle" rules, or "proposed" when a field holds a single robot) and the observation
+    always "neighbours"."""
 
     scenario: str
     field: str = "division_b"
@@ -162,37 +120,82 @@ class ScenarioConfig(TaskSettings):
     observation: Literal["neighbours"] = "neighbours"
 
     @property
-    def obs_dim(self) -> int:
-        """Length of every controlled robot's manager observation."""
-        from hier_ssl.manager.neighbours import neighbour_obs_dim
+    def scenario_name(self) -> str:
+        """The class that runs this config: the scenario."""
+        return self.scenario
 
-        return neighbour_obs_dim(self.neighbours)
 
-    @model_validator(mode="before")
+TaskConfig = EnvConfig | ScenarioConfig
+"""What a core runs: a paper task or a multi-robot scenario (``hier_ssl.envs.make_scenario``)."""
+
+
+class SACConfig(BaseModel):
+    """Hyper-parameters. Networks, optimisers, gamma, tau, batch, buffer and policy_frequency default to
+    the paper's public code (SPEC "SAC settings"); the keys where ours differ say what the public code
+    uses: a config with ``caps_actions: sampled``, ``actor_schedule: delayed``, ``learning_starts: 80000``
+    and ``alpha: 1.0`` (learned, no CAPS) or ``alpha: 0.2`` (with CAPS) reproduces it."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    hidden: tuple[int, ...] = (256, 256)
+    actor_lr: float = Field(3e-4, gt=0)
+    critic_lr: float = Field(1e-3, gt=0)
+    alpha_lr: float = Field(1e-3, gt=0)
+    gamma: float = Field(0.99, ge=0, le=1)
+    tau: float = Field(0.005, gt=0, le=1)
+    batch_size: int = Field(256, ge=1)
+    buffer_size: int = Field(1_000_000, ge=1)
+    learning_starts: int = Field(
+        5000,
+        ge=0,
+        description="transitions (vector steps x num_envs) of uniform random actions before the first "
+        "update; the public code: 5,000 vector steps x 16 envs = 80,000",
+    )
+    policy_frequency: int = Field(2, ge=1, description="the actor steps on every policy_frequency-th update")
+    actor_schedule: Literal["catch_up", "delayed"] = Field(
+        "catch_up",
+        description="actor steps on each policy_frequency-th update: catch_up runs policy_frequency of them "
+        "(CleanRL: as many actor as critic steps), delayed runs one (TD3, the paper's public code)",
+    )
+    alpha: float = Field(
+        0.2,
+        gt=0,
+        description="entropy coefficient: fixed, or the start value if learned; the public code learns it "
+        "from 1.0 without CAPS and fixes it at 0.2 with CAPS",
+    )
+    autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
+    target_entropy: float | None = Field(None, description="None means -act_dim")
+    caps: bool = False
+    caps_lambda_t: float = Field(1.0, ge=0)
+    caps_lambda_s: float = Field(5.0, ge=0)
+    caps_sigma: float = Field(0.05, ge=0)
+    caps_actions: Literal["mean", "sampled"] = Field(
+        "mean",
+        description="CAPS on the mean actions tanh(mean) at s, s', s_bar; or as the public code on sampled "
+        "actions, a'(s') the critic target's next action, s_bar clamped to +-SAMPLED_CAPS_OBS_BOUND",
+    )
+    updates_per_step: float = Field(1.0, gt=0, description="gradient updates per vector env step")
+    reward_scale: float = Field(
+        1.0, gt=0, description="multiplies rewards in the critic target; the env rewards stay as they are"
+    )
+
+    @field_validator("hidden")
     @classmethod
-    def _scenario_defaults(cls, data: Any) -> Any:
-        from hier_ssl.envs.scenarios import SCENARIOS
-
-        if isinstance(data, dict) and "scenario" in data:
-            name = data["scenario"]
-            if not isinstance(name, str) or name not in SCENARIOS:
-                raise ValueError(f"scenario: unknown scenario {name!r}; known: {sorted(SCENARIOS)}")
-            data = {**SCENARIOS[name].defaults, **data}
-        return data
+    def _hidden_positive(cls, hidden: tuple[int, ...]) -> tuple[int, ...]:
+        if not hidden or min(hidden) < 1:
+            raise ValueError(f"hidden must be a non-empty sequence of positive layer sizes, got {hidden}")
+        return hidden
 
     @model_validator(mode="after")
-    def _consistent(self) -> ScenarioConfig:
-        from hier_ssl.envs.scenarios import SCENARIOS
-
-        if self.field not in FIELDS:
-            raise ValueError(f"field: unknown preset {self.field!r}; known: {sorted(FIELDS)}")
-        try:
-            SCENARIOS[self.scenario](self)  # checks the options and that the layout fits the field
-        except ValidationError as err:
-            first = err.errors()[0]
-            key = ".".join(str(p) for p in ("options", *first["loc"]))
-            raise ValueError(f"{key}: {first['msg']}") from None
+    def _caps_fixes_alpha(self) -> SACConfig:
+        if self.caps and self.autotune_alpha:
+            raise ValueError("autotune_alpha=True conflicts with caps=True: CAPS runs with a fixed alpha")
         return self
+
+    @property
+    def learns_alpha(self) -> bool:
+        """Whether alpha is learned: ``autotune_alpha`` if given, else not ``caps``."""
+        return self.autotune_alpha if self.autotune_alpha is not None else not self.caps
 
 
 class PPOConfig(Strict):
@@ -269,6 +272,16 @@ class TrainConfig(Strict):
             data = {**data, "gotopoint": {}}
         return data
 
+    @property
+    def task_section(self) -> str:
+        """The section the run's manager acts in: "scenario" when given, else "env"."""
+        return "env" if self.scenario is None else "scenario"
+
+    @property
+    def task_config(self) -> TaskConfig:
+        """What the run's manager acts in: the ``scenario`` section when given, else ``env``."""
+        return getattr(self, self.task_section)
+
     @model_validator(mode="after")
     def _kind_consistent(self) -> TrainConfig:
         if self.scenario is not None:
@@ -298,8 +311,9 @@ def _format(err: ValidationError, root: str) -> str:
     return f"{path}: {msg}{extra}" if path else f"{msg}{extra}"
 
 
-def parse_config(data: dict[str, Any], model: type[BaseModel] = TrainConfig, root: str = "") -> Any:
-    """Validate a plain dict into ``model``; raises ConfigError naming the first bad key."""
+def validate_config(data: dict[str, Any], model: type[BaseModel] = TrainConfig, root: str = "") -> Any:
+    """Validate a plain dict into ``model`` by the models alone; raises ConfigError naming the first bad
+    key. ``hier_ssl.envs.parse_config`` adds class defaults and the registries' checks."""
     try:
         return model.model_validate(copy.deepcopy(data))
     except ValidationError as err:
@@ -364,13 +378,8 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
     return data
 
 
-def load_config(path: str | Path, overrides: list[str] | None = None) -> TrainConfig:
-    """A TrainConfig from a YAML file or a shipped config's name, with optional ``key=value`` overrides."""
-    return parse_config(apply_overrides(load_yaml(path), overrides or []))
-
-
 def dump_config(config: BaseModel) -> str:
     """The fully resolved config as YAML, written next to checkpoints (a scenario run without the ``env``
     section it does not read)."""
-    exclude = {"env"} if isinstance(config, TrainConfig) and config.scenario is not None else None
+    exclude = {"env"} if isinstance(config, TrainConfig) and config.task_section == "scenario" else None
     return yaml.safe_dump(config.model_dump(mode="json", exclude=exclude), sort_keys=False)

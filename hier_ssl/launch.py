@@ -20,7 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from hier_ssl.config import ConfigError, TrainConfig, load_config
+from hier_ssl.config import ConfigError, TrainConfig
+from hier_ssl.envs import load_config
 from hier_ssl.launch_options import LaunchOptions
 from hier_ssl.policies.actor import CONFIG_FILE
 from hier_ssl.policies.sac_runner import MODEL_FILE

@@ -413,7 +413,7 @@ def write_evaluation(
     video: bool = False,
     title: str | None = None,
 ) -> list[Path]:
-    """What ``hier-ssl eval`` writes for ``hier_ssl.managers.compare``'s evaluations: table.md, .csv and
+    """What ``hier-ssl eval`` writes for ``hier_ssl.compare.compare``'s evaluations: table.md, .csv and
     .tex, fig3.png (when episodes were recorded: the recorded episode in which most managers succeed),
     episode.gif with ``video``, and the JSON records at ``json_path``. Returns the paths written."""
     import json

@@ -14,8 +14,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import apply_overrides, load_yaml, parse_config
+from hier_ssl.config import apply_overrides, load_yaml
 from hier_ssl.config import config_dir as shipped_configs
+from hier_ssl.envs import parse_config
 from hier_ssl.launch import Job, launch
 from hier_ssl.launch_options import LaunchOptions
 from hier_ssl.report import SETUP_TITLES, SETUPS, TASKS
@@ -65,7 +66,7 @@ def reproduce(
     are ``key=value`` settings applied to every config (e.g. ``total_steps=2000`` for a quick pass);
     ``launch_options`` say where the runs train (``hier_ssl.launch``: in turn, as processes, on Ray).
     """
-    from hier_ssl.managers import compare
+    from hier_ssl.compare import compare
     from hier_ssl.report import write_evaluation
 
     if seeds < 1:

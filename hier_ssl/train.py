@@ -18,8 +18,9 @@ from typing import Any
 
 import torch
 
-from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml, parse_config
-from hier_ssl.envs.vector import TorchView, VectorEnv
+from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml
+from hier_ssl.envs import parse_config
+from hier_ssl.envs.vector import TorchVectorEnv, TorchView
 from hier_ssl.evaluate import Policy, evaluate
 from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE, sac_policy
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
@@ -119,11 +120,7 @@ class _Selection:
 
 def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, Any]:
     """``config.eval_episodes`` seeded episodes of the run's environment or scenario (per robot)."""
-    if config.scenario is not None:
-        from hier_ssl.evaluate_multi import evaluate_scenario
-
-        return evaluate_scenario(policy, config.scenario, config.eval_episodes, seed)
-    return evaluate(policy, config.env, config.eval_episodes, seed)
+    return evaluate(policy, config.task_config, config.eval_episodes, seed)
 
 
 def train(
@@ -145,12 +142,7 @@ def train(
         return _train_worker(config, run_dir, resume)
     # SAC keeps the world on the CPU; its runner puts the learner on config.device.
     env_device = "cpu" if config.algo == "sac" else config.device
-    if config.scenario is not None:
-        from hier_ssl.envs.multi import MultiVectorEnv
-
-        env = MultiVectorEnv(config.scenario, config.num_envs, env_device)
-    else:
-        env = VectorEnv(config.env, config.num_envs, env_device)
+    env = TorchVectorEnv(config.task_config, config.num_envs, env_device)
     if config.algo == "sac":
         policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress, on_selection)
     else:
@@ -165,15 +157,13 @@ def train(
         "train_wall_s": round(train_wall_s, 1),
         "episode_length": result["episode_length"],
         "cpad": result["cpad"],
-        "task": config.env.task,
-        "worker": config.env.worker,
+        "task": config.task_config.scenario_name,
+        "worker": config.task_config.worker,
+        # Figures are per robot; "episodes" counts fields.
+        "robots": result["robots"],
+        "field_success_rate": result["field_success_rate"],
+        "optimal_ratio_median": result["optimal_ratio_median"],
     }
-    if config.scenario is not None:  # per-robot figures; "episodes" counts fields
-        scenario = config.scenario
-        summary |= {"task": scenario.scenario, "worker": scenario.worker, "robots": result["robots"]}
-        summary["field_success_rate"] = result["field_success_rate"]
-    else:
-        summary["optimal_ratio_median"] = result["optimal_ratio_median"]
     atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
 
@@ -268,12 +258,13 @@ def print_summary(summary: dict[str, Any]) -> None:
 
         return print_worker_summary(summary)
     length, cpad = summary["episode_length"], summary["cpad"]
-    robots = f" ({summary['robots']} robots)" if "robots" in summary else ""
+    several = summary.get("robots", summary["episodes"]) > summary["episodes"]
+    robots = f" ({summary['robots']} robots)" if several else ""
     where = f"{summary['episodes']} episodes{robots}, task {summary['task']}, worker {summary['worker']}"
     print(f"| metric ({where}) | value |")
     print("|---|---|")
     print(f"| success rate | {100 * summary['success_rate']:.1f} % |")
-    if "field_success_rate" in summary:
+    if several:
         print(f"| episodes every robot succeeded | {100 * summary['field_success_rate']:.1f} % |")
     print(f"| collision rate | {100 * summary['collision_rate']:.1f} % |")
     quartiles = f"{length['median']:.0f} ({length['q1']:.0f} - {length['q3']:.0f})"

@@ -73,6 +73,9 @@ def test_render_draws_one_scenario_episode_and_names_a_bad_file_type(
     gif = tmp_path / "crossing.gif"
     assert cli.main(["render", "crossing", "--set", "num_agents=2", "--out", str(gif)]) == 0
     assert gif.read_bytes()[:6] == b"GIF89a" and capsys.readouterr().out.startswith(f"wrote {gif}: sampling")
+    png = tmp_path / "obstacle.png"  # a paper task renders through the same loop
+    assert cli.main(["render", "obstacle", "--manager", "direct", "--out", str(png)]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG" and capsys.readouterr().out.startswith(f"wrote {png}: direct")
     assert cli.main(["render", "crossing", "--out", str(tmp_path / "crossing.mp4")]) == 1
     assert "crossing.mp4" in capsys.readouterr().err and not (tmp_path / "crossing.mp4").exists()
     assert cli.main(["render", "crosing", "--out", str(gif)]) == 1

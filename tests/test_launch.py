@@ -17,7 +17,8 @@ import yaml
 os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
 
 from hier_ssl.cli import main  # noqa: E402
-from hier_ssl.config import ConfigError, parse_config  # noqa: E402
+from hier_ssl.config import ConfigError  # noqa: E402
+from hier_ssl.envs import parse_config  # noqa: E402
 from hier_ssl.launch import EXIT_MARKER, EXIT_ONCE_ENV, Job, RunFailed, launch, run_state  # noqa: E402
 from hier_ssl.launch_options import LaunchOptions  # noqa: E402
 from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE  # noqa: E402

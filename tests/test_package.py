@@ -14,7 +14,8 @@ import pytest
 
 import hier_ssl
 from hier_ssl import cli
-from hier_ssl.config import ConfigError, config_dir, config_names, find_config, load_config
+from hier_ssl.config import ConfigError, config_dir, config_names, find_config
+from hier_ssl.envs import load_config
 
 ROOT = Path(__file__).parents[1]
 SHIPPED = sorted(

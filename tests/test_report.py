@@ -9,11 +9,11 @@ from matplotlib.image import imread
 
 from hier_ssl import launch as launch_module
 from hier_ssl import reproduce as reproduce_module
+from hier_ssl.compare import compare
 from hier_ssl.envs import env_config
 from hier_ssl.evaluate import evaluate
 from hier_ssl.manager import cpad, min_time_to_pose
 from hier_ssl.manager.planners import make_planner
-from hier_ssl.managers import compare
 from hier_ssl.report import (
     PAPER_RESULTS,
     csv_table,
@@ -84,7 +84,7 @@ def test_paper_comparison_puts_the_papers_numbers_beside_ours() -> None:
 def test_recorded_episode_matches_the_metrics() -> None:
     config = env_config(task="proposed", frame_skip=16)
     result = evaluate(make_planner("direct", config), config, 6, seed=2, record=[0, 5])
-    per = result["per_episode"]
+    per = {key: value[:, 0] for key, value in result["per_robot"].items()}
     for episode in result["trajectories"]:
         i, length = episode["field"], int(per["length"][episode["field"]])
         robot, target = episode["robots"][:, 0], episode["target"][0]

@@ -1,9 +1,18 @@
-"""The hierarchical SSL task over N fields: one code path under the PettingZoo and the vector views.
+"""The one batched core: N fields of a scenario, M controlled robots and K obstacles each, as numpy arrays.
 
-Robot 0 of every field is the controlled robot (its manager picks sub-goals, its worker drives to
-them); robots 1..K are obstacles. A manager decision holds its sub-goal for ``frame_skip`` control
-steps of 25 ms; the worker and the obstacles act every control step. Observations, rewards and ends are
-the pure functions of ``hier_ssl.manager``.
+Every field holds M controlled robots (robots 0..M-1, agents ``manager_i``) and K obstacles (robots
+M..M+K-1) placed and moved as the scenario (``hier_ssl.envs.scenario``) says: the paper's tasks (M = 1) and
+the multi-robot scenarios run here alike. Each controlled robot has its own target, manager decision,
+sub-goal and worker; one manager decision holds every sub-goal for ``frame_skip`` control steps of 25 ms,
+the workers and obstacles act every control step. Observations, rewards, success and collisions are the
+pure functions of ``hier_ssl.manager``, applied to the (field, robot) pairs as rows:
+
+- a robot leaves the episode when it succeeds (the task's success rule) or collides (centres closer than
+  ``collision_distance`` to any other robot, or touching one); a collision between two controlled robots
+  counts for both. A robot that has left holds still where it is and stays an obstacle to the others;
+- the field's episode ends when no robot is left in it, or at ``max_steps`` (the rest are truncated).
+
+The core trusts its inputs (the views and ``World`` check what enters); arrays are (N, M, ...) throughout.
 """
 
 from __future__ import annotations
@@ -13,147 +22,113 @@ from typing import Any
 
 import numpy as np
 
-from hier_ssl.config import EnvConfig, TaskSettings
-from hier_ssl.manager import (
-    collided,
-    cpad_increment,
-    decode_subgoal,
-    manager_observation,
-    task_reward,
-    task_success,
-)
+from hier_ssl.config import TaskConfig
+from hier_ssl.envs.registry import make_scenario
+from hier_ssl.envs.rules import score_control_step
+from hier_ssl.envs.scenario import Scenario
+from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.worker import make_worker
+from hier_ssl.worker import Worker, make_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
 from hier_ssl.world.field import Field
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotSpec, RobotState, World
 
-OBSTACLE_OBS_DIM = 7
+OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``HierarchicalCore.observe_obstacle``)
 
 
 @dataclass
 class StepResult:
-    """What one manager decision period (or one control step) returns. Shapes (N, ...)."""
+    """One manager decision period (or one control step) of every field. Shapes: obs (N, M, O) float32;
+    reward (N, M) float32; terminated, truncated (N, M) bool, True for robots that left in this period;
+    info as documented in ``HierarchicalCore.step``. (The goToPoint learning task's core, one robot a
+    field, returns it without the M axis.)"""
 
     obs: np.ndarray
     reward: np.ndarray
     terminated: np.ndarray
     truncated: np.ndarray
-    info: dict[str, object]
-
-
-def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    """``action`` as float64 of ``shape``; a ValueError names ``name`` for a wrong shape, NaN or inf."""
-    action = np.asarray(action, dtype=np.float64)
-    if action.shape != shape:
-        raise ValueError(f"action of {name} has shape {action.shape}, expected {shape}")
-    if not np.isfinite(action).all():
-        raise ValueError(f"action of {name} holds NaN or infinite values: {action.tolist()}")
-    return action
-
-
-def score_control_step(
-    task: str,
-    config: TaskSettings,
-    target: np.ndarray,
-    subgoal: np.ndarray,
-    pos: np.ndarray,
-    angle: np.ndarray,
-    vel: np.ndarray,
-    others: np.ndarray,
-    touching: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Success, collision and reward of one control step of B controlled robots (rows), by the pure
-    functions of ``hier_ssl.manager`` with ``config``'s thresholds, reward modes and weights. Shared by the
-    paper core and the multi-robot core.
-
-    Shapes: target, subgoal (B, 5); pos, vel (B, 2); angle (B,); others (B, J, 2), the robots each one can
-    hit; touching (B,) bool, a contact the physics reported. Returns reward, success, hit (B,) and the
-    reward terms.
-    """
-    thresholds = {"d_th": config.d_th, "theta_th": np.deg2rad(config.theta_th_deg)}
-    success = task_success(task, target, subgoal, pos, angle, vel, speed_th=config.speed_th, **thresholds)
-    hit = collided(pos, others, config.collision_distance) | touching
-    extra = {"obs_pos": others, "hit": hit} if task == "obstacle" else {}
-    reward, terms = task_reward(
-        task,
-        target,
-        pos,
-        angle,
-        subgoal,
-        success,
-        success_mode=config.success_mode,
-        hit_mode=config.hit_mode,
-        success_weight=config.success_weight,
-        hit_weight=config.hit_weight,
-        obstacle_from=config.obstacle_from,
-        **extra,
-        **thresholds,
-    )
-    return reward, success, hit, terms
-
-
-def end_period(core: Any, ended: np.ndarray, info: dict[str, object]) -> np.ndarray:
-    """Close a period of ``core`` (any core with ``observe``, ``done``, ``autoreset`` and ``reset_fields``):
-    record the last observation as ``info["final_obs"]``, mark ``ended`` (N,) fields done and, with
-    auto-reset, start their next episode. Returns the observation the agent acts on next.
-    """
-    obs = core.observe()
-    info["final_obs"] = obs
-    core.done |= ended
-    idx = np.flatnonzero(ended)
-    if core.autoreset and len(idx):
-        core.reset_fields(idx)
-        obs = core.observe()
-    return obs
+    info: dict[str, Any]
 
 
 def controlled_worker_observation(
     state: RobotState, subgoal: np.ndarray, robot: RobotSpec, field: Field
 ) -> np.ndarray:
-    """The worker observation (N, 9) of robot 0 of every field towards ``subgoal`` (N, 5)."""
-    return worker_observation(
-        state.pos[:, 0],
-        state.angle[:, 0],
-        state.vel[:, 0],
-        state.ang_vel[:, 0],
-        subgoal,
+    """The worker observations (N, M, 9) of robots 0..M-1 of every field towards ``subgoal`` (N, M, 5)."""
+    n, m = subgoal.shape[:2]
+    own = state.robots(slice(0, m))
+    obs = worker_observation(
+        own.pos.reshape(n * m, 2),
+        own.angle.reshape(n * m),
+        own.vel.reshape(n * m, 2),
+        own.ang_vel.reshape(n * m),
+        subgoal.reshape(n * m, 5),
         robot,
         field.max_pos,
     )
+    return obs.reshape(n, m, -1)
 
 
 class HierarchicalCore:
-    """N fields of the Baseline, Proposed or Obstacle task (SPEC.md), as numpy arrays.
+    """N fields of one scenario: ``reset``, ``step(actions (N, M, A))``, ``observe``.
 
-    ``autoreset`` resets finished fields inside ``step`` (vector view); without it a finished field
-    waits for ``reset`` (PettingZoo view).
+    ``task`` is a task config (``EnvConfig`` or ``ScenarioConfig``) or a built scenario; ``worker``
+    replaces the one the config names. ``active`` (N, M) says which robots are still in their episode.
+    ``autoreset`` resets a field inside ``step`` once no robot is left in it (vector view); without it a
+    finished field holds still until ``reset`` (PettingZoo view, evaluation: one episode per field).
     """
 
-    def __init__(self, config: EnvConfig, num_fields: int = 1, autoreset: bool = True) -> None:
-        self.config = config
-        self.num_fields = num_fields
-        self.num_obstacles = len(config.obstacles)
-        self.autoreset = autoreset
-        self.world = World(
-            num_fields, 1 + self.num_obstacles, config.field, dt=config.dt, substeps=config.substeps
-        )
+    def __init__(
+        self,
+        task: TaskConfig | Scenario,
+        num_fields: int = 1,
+        autoreset: bool = True,
+        worker: Worker | None = None,
+    ) -> None:
+        scenario = task if isinstance(task, Scenario) else make_scenario(task)
+        self.scenario, self.config = scenario, scenario.config
+        cfg = self.config
+        self.num_fields, self.autoreset = num_fields, autoreset
+        m, k = scenario.num_agents, scenario.num_obstacles
+        self.num_agents, self.num_obstacles = m, k
+        self.world = World(num_fields, m + k, scenario.field, dt=cfg.dt, substeps=cfg.substeps)
         self.field, self.robot = self.world.field, self.world.robot
-        self.worker = make_worker(config.worker, self.robot, config.dt)
-        self.obstacles = [make_obstacle(o.behaviour, num_fields, **o.options) for o in config.obstacles]
-        self.obs_dim, self.act_dim = config.obs_dim, config.act_dim
-        self.theta_th = np.deg2rad(config.theta_th_deg)
+        self.worker = worker if worker is not None else make_worker(cfg.worker, self.robot, cfg.dt)
+        # Each group's behaviour moves its obstacles as rows (field f, obstacle j) -> f * count + j.
+        self.obstacles: list[tuple[Any, slice]] = []
+        first = m
+        for group in scenario.groups:
+            behaviour = make_obstacle(group.behaviour, num_fields * group.count, **group.options)
+            self.obstacles.append((behaviour, slice(first, first + group.count)))
+            first += group.count
+        self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
+        self.theta_th = np.deg2rad(cfg.theta_th_deg)
+        # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
+        r = m + k
+        self._others = np.array([[j for j in range(r) if j != i] for i in range(m)], dtype=np.int64)
+        self._others = self._others.reshape(m, r - 1)
+        self._teammate = self._others < m
         self.rng = np.random.default_rng()
+        self.control_steps = 0  # world steps taken since construction, for throughput figures
 
         n = num_fields
-        self.target = np.zeros((n, 5))
-        self.subgoal = np.zeros((n, 5))
-        self.steps = np.zeros(n, dtype=np.int64)  # control steps since reset
-        self.decisions = np.zeros(n, dtype=np.int64)
-        self.ep_return = np.zeros(n)
-        self.ep_cpad = np.zeros(n)
-        self.done = np.ones(n, dtype=bool)
+        self.target = np.zeros((n, m, 5))
+        self.subgoal = np.zeros((n, m, 5))
+        self.active = np.zeros((n, m), dtype=bool)
+        self.steps = np.zeros(n, dtype=np.int64)  # control steps of each field since its reset
+        self.decisions = np.zeros((n, m), dtype=np.int64)
+        self.ep_return = np.zeros((n, m))
+        self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
+        self.ep_cpad = np.zeros((n, m))
+
+    @property
+    def done(self) -> np.ndarray:
+        """(N,) bool: no robot is left in the field's episode."""
+        return ~self.active.any(axis=1)
+
+    @property
+    def state(self) -> RobotState:
+        return self.world.state
 
     # -- reset ---------------------------------------------------------------------------------------------
 
@@ -161,93 +136,79 @@ class HierarchicalCore:
         self.rng = np.random.default_rng(seed)
 
     def reset(self, seed: int | None = None) -> np.ndarray:
-        """Start a new episode in every field. Returns the manager observations (N, obs_dim)."""
+        """Start a new episode in every field. Returns the observations (N, M, obs_dim)."""
         if seed is not None:
             self.seed(seed)
         self.reset_fields(np.arange(self.num_fields))
         return self.observe()
 
-    def _uniform_xy(self, m: int) -> np.ndarray:
-        margin = self.config.spawn_margin
-        half = np.array([self.field.half_length - margin, self.field.half_width - margin])
-        return self.rng.uniform(-half, half, (m, 2))
-
     def reset_fields(self, fields: np.ndarray) -> None:
-        """Sample targets, starts and obstacles for ``fields`` (SPEC "Reset sampling")."""
-        m, cfg = len(fields), self.config
-        if m == 0:
+        """New starts, targets and obstacles for ``fields`` (F,) ints, from the scenario."""
+        if len(fields) == 0:
             return
-        target_xy = self._uniform_xy(m)
-        robot_xy = self._uniform_xy(m)
-        while (bad := np.linalg.norm(robot_xy - target_xy, axis=1) < cfg.min_start_distance).any():
-            robot_xy[bad] = self._uniform_xy(int(bad.sum()))
-        placed = [robot_xy, target_xy]
-        for obstacle in cfg.obstacles:
-            if obstacle.placement == "midpoint":
-                xy = (robot_xy + target_xy) / 2
-            else:
-                xy = self._uniform_xy(m)
-                while (bad := self._too_close(xy, placed)).any():
-                    xy[bad] = self._uniform_xy(int(bad.sum()))
-            placed.append(xy)
-        pos = np.stack([robot_xy, *placed[2:]], axis=1)
-        angle = self.rng.uniform(-np.pi, np.pi, (m, 1 + self.num_obstacles))
-        self.world.set_state(fields, pos, angle)
-
-        self.target[fields] = 0.0
-        self.target[fields, 0:2] = target_xy
-        self.target[fields, 2] = self.rng.uniform(-np.pi, np.pi, m)
+        m = self.num_agents
+        layout = self.scenario.reset_world_at(len(fields), self.rng)
+        # A scenario is a user's class: its layout is checked here, once a reset (World.set_state checks
+        # the robots' part), and trusted afterwards.
+        if layout.target.shape != (len(fields), m, 5):
+            raise ValueError(
+                f"scenario {self.scenario.name!r}: layout target has shape {layout.target.shape}, "
+                f"expected {(len(fields), m, 5)}"
+            )
+        self.world.set_state(fields, layout.pos, layout.angle, layout.vel, layout.ang_vel)
+        self.target[fields] = layout.target
         # Until the first decision the sub-goal is the robot's own pose: the worker holds still.
         self.subgoal[fields] = 0.0
-        self.subgoal[fields, 0:2] = robot_xy
-        self.subgoal[fields, 2] = angle[:, 0]
+        self.subgoal[fields, :, 0:2] = layout.pos[:, :m]
+        self.subgoal[fields, :, 2] = layout.angle[:, :m]
+        self.active[fields] = True
         self.steps[fields] = 0
         self.decisions[fields] = 0
         self.ep_return[fields] = 0.0
+        self.ep_length[fields] = 0
         self.ep_cpad[fields] = 0.0
-        self.done[fields] = False
         self.worker.reset(fields)
-        for behaviour in self.obstacles:
-            behaviour.reset(fields, self.rng)
-
-    @property
-    def active(self) -> np.ndarray:
-        """(N,) bool: fields whose episode is still running (``MultiRobotCore.active`` is per robot)."""
-        return ~self.done
-
-    def _too_close(self, xy: np.ndarray, placed: list[np.ndarray]) -> np.ndarray:
-        gap = 2 * self.config.collision_distance
-        return np.any([np.linalg.norm(xy - other, axis=1) < gap for other in placed], axis=0)
+        for behaviour, robots in self.obstacles:
+            count = robots.stop - robots.start
+            behaviour.reset((fields[:, None] * count + np.arange(count)).ravel(), self.rng)
 
     # -- observations --------------------------------------------------------------------------------------
 
-    @property
-    def state(self) -> RobotState:
-        return self.world.state
-
-    def observe(self) -> np.ndarray:
-        """Manager observations (N, obs_dim) float32, in the config's ``observation`` layout."""
-        s = self.state
-        own = (self.target, s.pos[:, 0], s.angle[:, 0], s.vel[:, 0], s.ang_vel[:, 0])
-        scales = {
-            "max_pos": self.field.max_pos,
-            "max_v": self.robot.max_speed,
-            "max_w": self.robot.max_ang_speed,
-        }
-        if self.config.observation == "neighbours":
-            teammate = np.zeros((self.num_fields, self.num_obstacles), dtype=bool)
-            return neighbour_observation(
-                *own, s.pos[:, 1:], s.vel[:, 1:], teammate, self.config.neighbours, **scales
+    def observe(self, fields: np.ndarray | None = None) -> np.ndarray:
+        """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all), in the scenario's
+        layout; robots that left are observed too."""
+        s = self.world.state if fields is None else self.world.state.fields(fields)
+        target = self.target if fields is None else self.target[fields]
+        f, m = target.shape[:2]
+        b, scales = f * m, self.scenario.scales
+        own = s.robots(slice(0, m))
+        rows = (
+            target.reshape(b, 5),
+            own.pos.reshape(b, 2),
+            own.angle.reshape(b),
+            own.vel.reshape(b, 2),
+            own.ang_vel.reshape(b),
+        )
+        limits = {"max_pos": scales["max_pos"], "max_v": scales["max_v"], "max_w": scales["max_w"]}
+        if self.scenario.observation == "paper":  # one robot: the others are its obstacles
+            obs = manager_observation(*rows, s.pos[:, m:], s.vel[:, m:], s.ang_vel[:, m:], **limits)
+        else:
+            j = self._others.shape[1]
+            teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
+            others_pos = s.pos[:, self._others].reshape(b, j, 2)
+            others_vel = s.vel[:, self._others].reshape(b, j, 2)
+            obs = neighbour_observation(
+                *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits
             )
-        return manager_observation(*own, s.pos[:, 1:], s.vel[:, 1:], s.ang_vel[:, 1:], **scales)
+        return obs.reshape(f, m, self.obs_dim)
 
     def observe_worker(self) -> np.ndarray:
-        """Worker observations (N, 9) float32."""
-        return controlled_worker_observation(self.state, self.subgoal, self.robot, self.field)
+        """Worker observations (N, M, 9) float32."""
+        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field)
 
     def observe_obstacle(self, j: int) -> np.ndarray:
         """Obstacle ``j``'s view of itself (N, 7): position, sin/cos heading, velocity, angular velocity."""
-        s, k = self.state, 1 + j
+        s, k = self.world.state, self.num_agents + j
         obs = np.concatenate(
             [
                 s.pos[:, k] / self.field.max_pos,
@@ -262,28 +223,27 @@ class HierarchicalCore:
 
     # -- acting --------------------------------------------------------------------------------------------
 
-    def set_subgoal(self, action: np.ndarray, fields: np.ndarray) -> np.ndarray:
-        """Decode manager actions (N, act_dim) into held sub-goals for ``fields`` (M,) ints.
-
-        Values outside [-1, 1] are clipped; returns how many were clipped per field (N,).
-        """
-        action = check_action("manager", action, (self.num_fields, self.act_dim))
-        clipped = np.count_nonzero(np.abs(action) > 1.0, axis=1)
+    def set_subgoal(self, action: np.ndarray, live: np.ndarray) -> np.ndarray:
+        """Decode actions (N, M, act_dim) float64 into held sub-goals of the ``live`` (N, M) robots, in the
+        field or the target frame (``action_frame``); values outside [-1, 1] are clipped, sub-goals to the
+        field. Returns how many values were clipped per robot (N, M), 0 where not live."""
+        n, m = live.shape
+        scales = self.scenario.scales
+        clipped = np.where(live, np.count_nonzero(np.abs(action) > 1.0, axis=2), 0)
         subgoal = decode_subgoal(
-            action,
+            action.reshape(n * m, self.act_dim),
             self.config.action_form,
-            self.field.half_length,
-            self.field.half_width,
-            self.robot.max_speed,
-            zero_velocity=self.config.task != "baseline",
+            scales["half_length"],
+            scales["half_width"],
+            scales["max_v"],
+            zero_velocity=self.scenario.zero_velocity,
             frame=self.config.action_frame,
-            target=self.target,
-        )
-        clipped = np.where(np.isin(np.arange(self.num_fields), fields), clipped, 0)
-        moved = cpad_increment(self.subgoal[fields, 0:2], subgoal[fields, 0:2])
-        self.ep_cpad[fields] += np.where(self.decisions[fields] > 0, moved, 0.0)
-        self.subgoal[fields] = subgoal[fields]
-        self.decisions[fields] += 1
+            target=self.target.reshape(n * m, 5),
+        ).reshape(n, m, 5)
+        moved = cpad_increment(self.subgoal[..., 0:2].reshape(-1, 2), subgoal[..., 0:2].reshape(-1, 2))
+        self.ep_cpad += np.where(live & (self.decisions > 0), moved.reshape(n, m), 0.0)
+        self.subgoal[live] = subgoal[live]
+        self.decisions += live
         return clipped
 
     def control_step(
@@ -291,105 +251,135 @@ class HierarchicalCore:
         live: np.ndarray,
         worker_action: np.ndarray | None = None,
         obstacle_actions: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """One 25 ms step of every field; fields not ``live`` (N,) bool hold still and score nothing.
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """One 25 ms step of every field; robots not ``live`` (N, M) hold still and score nothing, and so do
+        the obstacles of fields without a live robot. ``worker_action`` (N, M, 3) and ``obstacle_actions``
+        (N, K, 3), normalised to [-1, 1], replace the workers and obstacles when those are exposed as agents.
 
-        ``worker_action`` (N, 3) and ``obstacle_actions`` (N, K, 3), normalised to [-1, 1], replace the
-        scripted worker and obstacles when those are exposed as agents.
-        Returns reward (N,), success (N,), collision (N,), timeout (N,) and the reward terms.
+        Returns reward (N, M), success (N, M), collision (N, M) (both only where live) and the reward terms.
         """
-        s, n = self.state, self.num_fields
-        command = np.zeros((n, 1 + self.num_obstacles, 3))
+        cfg, s = self.config, self.world.state
+        n, m, k = self.num_fields, self.num_agents, self.num_obstacles
+        command = np.zeros((n, m + k, 3))
         if worker_action is None:
-            command[:, 0] = self.worker(s.robots(slice(0, 1)), self.subgoal[:, None])[:, 0]
+            command[:, :m] = self.worker(s.robots(slice(0, m)), self.subgoal)
         else:
-            command[:, 0] = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
+            command[:, :m] = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
         if obstacle_actions is None:
-            for j, behaviour in enumerate(self.obstacles):
-                command[:, 1 + j] = behaviour(s.pos[:, 1 + j], s.angle[:, 1 + j], self.rng)
+            for behaviour, robots in self.obstacles:
+                count = robots.stop - robots.start
+                pos, angle = s.pos[:, robots].reshape(n * count, 2), s.angle[:, robots].reshape(n * count)
+                command[:, robots] = behaviour(pos, angle, self.rng).reshape(n, count, 3)
         else:
-            command[:, 1:] = scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot)
-        command[~live] = 0.0
+            command[:, m:] = scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot)
+        command[:, :m][~live] = 0.0
+        field_live = live.any(axis=1)
+        command[~field_live] = 0.0
         s = self.world.step(command)
-        self.steps += live
+        self.control_steps += 1
+        self.steps += field_live
 
-        cfg = self.config
-        touching = self.world.robot_contacts[:, 0, 1:].any(axis=1)
+        b, j = n * m, m + k - 1
+        own = s.robots(slice(0, m))
+        touching = self.world.robot_contacts[:, :m].any(axis=2).reshape(b)
         reward, success, hit, terms = score_control_step(
-            cfg.task,
+            self.scenario.reward_task,
             cfg,
-            self.target,
-            self.subgoal,
-            s.pos[:, 0],
-            s.angle[:, 0],
-            s.vel[:, 0],
-            s.pos[:, 1:],
+            self.target.reshape(b, 5),
+            self.subgoal.reshape(b, 5),
+            own.pos.reshape(b, 2),
+            own.angle.reshape(b),
+            own.vel.reshape(b, 2),
+            s.pos[:, self._others].reshape(b, j, 2),
             touching,
         )
-        timeout = self.steps >= cfg.max_steps
-        return reward, success & live, hit & live, timeout & live, terms
+        return (
+            reward.reshape(n, m),
+            success.reshape(n, m) & live,
+            hit.reshape(n, m) & live,
+            {name: term.reshape(n, m) for name, term in terms.items()},
+        )
 
     def step(self, action: np.ndarray) -> StepResult:
-        """One manager decision in every field: hold the sub-goal for ``frame_skip`` control steps.
+        """One manager decision in every field: the live robots' sub-goals (``action`` (N, M, A) float64)
+        held for ``frame_skip`` control steps, rewards summed over them ("sum") or the last one taken
+        ("last"). A robot that leaves inside the period stops scoring there.
 
-        Rewards are summed over the held steps ("sum") or taken from the last one ("last", the public
-        code). A field whose episode ends inside the period stops scoring there; without auto-reset a
-        finished field holds still until ``reset`` (so evaluation can run one episode per field).
+        ``info`` holds, per robot (N, M): ``control_steps`` it was live for, ``success``, ``collision``,
+        ``action_clipped``, ``subgoal`` (N, M, 5) and ``live`` (the robots this decision acted for);
+        ``final_obs`` (N, M, O), the observation before any auto-reset; and ``episode``, one entry per robot
+        that left: ``field``, ``agent``, ``return``, ``length`` (control steps), ``decisions``, ``success``,
+        ``collision``, ``cpad``.
         """
-        n, cfg = self.num_fields, self.config
-        live = ~self.done
-        if not live.any():
+        cfg = self.config
+        start = self.active.copy()
+        if not start.any():
             raise RuntimeError("step() with every episode finished: call reset() first")
-        clipped = self.set_subgoal(action, np.flatnonzero(live))
-        reward = np.zeros(n)
-        success, failure, timeout = (np.zeros(n, dtype=bool) for _ in range(3))
-        elapsed = np.zeros(n, dtype=np.int64)
+        clipped = self.set_subgoal(action, start)
+        live = start.copy()
+        reward = np.zeros(live.shape)
+        success, collision, timeout = (np.zeros(live.shape, dtype=bool) for _ in range(3))
+        elapsed = np.zeros(live.shape, dtype=np.int64)
         for _ in range(cfg.frame_skip):
-            r, succ, hit, out, _ = self.control_step(live)
-            reward = (
-                reward + np.where(live, r, 0.0)
-                if cfg.frame_skip_reward == "sum"
-                else np.where(live, r, reward)
-            )
+            r, succ, hit, _ = self.control_step(live)
+            reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
             elapsed += live
             success |= succ
-            failure |= hit & ~succ
-            timeout |= out & ~succ & ~hit
-            live &= ~(succ | hit | out)
+            collision |= hit & ~succ
+            timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
+            live &= ~(success | collision | timeout)
             if not live.any():
                 break
-        return self.finish_period(reward, success | failure, timeout, success, failure, elapsed, clipped)
+        return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
 
-    def finish_period(
+    def finish(
         self,
+        start: np.ndarray,
         reward: np.ndarray,
-        terminated: np.ndarray,
-        truncated: np.ndarray,
         success: np.ndarray,
         collision: np.ndarray,
+        timeout: np.ndarray,
         elapsed: np.ndarray,
         clipped: np.ndarray,
     ) -> StepResult:
         """Book-keeping after a decision period (or, for a view with exposed agents, one control step):
-        returns, episode statistics, auto-reset. Shapes: every argument (N,)."""
+        returns, per-robot episode statistics, auto-reset. Every argument (N, M)."""
         self.ep_return += reward
-        ended = terminated | truncated
-        info: dict[str, object] = {
+        self.ep_length += elapsed
+        left = success | collision | timeout
+        field, agent = np.nonzero(left)
+        info: dict[str, Any] = {
             "control_steps": elapsed,
-            "subgoal": self.subgoal.copy(),
-            "action_clipped": clipped,
             "success": success,
             "collision": collision,
+            "action_clipped": clipped,
+            "subgoal": self.subgoal.copy(),
+            "live": start,
+            "episode": {
+                "field": field,
+                "agent": agent,
+                "return": self.ep_return[field, agent].copy(),
+                "length": self.ep_length[field, agent].copy(),
+                "decisions": self.decisions[field, agent].copy(),
+                "success": success[field, agent].astype(np.float64),
+                "collision": collision[field, agent].astype(np.float64),
+                "cpad": self.ep_cpad[field, agent].copy(),
+            },
         }
-        idx = np.flatnonzero(ended)
-        info["episode"] = {
-            "field": idx,
-            "return": self.ep_return[idx].copy(),
-            "length": self.steps[idx].copy(),
-            "decisions": self.decisions[idx].copy(),
-            "success": success[idx].astype(np.float64),
-            "collision": collision[idx].astype(np.float64),
-            "cpad": self.ep_cpad[idx].copy(),
-        }
-        obs = end_period(self, ended, info)
-        return StepResult(obs, reward.astype(np.float32), terminated, truncated, info)
+        self.active &= ~left
+        obs = self.observe()
+        info["final_obs"] = obs
+        finished = np.flatnonzero(self.done)
+        if self.autoreset and len(finished):
+            obs = obs.copy()
+            self.reset_fields(finished)
+            obs[finished] = self.observe(finished)
+        return StepResult(obs, reward.astype(np.float32), success | collision, timeout, info)
+
+
+__all__ = [
+    "OBSTACLE_AGENT_OBS_DIM",
+    "HierarchicalCore",
+    "StepResult",
+    "controlled_worker_observation",
+]

@@ -15,19 +15,71 @@ theta_th_deg, and slower than speed_th) and ends the episode; ``env.max_steps`` 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import torch
 
 from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig
-from hier_ssl.envs.core import StepResult, check_action, controlled_worker_observation, end_period
+from hier_ssl.envs.core import HierarchicalCore, StepResult, controlled_worker_observation
+from hier_ssl.envs.play import play
+from hier_ssl.envs.rules import check_action
+from hier_ssl.envs.scenario import Layout, Scenario
 from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
-from hier_ssl.worker.learned import LearnedWorker, WorkerPolicy
+from hier_ssl.manager.planners import make_planner
+from hier_ssl.worker import Worker, make_worker
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 from hier_ssl.worker.rewards import gotopoint_reward, pose_potential
 from hier_ssl.world.physics import World, to_robot_frame
 
+if TYPE_CHECKING:
+    from hier_ssl.worker.learned import WorkerPolicy
+
 ACT_DIM = 3
+
+
+class GoToPoint(Scenario):
+    """The goToPoint task's episodes as a scenario: one robot, no obstacle, its sub-goal as the target.
+
+    Played by the ``direct`` manager (the sub-goal is the target, decided once) with the worker under test,
+    the core scores it by the Baseline task's success (within d_th and theta_th of the target, slower than
+    speed_th), so ``evaluate_worker`` is the one episode loop of every evaluation (``hier_ssl.envs.play``).
+    The worker-learning task (``GoToPointCore``) draws its episodes from the same ``reset_world_at``.
+    """
+
+    name = "gotopoint"
+    reward_task = "baseline"
+
+    def __init__(self, config: EnvConfig, task: GoToPointConfig) -> None:
+        # The direct manager reads the paper's layout and writes field-frame pose4 actions, once an episode.
+        update = {"observation": "paper", "action_form": "pose4", "action_frame": "field"}
+        super().__init__(config.model_copy(update={**update, "frame_skip": config.max_steps}), 1, [])
+        self.task = task
+
+    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
+        """Starts (uniform, at rest or ``moving_fraction`` of them moving) and sub-goals (uniform or
+        ``near_fraction`` of them within ``near_radius`` of the start) of ``m`` episodes."""
+        task, half, robot = self.task, self.half, self.robot
+        robot_xy = rng.uniform(-half, half, (m, 2))
+        angle = rng.uniform(-np.pi, np.pi, m)
+        radius = task.near_radius * np.sqrt(rng.uniform(0.0, 1.0, m))
+        bearing = rng.uniform(-np.pi, np.pi, m)
+        near_xy = np.clip(
+            robot_xy + radius[:, None] * np.stack([np.cos(bearing), np.sin(bearing)], 1), -half, half
+        )
+        goal_xy = np.where(
+            (rng.uniform(size=m) < task.near_fraction)[:, None], near_xy, rng.uniform(-half, half, (m, 2))
+        )
+        moving = rng.uniform(size=m) < task.moving_fraction
+        speed = np.where(moving, rng.uniform(0.0, robot.max_speed, m), 0.0)
+        heading = rng.uniform(-np.pi, np.pi, m)
+        vel = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
+        spin = np.where(moving, rng.uniform(-0.5, 0.5, m) * robot.max_ang_speed, 0.0)
+        target = np.zeros((m, 1, 5))
+        target[:, 0, 0:2] = goal_xy
+        target[:, 0, 2] = rng.uniform(-np.pi, np.pi, m)
+        return Layout(robot_xy[:, None], angle[:, None], target, vel[:, None], spin[:, None])
 
 
 class GoToPointCore:
@@ -42,6 +94,7 @@ class GoToPointCore:
     ) -> None:
         self.config, self.task = config, task
         self.num_fields, self.autoreset = num_fields, autoreset
+        self.episodes = GoToPoint(config, task)
         self.world = World(num_fields, 1, config.field, dt=config.dt, substeps=config.substeps)
         self.field, self.robot = self.world.field, self.world.robot
         self.scale = np.array([self.robot.max_speed, self.robot.max_speed, self.robot.max_ang_speed])
@@ -70,38 +123,17 @@ class GoToPointCore:
         return self.observe()
 
     def reset_fields(self, fields: np.ndarray) -> None:
-        """Sample starts, start velocities and sub-goals for ``fields`` (M,) ints."""
-        m, task, rng = len(fields), self.task, self.rng
-        if m == 0:
+        """Starts, start velocities and sub-goals for ``fields`` (M,) ints (``GoToPoint.reset_world_at``)."""
+        if len(fields) == 0:
             return
-        margin = self.config.spawn_margin
-        half = np.array([self.field.half_length - margin, self.field.half_width - margin])
-        robot_xy = rng.uniform(-half, half, (m, 2))
-        angle = rng.uniform(-np.pi, np.pi, m)
-
-        radius = task.near_radius * np.sqrt(rng.uniform(0.0, 1.0, m))
-        bearing = rng.uniform(-np.pi, np.pi, m)
-        near_xy = np.clip(
-            robot_xy + radius[:, None] * np.stack([np.cos(bearing), np.sin(bearing)], 1), -half, half
-        )
-        goal_xy = np.where(
-            (rng.uniform(size=m) < task.near_fraction)[:, None], near_xy, rng.uniform(-half, half, (m, 2))
-        )
-
-        moving = rng.uniform(size=m) < task.moving_fraction
-        speed = np.where(moving, rng.uniform(0.0, self.robot.max_speed, m), 0.0)
-        heading = rng.uniform(-np.pi, np.pi, m)
-        vel = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
-        spin = np.where(moving, rng.uniform(-0.5, 0.5, m) * self.robot.max_ang_speed, 0.0)
-        self.world.set_state(fields, robot_xy[:, None], angle[:, None], vel[:, None], spin[:, None])
-
-        self.subgoal[fields] = 0.0
-        self.subgoal[fields, 0:2] = goal_xy
-        self.subgoal[fields, 2] = rng.uniform(-np.pi, np.pi, m)
+        layout = self.episodes.reset_world_at(len(fields), self.rng)
+        self.world.set_state(fields, layout.pos, layout.angle, layout.vel, layout.ang_vel)
+        self.subgoal[fields] = layout.target[:, 0]
+        angle, vel, spin = layout.angle[:, 0], layout.vel[:, 0], layout.ang_vel[:, 0]
         s = self.world.state
         d, delta = pose_errors(np.column_stack([s.pos[fields, 0], s.angle[fields, 0]]), self.subgoal[fields])
         self.start_distance[fields] = d
-        self.phi[fields] = pose_potential(d, delta, task.angle_weight)
+        self.phi[fields] = pose_potential(d, delta, self.task.angle_weight)
         # The command that would keep the robot as it is: what a smooth first command changes least.
         self.prev_action[fields, 0:2] = to_robot_frame(vel, angle) / self.robot.max_speed
         self.prev_action[fields, 2] = spin / self.robot.max_ang_speed
@@ -113,14 +145,19 @@ class GoToPointCore:
 
     def observe(self) -> np.ndarray:
         """Worker observations (N, 9) float32."""
-        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field)
+        state, subgoal = self.world.state, self.subgoal[:, None]
+        return controlled_worker_observation(state, subgoal, self.robot, self.field)[:, 0]
 
     def step_command(self, command: np.ndarray) -> StepResult:
         """``step`` with robot-frame commands (N, 3) in m/s and rad/s, as scripted workers give them."""
-        command = check_action("worker", command, (self.num_fields, ACT_DIM))
-        return self.step(command / self.scale, clip=False)
+        return self._advance(check_action("worker", command, (self.num_fields, ACT_DIM)) / self.scale)
 
-    def step(self, action: np.ndarray, clip: bool = True) -> StepResult:
+    def step(self, action: np.ndarray) -> StepResult:
+        """One 25 ms control step of every live field with normalised commands ``action`` (N, 3), clipped
+        to [-1, 1]; see ``_advance``."""
+        return self._advance(np.clip(check_action("worker", action, (self.num_fields, ACT_DIM)), -1.0, 1.0))
+
+    def _advance(self, action: np.ndarray) -> StepResult:
         """One 25 ms control step of every live field with normalised commands ``action`` (N, 3).
 
         Returns obs (N, 9), reward (N,), terminated (N,) on success, truncated (N,) at ``max_steps``, and
@@ -128,9 +165,6 @@ class GoToPointCore:
         one entry per finished episode (field, return, length in control steps, success, start_distance).
         """
         cfg, task = self.config, self.task
-        action = check_action("worker", action, (self.num_fields, ACT_DIM))
-        if clip:
-            action = np.clip(action, -1.0, 1.0)
         live = ~self.done
         if not live.any():
             raise RuntimeError("step() with every episode finished: call reset() first")
@@ -174,7 +208,12 @@ class GoToPointCore:
                 "start_distance": self.start_distance[idx].copy(),
             },
         }
-        obs = end_period(self, ended, info)
+        obs = self.observe()
+        info["final_obs"] = obs
+        self.done |= ended
+        if self.autoreset and len(idx):
+            self.reset_fields(idx)
+            obs = self.observe()
         return StepResult(obs, reward.astype(np.float32), terminated, truncated, info)
 
 
@@ -198,36 +237,30 @@ class GoToPointEnv(TorchView):
         self.config, self.task = config, task
         core = GoToPointCore(config, task, num_envs, autoreset=True)
         core.rng = np.random.default_rng(seed)
-        super().__init__(core, WORKER_OBS_DIM, ACT_DIM, config.max_steps, device)
+        super().__init__(core, WORKER_OBS_DIM, (num_envs, ACT_DIM), config.max_steps, device)
 
 
 def evaluate_worker(
-    worker: object, config: EnvConfig, task: GoToPointConfig, episodes: int, seed: int = 0
+    worker: Worker, config: EnvConfig, task: GoToPointConfig, episodes: int, seed: int = 0
 ) -> dict[str, object]:
     """Run ``worker`` (``__call__(state, subgoal) -> command``, ``reset(fields)``) on ``episodes`` seeded
-    goToPoint episodes, one per field: the same starts and sub-goals for every worker given one seed.
+    goToPoint episodes (``GoToPoint``), one per field: the same starts and sub-goals for every worker given
+    one seed. The ``direct`` manager names each sub-goal; the episode loop is ``play``'s.
 
     Returns success_rate; time_s and min_time_s ({median, q1, q3, min, max} over successful episodes,
-    NaN if there are none):
-    the time to reach the sub-goal and the analytic rest-to-rest minimum for its distance under the
-    robot's limits (``min_time_to_pose``; it ignores the turn and any start velocity);
+    NaN if there are none): the time to reach the sub-goal and the analytic rest-to-rest minimum for its
+    distance under the robot's limits (``min_time_to_pose``; it ignores the turn and any start velocity);
     optimal_ratio_median (time over minimum); and the per-episode arrays under "per_episode".
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    core = GoToPointCore(config, task, episodes, autoreset=False)
-    core.reset(seed)
-    worker.reset(np.arange(episodes))
-    length, success = np.zeros(episodes, dtype=np.int64), np.zeros(episodes, dtype=bool)
-    while not core.done.all():
-        state = core.world.state
-        command = worker(state, core.subgoal[:, None])[:, 0]
-        episode = core.step_command(command).info["episode"]
-        length[episode["field"]] = episode["length"]
-        success[episode["field"]] = episode["success"] > 0
+    scenario = GoToPoint(config, task)
+    core = HierarchicalCore(scenario, episodes, autoreset=False, worker=worker)
+    ends = play(core, make_planner("direct", scenario.config), seed)
+    length, success, distance = ends["length"][:, 0], ends["success"][:, 0], ends["distance"][:, 0]
     robot = core.robot
     time_s = length * config.dt
-    bound = min_time_to_pose(core.start_distance, robot.max_speed, robot.max_accel)
+    bound = min_time_to_pose(distance, robot.max_speed, robot.max_accel)
     if success.any():
         time_stats, bound_stats = summarize(time_s[success]), summarize(bound[success])
         ratio = float(np.median(time_s[success] / np.maximum(bound[success], config.dt)))
@@ -240,7 +273,7 @@ def evaluate_worker(
         "time_s": time_stats,
         "min_time_s": bound_stats,
         "optimal_ratio_median": ratio,
-        "per_episode": {"length": length, "success": success, "distance": core.start_distance.copy()},
+        "per_episode": {"length": length, "success": success, "distance": distance},
     }
 
 
@@ -254,7 +287,7 @@ def uniform_task(task: GoToPointConfig) -> GoToPointConfig:
 def worker_summary(policy: WorkerPolicy, config: TrainConfig, seed: int) -> dict[str, object]:
     """A trained worker's policy beside the scripted workers on the same ``config.eval_episodes``
     episodes (``uniform_task``): eval.json of a ``kind: worker`` run."""
-    from hier_ssl.worker import make_worker
+    from hier_ssl.worker.learned import LearnedWorker
 
     env, episodes = config.env, config.eval_episodes
     world = World(1, 1, env.field, dt=env.dt)
@@ -296,6 +329,7 @@ def print_worker_summary(summary: dict[str, object]) -> None:
 
 
 __all__ = [
+    "GoToPoint",
     "GoToPointCore",
     "GoToPointEnv",
     "evaluate_worker",

@@ -1,57 +1,61 @@
-"""The PettingZoo ``ParallelEnv`` view (one field) and a single-agent Gymnasium view of its manager.
+"""The PettingZoo ``ParallelEnv`` view of one field of the core, and a single-agent Gymnasium view.
 
-Agents: ``manager_0`` always; ``worker_0`` when ``expose_worker``; ``obstacle_j`` when
-``expose_obstacles``. With only the manager exposed, one ``step`` is one manager decision
-(``frame_skip`` control steps, reward summed or last). With a worker or obstacles exposed, one
-``step`` is one 25 ms control step, and the manager's action is used on decision steps only
-(``infos["manager_0"]["decision"]`` says whether it was); its reward is then per control step.
+Agents: ``manager_i`` for each controlled robot; ``worker_i`` with ``expose_worker``; ``obstacle_j`` with
+``expose_obstacles``. With only the managers exposed, one ``step`` is one manager decision
+(``frame_skip`` control steps, reward summed or last). With workers or obstacles exposed, one ``step`` is
+one 25 ms control step, and the managers' actions are used on decision steps only
+(``infos["manager_i"]["decision"]`` says whether they were); their rewards are then per control step.
+``manager_i`` and ``worker_i`` leave when robot i reaches its target or collides; obstacles leave with
+the last of them, when the episode is over. Actions are checked here, once, naming the agent.
 """
 
 from __future__ import annotations
 
 import functools
-from typing import Any
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from hier_ssl.config import EnvConfig
-from hier_ssl.envs.core import OBSTACLE_OBS_DIM, HierarchicalCore, check_action
+from hier_ssl.config import EnvConfig, TaskConfig
+from hier_ssl.envs.core import OBSTACLE_AGENT_OBS_DIM, HierarchicalCore, StepResult
+from hier_ssl.envs.rules import check_action
 from hier_ssl.manager import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 
-MANAGER, WORKER = "manager_0", "worker_0"
+MANAGER = "manager_0"
 
 
 class HierarchicalSSLEnv(ParallelEnv):
     metadata = {"name": "hier_ssl_v0", "render_modes": ["human", "rgb_array"], "is_parallelizable": True}
 
-    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None) -> None:
-        self.config = config or EnvConfig()
+    def __init__(self, config: TaskConfig | None = None, render_mode: str | None = None) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
         self.render_mode = render_mode
-        self.core = HierarchicalCore(self.config, 1, autoreset=False)
-        k = self.core.num_obstacles
-        self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if self.config.expose_obstacles else []
-        self.possible_agents = (
-            [MANAGER] + ([WORKER] if self.config.expose_worker else []) + self.obstacle_agents
-        )
-        self.per_control_step = self.config.expose_worker or self.config.expose_obstacles
-        self.metadata = {**self.metadata, "render_fps": round(1 / self.config.dt)}
+        self.core = HierarchicalCore(config or EnvConfig(), 1, autoreset=False)
+        self.config = cfg = self.core.config
+        m, k = self.core.num_agents, self.core.num_obstacles
+        self.managers = [f"manager_{i}" for i in range(m)]
+        self.workers = [f"worker_{i}" for i in range(m)] if cfg.expose_worker else []
+        self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if cfg.expose_obstacles else []
+        self.possible_agents = self.managers + self.workers + self.obstacle_agents
+        self.per_control_step = cfg.expose_worker or cfg.expose_obstacles
+        period = cfg.dt * (1 if self.per_control_step else cfg.frame_skip)
+        self.metadata = {**self.metadata, "render_fps": max(1, round(1 / period))}
         box = functools.partial(spaces.Box, dtype=np.float32)
-        self._obs_spaces = {MANAGER: box(-1.2, 1.2, (self.core.obs_dim,))}
-        self._act_spaces = {MANAGER: box(-1.0, 1.0, (self.core.act_dim,))}
-        if self.config.expose_worker:
-            self._obs_spaces[WORKER] = box(-1.2, 1.2, (WORKER_OBS_DIM,))
-            self._act_spaces[WORKER] = box(-1.0, 1.0, (3,))
+        manager_obs = box(-1.2, 1.2, (self.core.obs_dim,))
+        self._obs_spaces = {a: manager_obs for a in self.managers}
+        self._act_spaces = {a: box(-1.0, 1.0, (self.core.act_dim,)) for a in self.managers}
+        for agent in self.workers:
+            self._obs_spaces[agent] = box(-1.2, 1.2, (WORKER_OBS_DIM,))
+            self._act_spaces[agent] = box(-1.0, 1.0, (3,))
         for agent in self.obstacle_agents:
-            self._obs_spaces[agent] = box(-1.2, 1.2, (OBSTACLE_OBS_DIM,))
+            self._obs_spaces[agent] = box(-1.2, 1.2, (OBSTACLE_AGENT_OBS_DIM,))
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
         self.agents: list[str] = []
-        self._trail: list[np.ndarray] = []
+        self._trails: list[list[np.ndarray]] = []
         self._window = None
 
     def observation_space(self, agent: str) -> spaces.Box:
@@ -60,93 +64,109 @@ class HierarchicalSSLEnv(ParallelEnv):
     def action_space(self, agent: str) -> spaces.Box:
         return self._act_spaces[agent]
 
-    def _observations(self) -> dict[str, np.ndarray]:
-        obs = {MANAGER: self.core.observe()[0]}
-        if WORKER in self.agents:
-            obs[WORKER] = self.core.observe_worker()[0]
+    def _observations(self, manager_obs: np.ndarray) -> dict[str, np.ndarray]:
+        """Observations of the live agents; ``manager_obs`` (M, O) of field 0."""
+        obs = {a: manager_obs[i] for i, a in enumerate(self.managers) if a in self.agents}
+        if self.workers:
+            worker_obs = self.core.observe_worker()[0]
+            obs |= {a: worker_obs[i] for i, a in enumerate(self.workers) if a in self.agents}
         for j, agent in enumerate(self.obstacle_agents):
-            obs[agent] = self.core.observe_obstacle(j)[0]
+            if agent in self.agents:
+                obs[agent] = self.core.observe_obstacle(j)[0]
         return obs
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         if seed is not None:
             for i, agent in enumerate(self.possible_agents):
                 self._act_spaces[agent].seed(seed + i)
-        self.core.reset(seed)
+        obs = self.core.reset(seed)[0]
         self.agents = list(self.possible_agents)
-        self._trail = [self.core.state.pos[0, 0].copy()]
-        return self._observations(), {agent: {} for agent in self.agents}
+        self._trails = [[p.copy()] for p in self.core.world.state.pos[0, : self.core.num_agents]]
+        return self._observations(obs), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents:
             raise RuntimeError("step() after the episode ended: call reset() first")
-        unknown = set(actions) - set(self.agents)
+        unknown, missing = set(actions) - set(self.agents), set(self.agents) - set(actions)
         if unknown:
             raise ValueError(f"actions for agents that are not live: {sorted(unknown)}; live: {self.agents}")
-        missing = set(self.agents) - set(actions)
         if missing:
             raise ValueError(f"no action for live agents {sorted(missing)}")
         checked = {a: check_action(a, actions[a], self._act_spaces[a].shape) for a in self.agents}
-        manager_action = checked[MANAGER][None]
-        if self.per_control_step:
-            result = self._control_step(checked, manager_action)
-        else:
-            result = self.core.step(manager_action)
-        self._trail.append(self.core.state.pos[0, 0].copy())
-
-        terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
-        info = {
-            key: value[0] for key, value in result.info.items() if key in ("control_steps", "action_clipped")
-        }
-        info.update(
-            subgoal=self.core.subgoal[0].copy(),
-            success=bool(result.info["success"][0]),
-            collision=bool(result.info["collision"][0]),
-            decision=result.info.get("decision", True),
-        )
-        if terminated or truncated:
-            info["episode"] = {k: v[0] for k, v in result.info["episode"].items() if k != "field"}
-        rewards = {agent: 0.0 for agent in self.agents}
-        rewards[MANAGER] = float(result.reward[0])
-        if WORKER in self.agents:
-            rewards[WORKER] = float(result.info["worker_reward"][0])
-        observations = self._observations()
-        infos = {agent: {} for agent in self.agents}
-        infos[MANAGER] = info
-        terminations = {agent: terminated for agent in self.agents}
-        truncations = {agent: truncated for agent in self.agents}
-        if terminated or truncated:
-            self.agents = []
+        batch = np.zeros((1, self.core.num_agents, self.core.act_dim))
+        for i, agent in enumerate(self.managers):
+            if agent in checked:
+                batch[0, i] = checked[agent]
+        result = self._control_step(checked, batch) if self.per_control_step else self.core.step(batch)
+        for trail, pos in zip(self._trails, self.core.world.state.pos[0], strict=False):
+            trail.append(pos.copy())
+        out = self._outputs(result)
+        self.agents = [a for a in self.agents if self._still_in(a)]
         if self.render_mode == "human":
             self.render()
-        return observations, rewards, terminations, truncations, infos
+        return out
 
-    def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> Any:
-        """One control step with exposed agents; the manager acts on decision steps only."""
-        core = self.core
+    def _still_in(self, agent: str) -> bool:
+        active = self.core.active[0]
+        if agent in self.obstacle_agents:
+            return bool(active.any())
+        return bool(active[int(agent.rsplit("_", 1)[1])])
+
+    def _outputs(self, result: StepResult) -> tuple[dict, dict, dict, dict, dict]:
+        """The five dicts of ``step`` for the agents live before it, from the core's result."""
+        info, episode = result.info, result.info["episode"]
+        ended = {int(i): row for row, i in enumerate(episode["agent"])}
+        obs = self._observations(result.obs[0])
+        rewards, terms, truncs, infos = {}, {}, {}, {}
+        for agent in self.agents:
+            if agent in self.obstacle_agents:
+                over = not self.core.active[0].any()
+                truncated = bool(result.truncated[0].any())
+                rewards[agent], terms[agent], truncs[agent] = 0.0, over and not truncated, over and truncated
+                infos[agent] = {}
+                continue
+            i = int(agent.rsplit("_", 1)[1])
+            terms[agent], truncs[agent] = bool(result.terminated[0, i]), bool(result.truncated[0, i])
+            if agent in self.workers:
+                rewards[agent], infos[agent] = float(info["worker_reward"][0, i]), {}
+                continue
+            rewards[agent] = float(result.reward[0, i])
+            infos[agent] = {
+                "control_steps": int(info["control_steps"][0, i]),
+                "action_clipped": int(info["action_clipped"][0, i]),
+                "subgoal": info["subgoal"][0, i],
+                "success": bool(info["success"][0, i]),
+                "collision": bool(info["collision"][0, i]),
+                "decision": info.get("decision", True),
+            }
+            if i in ended:
+                skip = ("field", "agent")
+                infos[agent]["episode"] = {k: v[ended[i]] for k, v in episode.items() if k not in skip}
+        return obs, rewards, terms, truncs, infos
+
+    def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:
+        """One control step with exposed agents; the managers act on decision steps only."""
+        core, m = self.core, self.core.num_agents
+        live = core.active.copy()
         decision = core.steps[0] % self.config.frame_skip == 0
-        clipped = core.set_subgoal(manager_action, np.arange(1)) if decision else np.zeros(1, dtype=np.int64)
-        worker = actions[WORKER][None] if WORKER in actions else None
-        obstacles = (
-            np.stack([actions[a] for a in self.obstacle_agents])[None] if self.obstacle_agents else None
-        )
-        live = np.ones(1, dtype=bool)
-        reward, success, hit, timeout, _ = core.control_step(live, worker, obstacles)
+        clipped = core.set_subgoal(manager_action, live) if decision else np.zeros((1, m), dtype=np.int64)
+        worker = None
+        if self.workers:
+            worker = np.stack([actions.get(a, np.zeros(3)) for a in self.workers])[None]
+        obstacles = None
+        if self.obstacle_agents:
+            obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None]
+        reward, success, hit, _ = core.control_step(live, worker, obstacles)
+        collision = hit & ~success
+        timeout = live & ~success & ~hit & (core.steps >= self.config.max_steps)[:, None]
         s = core.state
-        d, delta = pose_errors(np.column_stack([s.pos[:, 0], s.angle[:, 0]]), core.subgoal)
-        result = core.finish_period(
-            reward,
-            success | (hit & ~success),
-            timeout & ~success & ~hit,
-            success,
-            hit & ~success,
-            np.ones(1, dtype=np.int64),
-            clipped,
-        )
+        pose = np.column_stack([s.pos[0, :m], s.angle[0, :m]])
+        d, delta = pose_errors(pose, core.subgoal[0])
+        reward = np.where(live, reward, 0.0)
+        result = core.finish(live, reward, success, collision, timeout, live.astype(np.int64), clipped)
         result.info["decision"] = bool(decision)
-        result.info["worker_reward"] = distance_reward(d, self.config.d_th) + angle_reward(
-            delta, core.theta_th
-        )
+        worker_reward = distance_reward(d, self.config.d_th) + angle_reward(delta, core.theta_th)
+        result.info["worker_reward"] = worker_reward[None]
         return result
 
     def render(self) -> np.ndarray | None:
@@ -155,12 +175,14 @@ class HierarchicalSSLEnv(ParallelEnv):
             return None
         from hier_ssl.world.render import render_fields
 
+        m, k = self.core.num_agents, self.core.num_obstacles
         frame = render_fields(
             self.core.field,
             self.core.state,
             targets=self.core.target,
             subgoals=self.core.subgoal,
-            trails=[np.array(self._trail)],
+            trails=[np.array(trail) for trail in self._trails],
+            team=[0] * m + [1] * k,
         )
         if self.render_mode == "human":
             self._show(frame)
@@ -187,15 +209,18 @@ class HierarchicalSSLEnv(ParallelEnv):
 
 
 class ManagerEnv(gymnasium.Env):
-    """Single-agent Gymnasium view: the manager of one field; worker and obstacles scripted."""
+    """Single-agent Gymnasium view: the manager of one field with one controlled robot; worker and
+    obstacles scripted."""
 
     metadata = {"render_modes": ["rgb_array"]}
 
-    def __init__(self, config: EnvConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(self, config: TaskConfig | None = None, render_mode: str | None = None) -> None:
         config = (config or EnvConfig()).model_copy(
             update={"expose_worker": False, "expose_obstacles": False}
         )
         self.env = HierarchicalSSLEnv(config, render_mode=render_mode)
+        if self.env.managers != [MANAGER]:
+            raise ValueError(f"ManagerEnv drives one manager; this task has {len(self.env.managers)}")
         self.render_mode = render_mode
         self.observation_space = self.env.observation_space(MANAGER)
         self.action_space = self.env.action_space(MANAGER)
@@ -211,3 +236,6 @@ class ManagerEnv(gymnasium.Env):
 
     def render(self) -> np.ndarray | None:
         return self.env.render()
+
+
+__all__ = ["MANAGER", "HierarchicalSSLEnv", "ManagerEnv"]

@@ -1,11 +1,10 @@
-"""Multi-robot field scenarios: small classes over the shared world, picked by name from ``SCENARIOS``.
+"""Multi-robot field scenarios: M controlled robots (1..11) sharing one manager policy, K obstacle robots
+(0..11) moving under one behaviour, on the hardware-challenge or Division A/B field.
 
-A scenario (in the spirit of VMAS's) says which field, how many controlled robots (1..11) and obstacle robots
-(0..11), how obstacles move, and how starts and targets are drawn (``reset_world_at``). Everything else
-(observation, sub-goal decoding, rewards, success and collision rules) is shared by all scenarios:
-``hier_ssl.manager``'s pure functions, run per robot by ``hier_ssl.envs.multi``. Its settings are keys of
-``ScenarioConfig``, whose defaults each scenario class may change through ``defaults``. Robot order in every
-field: controlled robots 0..M-1, then obstacles M..M+K-1.
+Each is a small class over ``hier_ssl.envs.scenario.Scenario`` built from a ``ScenarioConfig``; its
+``defaults`` change that config's defaults and its ``Options`` are its own ``options``. Observation (the
+"neighbours" layout), sub-goal decoding, rewards (the Obstacle task's, or the Proposed task's for a robot
+alone in its field), success and collision rules are shared by all of them and run per robot by the core.
 
 - ``crossing``: M robots on a circle swap to the antipodal points, all through the centre (Division B).
 - ``crowd``: robots cross the field, either way, through a band of random-walking obstacles.
@@ -14,88 +13,23 @@ field: controlled robots 0..M-1, then obstacles M..M+K-1.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, ClassVar
-
 import numpy as np
-from pydantic import BaseModel, Field
+from pydantic import Field
 
-from hier_ssl.config import (
-    BehaviourConfig,
-    ConfigError,
-    ScenarioConfig,
-    Strict,
-    apply_overrides,
-    load_yaml,
-    parse_config,
-)
-from hier_ssl.world.field import get_field
+from hier_ssl.config import ScenarioConfig, Strict
+from hier_ssl.envs.scenario import Layout, ObstacleGroup, Scenario
 
 
-@dataclass
-class Layout:
-    """Where a reset puts M controlled robots and K obstacles in m fields.
-
-    Shapes: pos (m, M + K, 2) m and angle (m, M + K) rad, controlled robots first; target (m, M, 5) x, y,
-    theta, vx, vy of each controlled robot.
-    """
-
-    pos: np.ndarray
-    angle: np.ndarray
-    target: np.ndarray
-
-
-class Scenario:
-    """Base of the scenarios: reads the config, draws non-overlapping points. Subclasses set ``name``,
-    ``defaults`` (ScenarioConfig keys), ``Options`` (a model of their own settings) and
-    ``reset_world_at``."""
-
-    name: ClassVar[str]
-    defaults: ClassVar[dict[str, Any]] = {}
-    Options: ClassVar[type[BaseModel]] = Strict
+class FieldScenario(Scenario):
+    """A multi-robot scenario: ``config.num_agents`` controlled robots and ``config.num_obstacles``
+    obstacles, all moved by ``config.obstacles``'s behaviour."""
 
     def __init__(self, config: ScenarioConfig) -> None:
-        self.config = config
-        self.options = self.Options.model_validate(config.options)
-        self.field = get_field(config.field)
-        self.num_agents, self.num_obstacles = config.num_agents, config.num_obstacles
-        # Robots start and targets lie this far apart, so no reset begins inside the collision distance.
-        self.gap = 2 * config.collision_distance
-        margin = config.spawn_margin
-        self.half = np.array([self.field.half_length - margin, self.field.half_width - margin])
-
-    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
-        """Starts and targets of ``m`` new episodes."""
-        raise NotImplementedError
-
-    def scatter(
-        self,
-        rng: np.random.Generator,
-        m: int,
-        count: int,
-        low: np.ndarray,
-        high: np.ndarray,
-        placed: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """``count`` points (m, count, 2) uniform in the box [low, high], each at least ``gap`` from the
-        others and from ``placed`` (m, P, 2). Rejection sampling, vectorised over fields: a point that is
-        too close to an earlier one or to ``placed`` is drawn again until none is."""
-        pts = rng.uniform(low, high, (m, count, 2))
-        placed = np.zeros((m, 0, 2)) if placed is None else placed
-        earlier = np.tril(np.ones((count, count), dtype=bool), k=-1)
-        for _ in range(1000):
-            near = np.linalg.norm(pts[:, :, None] - pts[:, None], axis=-1) < self.gap
-            near_placed = np.linalg.norm(pts[:, :, None] - placed[:, None], axis=-1) < self.gap
-            bad = (near & earlier).any(axis=2) | near_placed.any(axis=2)
-            if not bad.any():
-                return pts
-            pts[bad] = rng.uniform(low, high, (int(bad.sum()), 2))
-        raise RuntimeError(
-            f"scenario {self.name!r}: cannot place {count} robots {self.gap} m apart in "
-            f"[{low}, {high}]; use fewer robots or a larger area"
-        )
+        k, behaviour = config.num_obstacles, config.obstacles
+        groups = [ObstacleGroup(behaviour.behaviour, behaviour.options, k)] if k else []
+        super().__init__(config, config.num_agents, groups)
+        # A robot alone in its field has nothing to avoid: the obstacle terms would have no obstacle.
+        self.reward_task = "obstacle" if config.num_agents + k > 1 else "proposed"
 
     def _layout(
         self, rng: np.random.Generator, start: np.ndarray, target_xy: np.ndarray, obstacles: np.ndarray
@@ -115,7 +49,7 @@ class CrossingOptions(Strict):
     jitter: float = Field(0.25, ge=0, lt=0.5)  # random turn of each start, in fractions of the spacing
 
 
-class Crossing(Scenario):
+class Crossing(FieldScenario):
     """Robots evenly spaced (with jitter) on a circle at a random rotation; each target is the antipodal
     point of its start, so every straight path runs through the centre. Obstacles, if any, stand anywhere
     clear of starts and targets."""
@@ -147,7 +81,7 @@ class CrowdOptions(Strict):
     band: float = Field(1.5, gt=0)  # m: obstacles start within |x| < band
 
 
-class Crowd(Scenario):
+class Crowd(FieldScenario):
     """Robots start beyond one end of a band of obstacles across the field and have targets beyond the
     other end (left to right or right to left, one coin per robot)."""
 
@@ -185,7 +119,7 @@ class FormationOptions(Strict):
     spacing: float = Field(0.5, gt=0)  # m between neighbouring slots
 
 
-class Formation(Scenario):
+class Formation(FieldScenario):
     """Robots scattered over the field take the slots of a ``rows``-row grid formation placed at a random
     point and heading; all targets face the formation's heading. Robots are assigned to slots in the order
     of their position across the formation, so paths rarely have to cross. Obstacles start anywhere clear
@@ -233,53 +167,6 @@ class Formation(Scenario):
         return layout
 
 
-SCENARIOS: dict[str, type[Scenario]] = {cls.name: cls for cls in (Crossing, Crowd, Formation)}
+SCENARIOS: dict[str, type[FieldScenario]] = {cls.name: cls for cls in (Crossing, Crowd, Formation)}
 
-
-def scenario_config(
-    config: str | Path | ScenarioConfig | None = None, overrides: Sequence[str] = (), **settings: Any
-) -> ScenarioConfig:
-    """A ScenarioConfig from a registered name, a YAML file (a scenario, or a training config's
-    ``scenario`` section) or a config; ``settings`` and then ``overrides`` (``key.sub=value`` strings, as
-    ``--set`` takes them) override its keys. One that names another scenario starts from that scenario's
-    defaults, not from ``config``'s keys.
-
-    ``scenario_config("crossing", num_agents=4)``; ``scenario_config("configs/scenarios/crowd.yaml")``.
-    Errors are ConfigErrors naming the key (``scenario.options.radius: ...``).
-    """
-    if isinstance(config, ScenarioConfig):
-        data = config.model_dump(exclude_unset=True)
-    elif isinstance(config, str) and config in SCENARIOS:
-        data = {"scenario": config}
-    elif isinstance(config, str) and not Path(config).is_file() and not config.endswith((".yaml", ".yml")):
-        known = sorted(SCENARIOS)
-        raise ConfigError(f"scenario: unknown scenario {config!r}; known: {known}, or a YAML file")
-    elif config is not None:
-        data = load_yaml(config)
-        if isinstance(data.get("scenario"), dict):  # a training config: its scenario section
-            data = data["scenario"]
-    else:
-        data = {}
-    merged = apply_overrides({**data, **settings}, list(overrides))
-    if "scenario" in data and merged.get("scenario") != data["scenario"]:
-        merged = apply_overrides(dict(settings), list(overrides))
-    return parse_config(merged, ScenarioConfig, root="scenario")
-
-
-def make_scenario(config: ScenarioConfig) -> Scenario:
-    """The scenario object that ``config`` names."""
-    return SCENARIOS[config.scenario](config)
-
-
-__all__ = [
-    "SCENARIOS",
-    "BehaviourConfig",
-    "Crossing",
-    "Crowd",
-    "Formation",
-    "Layout",
-    "Scenario",
-    "ScenarioConfig",
-    "make_scenario",
-    "scenario_config",
-]
+__all__ = ["SCENARIOS", "Crossing", "Crowd", "FieldScenario", "Formation"]

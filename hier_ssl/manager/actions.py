@@ -35,7 +35,7 @@ def _check_scales(half_length: float, half_width: float, max_v: float) -> None:
 ACTION_FRAMES = ("field", "target")
 
 
-def _check_frame(frame: str, target: ArrayLike | None, n: int) -> np.ndarray | None:
+def _check_frame(frame: str, target: ArrayLike | None) -> np.ndarray | None:
     """The target poses (N, 5) that the "target" frame needs; None in the "field" frame."""
     if frame not in ACTION_FRAMES:
         raise ValueError(f"unknown action frame {frame!r}; expected one of {list(ACTION_FRAMES)}")
@@ -43,7 +43,7 @@ def _check_frame(frame: str, target: ArrayLike | None, n: int) -> np.ndarray | N
         return None
     if target is None:
         raise ValueError("target: the 'target' action frame needs the target poses")
-    return check_array("target", target, (n, 5))
+    return np.asarray(target, dtype=np.float64)
 
 
 def decode_subgoal(
@@ -65,9 +65,9 @@ def decode_subgoal(
     Velocities are field-frame in both.
 
     Args:
-        action: (N, action_dim(form)) values in [-1, 1]. Values outside are clipped first (so a noisy
-            scripted action still names a point on the field, and an out-of-range sin/cos pair the
-            heading of the clipped pair).
+        action: (N, action_dim(form)) values in [-1, 1], trusted to have that shape (the views check
+            it). Values outside are clipped first (so a noisy scripted action still names a point on
+            the field, and an out-of-range sin/cos pair the heading of the clipped pair).
         form: "pose4" or "pose6".
         half_length, half_width: half the field's length (x) and width (y), m.
         max_v: speed that a velocity value of 1 stands for, m/s.
@@ -79,11 +79,11 @@ def decode_subgoal(
         (N, 5) float64 sub-goal x, y, theta, vx, vy. theta is in (-pi, pi]; sin = cos = 0
         decodes to theta = 0 in the field frame. Target-frame sub-goals are clipped to the field.
     """
-    dim = action_dim(form)
+    action_dim(form)  # an unknown form is an error, not an unread column
     _check_scales(half_length, half_width, max_v)
-    action = np.clip(check_array("action", action, (None, dim)), -1.0, 1.0)
+    action = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
     n = action.shape[0]
-    target = _check_frame(frame, target, n)
+    target = _check_frame(frame, target)
     if target is not None:
         action[:, 0:2] **= 3
         action[:, -1] += 1.0  # cos is last in both forms
@@ -120,7 +120,9 @@ def encode_subgoal(
     action_dim(form)  # rejects an unknown form before any work
     _check_scales(half_length, half_width, max_v)
     subgoal = check_array("subgoal", subgoal, (None, 5))
-    target = _check_frame(frame, target, subgoal.shape[0])
+    target = _check_frame(frame, target)
+    if target is not None:
+        target = check_array("target", target, (subgoal.shape[0], 5))
     half = np.array([half_length, half_width])
     if target is None:
         xy, turn = np.clip(subgoal[:, 0:2] / half, -1.0, 1.0), subgoal[:, 2]

@@ -38,7 +38,7 @@ def cpad(subgoals_xy: ArrayLike, variant: str = "paper") -> float:
     return float(np.sqrt(np.sum(steps**2)))
 
 
-def cpad_increment(prev_xy: ArrayLike, new_xy: ArrayLike) -> np.ndarray:
+def cpad_increment(prev_xy: np.ndarray, new_xy: np.ndarray) -> np.ndarray:
     """One control step's contribution to the paper's CPAD, in N fields at once.
 
     A vector env adds this to a per-field accumulator every control step (sub-steps of a
@@ -53,8 +53,6 @@ def cpad_increment(prev_xy: ArrayLike, new_xy: ArrayLike) -> np.ndarray:
     Returns:
         (N,) m.
     """
-    prev_xy = check_array("prev_xy", prev_xy, (None, 2))
-    new_xy = check_array("new_xy", new_xy, (prev_xy.shape[0], 2))
     return np.linalg.norm(new_xy - prev_xy, axis=1)
 
 

@@ -50,7 +50,7 @@ def neighbour_obs_slice(k: int) -> slice:
     return slot_slice(k, NEIGHBOUR_OBS_DIM, "neighbour index")
 
 
-def nearest(pos: ArrayLike, others_pos: ArrayLike, k: int) -> tuple[np.ndarray, np.ndarray]:
+def nearest(pos: np.ndarray, others_pos: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the ``k`` other robots nearest to each robot, nearest first (ties: lower index first).
 
     Args:
@@ -60,8 +60,6 @@ def nearest(pos: ArrayLike, others_pos: ArrayLike, k: int) -> tuple[np.ndarray, 
         index (B, k) int into the J axis and present (B, k) bool; slots past J are padding (index 0,
         present False).
     """
-    pos = check_array("pos", pos, (None, 2))
-    others_pos = check_array("others_pos", others_pos, (pos.shape[0], None, 2))
     b, j = others_pos.shape[:2]
     dist = np.linalg.norm(others_pos - pos[:, None, :], axis=2)
     order = np.argsort(dist, axis=1, kind="stable")[:, :k]
@@ -73,14 +71,14 @@ def nearest(pos: ArrayLike, others_pos: ArrayLike, k: int) -> tuple[np.ndarray, 
 
 
 def neighbour_observation(
-    target: ArrayLike,
-    pos: ArrayLike,
-    angle: ArrayLike,
-    vel: ArrayLike,
-    ang_vel: ArrayLike,
-    others_pos: ArrayLike,
-    others_vel: ArrayLike,
-    teammate: ArrayLike,
+    target: np.ndarray,
+    pos: np.ndarray,
+    angle: np.ndarray,
+    vel: np.ndarray,
+    ang_vel: np.ndarray,
+    others_pos: np.ndarray,
+    others_vel: np.ndarray,
+    teammate: np.ndarray,
     k: int,
     *,
     max_pos: float = 3.8,
@@ -114,14 +112,10 @@ def neighbour_observation(
         clip=clip,
     )
     b = base.shape[0]
-    others_vel = check_array("others_vel", others_vel, np.shape(others_pos))
-    teammate = np.asarray(teammate, dtype=bool)
-    if teammate.shape != np.shape(others_pos)[:2]:
-        raise ValueError(f"teammate must have shape {np.shape(others_pos)[:2]}, got {teammate.shape}")
     index, present = nearest(pos, others_pos, k)
     rows = np.arange(b)[:, None]
-    rel_pos = (np.asarray(others_pos)[rows, index] - np.asarray(pos)[:, None]) / max_pos
-    rel_vel = (others_vel[rows, index] - np.asarray(vel)[:, None]) / max_v
+    rel_pos = (others_pos[rows, index] - pos[:, None]) / max_pos
+    rel_vel = (others_vel[rows, index] - vel[:, None]) / max_v
     flags = np.stack([teammate[rows, index], present], axis=2)
     blocks = np.concatenate([np.clip(rel_pos, -clip, clip), np.clip(rel_vel, -clip, clip), flags], axis=2)
     # Padding slots are all zeros, whatever robot their placeholder index points at.

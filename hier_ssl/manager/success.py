@@ -7,9 +7,7 @@ d <= D_th, a difference only on a set of measure zero.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike
 
-from hier_ssl.manager.observation import check_array
 from hier_ssl.manager.rewards import (
     ANGLE_THRESHOLD,
     DIST_THRESHOLD,
@@ -23,10 +21,10 @@ COLLISION_DISTANCE = 0.2  # m, centre to centre: two robot radii of 0.09 m plus 
 
 
 def baseline_success(
-    target: ArrayLike,
-    robot_pos: ArrayLike,
-    robot_angle: ArrayLike,
-    robot_vel: ArrayLike,
+    target: np.ndarray,
+    robot_pos: np.ndarray,
+    robot_angle: np.ndarray,
+    robot_vel: np.ndarray,
     *,
     d_th: float = DIST_THRESHOLD,
     theta_th: float = ANGLE_THRESHOLD,
@@ -40,21 +38,16 @@ def baseline_success(
     Returns:
         (N,) bool.
     """
-    target = check_array("target", target, (None, 5))
-    n = target.shape[0]
-    robot_pos = check_array("robot_pos", robot_pos, (n, 2))
-    robot_angle = check_array("robot_angle", robot_angle, (n,))
-    robot_vel = check_array("robot_vel", robot_vel, (n, 2))
     d, delta = pose_errors(np.column_stack([robot_pos, robot_angle]), target)
     speed = np.linalg.norm(robot_vel, axis=1)
     return (d < d_th) & (delta < theta_th) & (speed < speed_th)
 
 
 def proposed_success(
-    target: ArrayLike,
-    subgoal: ArrayLike,
-    robot_pos: ArrayLike,
-    robot_vel: ArrayLike,
+    target: np.ndarray,
+    subgoal: np.ndarray,
+    robot_pos: np.ndarray,
+    robot_vel: np.ndarray,
     *,
     d_th: float = DIST_THRESHOLD,
     theta_th: float = ANGLE_THRESHOLD,
@@ -69,11 +62,6 @@ def proposed_success(
     Returns:
         (N,) bool.
     """
-    target = check_array("target", target, (None, 5))
-    n = target.shape[0]
-    subgoal = check_array("subgoal", subgoal, (n, 5))
-    robot_pos = check_array("robot_pos", robot_pos, (n, 2))
-    robot_vel = check_array("robot_vel", robot_vel, (n, 2))
     d, delta = pose_errors(subgoal, target)
     robot_d = np.linalg.norm(robot_pos - target[:, 0:2], axis=1)
     speed = np.linalg.norm(robot_vel, axis=1)
@@ -82,11 +70,11 @@ def proposed_success(
 
 def task_success(
     task: str,
-    target: ArrayLike,
-    subgoal: ArrayLike,
-    robot_pos: ArrayLike,
-    robot_angle: ArrayLike,
-    robot_vel: ArrayLike,
+    target: np.ndarray,
+    subgoal: np.ndarray,
+    robot_pos: np.ndarray,
+    robot_angle: np.ndarray,
+    robot_vel: np.ndarray,
     *,
     d_th: float = DIST_THRESHOLD,
     theta_th: float = ANGLE_THRESHOLD,
@@ -108,7 +96,7 @@ def task_success(
     return proposed_success(target, subgoal, robot_pos, robot_vel, **thresholds)
 
 
-def collided(robot_pos: ArrayLike, obs_pos: ArrayLike, distance: float = COLLISION_DISTANCE) -> np.ndarray:
+def collided(robot_pos: np.ndarray, obs_pos: np.ndarray, distance: float = COLLISION_DISTANCE) -> np.ndarray:
     """The robot's centre is closer than `distance` to any obstacle's centre.
 
     Args:
@@ -117,6 +105,4 @@ def collided(robot_pos: ArrayLike, obs_pos: ArrayLike, distance: float = COLLISI
     Returns:
         (N,) bool.
     """
-    robot_pos = check_array("robot_pos", robot_pos, (None, 2))
-    obs_pos = check_array("obs_pos", obs_pos, (robot_pos.shape[0], None, 2))
     return nearest_obstacle_distance(robot_pos, obs_pos) < distance

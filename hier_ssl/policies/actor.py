@@ -28,7 +28,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from hier_ssl.config import ConfigError, TrainConfig, load_yaml, parse_config
+from hier_ssl.config import ConfigError, TrainConfig, load_yaml, validate_config
 from hier_ssl.policies.networks import SquashedGaussianActor
 
 NumpyPolicy = Callable[[np.ndarray], np.ndarray]
@@ -84,11 +84,12 @@ def mean_actor(
 
 
 def run_config(run_dir: str | Path) -> TrainConfig:
-    """The config a run was trained with; a ValueError names the run directory if it is not one."""
+    """The config a run was trained with (written fully resolved, so the models alone read it back); a
+    ValueError names the run directory if it is not one."""
     run_dir = Path(run_dir)
     if not (run_dir / CONFIG_FILE).is_file():
         raise ConfigError(f"{run_dir}: not a run directory (no {CONFIG_FILE})")
-    return parse_config(load_yaml(run_dir / CONFIG_FILE))
+    return validate_config(load_yaml(run_dir / CONFIG_FILE))
 
 
 def checkpoint_path(run_dir: str | Path, config: TrainConfig) -> Path:

@@ -1,16 +1,21 @@
 """A trained manager as one self-contained file for robot software: TorchScript or ONNX.
 
-The exported graph takes the raw field-frame state and returns the sub-goal pose; the manager
-observation (``hier_ssl.manager.observation``, or the relative layout of ``hier_ssl.manager.neighbours``),
-the actor's deterministic (mean) action and the action decoding in the run's frame
-(``hier_ssl.manager.actions``) are all inside it::
+The exported graph takes the raw field-frame state of one controlled robot and returns its sub-goal
+pose; the manager observation (``hier_ssl.manager.observation``, or the relative layout of
+``hier_ssl.manager.neighbours``), the actor's deterministic (mean) action and the action decoding in the
+run's frame (``hier_ssl.manager.actions``) are all inside it::
 
-    state (B, 11 + 5K) float32, metres, radians, m/s, rad/s, field frame:
+    state (B, 11 + 5J) float32 (11 + 6J with teammates), metres, radians, m/s, rad/s, field frame:
         0-4    target x, y, theta, vx, vy
         5-10   robot x, y, theta, vx, vy, w
-        11+5k  obstacle k: x, y, vx, vy, w
+        11+5j  other robot j: x, y, vx, vy, w (and teammate: 1 for another controlled robot, 0 for an
+               obstacle, when the run's task has several controlled robots); J = the task's other robots,
+               the paper's obstacles or a scenario's M - 1 teammates and K obstacles
     subgoal (B, 5) float32: x, y, theta in (-pi, pi], vx, vy (0 for pose4 and for the Proposed and
         Obstacle tasks)
+
+A shared scenario manager exports the same way: each robot calls it with its own target and state.
+The field's constants come from the run's task (``hier_ssl.envs.make_scenario``).
 
 Normalisation runs in float64, as the numpy observation builder does, and its result is rounded to
 float32 for the actor, so the file reproduces the Python policy to float32 rounding. The layout is
@@ -28,28 +33,29 @@ import torch
 from torch import nn
 
 from hier_ssl.config import TrainConfig
+from hier_ssl.envs import Scenario, make_scenario
 from hier_ssl.policies.actor import load_actor
-from hier_ssl.world.field import get_field
-from hier_ssl.world.physics import RobotSpec
 
 FORMATS = {"torchscript": ".pt", "onnx": ".onnx"}
 STATE_BASE_DIM = 11  # target 5 + robot 6
-OBSTACLE_STATE_DIM = 5
+OTHER_STATE = ("x", "y", "vx", "vy", "w")  # each other robot's columns, then "teammate" with teammates
 OBS_CLIP = 1.2
 
 
 class ExportedManager(nn.Module):
-    """Raw state (B, 11 + 5K) -> sub-goal (B, 5): observation, actor mean, decoding, in one module.
+    """Raw state (B, 11 + 5J), or (B, 11 + 6J) with ``teammate_column``, -> sub-goal (B, 5): observation,
+    actor mean, decoding, in one module.
 
     ``neighbours`` None builds the paper's observation; an int builds the "neighbours" layout with that many
-    slots (``hier_ssl.manager.neighbours``: the obstacles nearest first, relative to the robot).
-    ``target_frame`` decodes actions as offsets from the target (``hier_ssl.manager.actions``).
+    slots (``hier_ssl.manager.neighbours``: the other robots nearest first, relative to the robot, with
+    their teammate flag). ``target_frame`` decodes actions as offsets from the target
+    (``hier_ssl.manager.actions``).
     """
 
     def __init__(
         self,
         actor: nn.Module,
-        num_obstacles: int,
+        num_others: int,
         action_form: str,
         zero_velocity: bool,
         half_length: float,
@@ -59,10 +65,13 @@ class ExportedManager(nn.Module):
         max_w: float,
         neighbours: int | None = None,
         target_frame: bool = False,
+        teammate_column: bool = False,
     ) -> None:
         super().__init__()
         self.actor = actor
-        self.num_obstacles = num_obstacles
+        self.num_others = num_others  # J, every other robot
+        self.teammate_column = teammate_column
+        self.width = len(OTHER_STATE) + int(teammate_column)
         self.pose6 = action_form == "pose6"
         self.zero_velocity = zero_velocity or not self.pose6
         self.half_length, self.half_width = half_length, half_width
@@ -70,25 +79,29 @@ class ExportedManager(nn.Module):
         self.clip = OBS_CLIP
         self.neighbours, self.target_frame = neighbours, target_frame
         per_obstacle = torch.tensor([max_pos, max_pos, max_v, max_v, max_w], dtype=torch.float64)
-        self.register_buffer("obstacle_scale", per_obstacle.repeat(num_obstacles))
+        self.register_buffer("obstacle_scale", per_obstacle.repeat(num_others))
 
     def _neighbour_slots(self, x: torch.Tensor, k: int) -> list[torch.Tensor]:
         """The ``k`` neighbour slots of the "neighbours" layout: relative x, y / max_pos, relative vx, vy /
-        max_v (each clipped), teammate 0, present 1; all-zero padding past the obstacles there are."""
-        b, real = x.shape[0], min(k, self.num_obstacles)
+        max_v (each clipped), teammate, present 1; all-zero padding past the other robots there are."""
+        b, real = x.shape[0], min(k, self.num_others)
         slots: list[torch.Tensor] = []
         if real > 0:
-            others = x[:, 11:].reshape(b, self.num_obstacles, 5)  # OBSTACLE_STATE_DIM
+            others = x[:, 11:].reshape(b, self.num_others, self.width)
             rel_pos, rel_vel = others[:, :, 0:2] - x[:, None, 5:7], others[:, :, 2:4] - x[:, None, 8:10]
             # Nearest first (ONNX TopK; exact distance ties, which the numpy builder breaks by index, are
             # measure-zero for real positions).
             order = torch.topk(rel_pos.square().sum(dim=2), real, dim=1, largest=False, sorted=True)[1]
             pick = order[:, :, None].expand(b, real, 2)
+            if self.teammate_column:
+                teammate = torch.gather(others[:, :, 5:6], 1, order[:, :, None])
+            else:
+                teammate = torch.zeros_like(rel_pos[:, :real, 0:1])
             block = torch.cat(
                 [
                     torch.clamp(torch.gather(rel_pos, 1, pick) / self.max_pos, -self.clip, self.clip),
                     torch.clamp(torch.gather(rel_vel, 1, pick) / self.max_v, -self.clip, self.clip),
-                    torch.zeros_like(rel_pos[:, :real, 0:1]),
+                    teammate,
                     torch.ones_like(rel_pos[:, :real, 0:1]),
                 ],
                 dim=2,
@@ -114,7 +127,7 @@ class ExportedManager(nn.Module):
         slots: list[torch.Tensor] = []
         if self.neighbours is not None:
             slots = self._neighbour_slots(x, self.neighbours)
-        elif self.num_obstacles > 0:  # a (B, 0) slice would make ONNX infer a reshape by dividing by 0
+        elif self.num_others > 0:  # a (B, 0) slice would make ONNX infer a reshape by dividing by 0
             parts.append(x[:, 11:] / self.obstacle_scale)
         pieces = [torch.clamp(torch.cat(parts, dim=1), -self.clip, self.clip)]
         pieces.extend(slots)
@@ -140,26 +153,36 @@ class ExportedManager(nn.Module):
         return torch.cat([xy, theta, vel], dim=1)
 
 
+def _task(config: TrainConfig) -> Scenario:
+    """The run's task as the core runs it: robot counts, field constants, rules."""
+    return make_scenario(config.task_config)
+
+
 def layout(config: TrainConfig) -> dict[str, object]:
     """The exported file's input and output layout, as stored in it and printed by the CLI."""
-    k = len(config.env.obstacles)
-    obstacles = [f"obstacle{j}_{name}" for j in range(k) for name in ("x", "y", "vx", "vy", "w")]
+    task, env = _task(config), config.task_config
+    teammates, k = task.num_agents - 1, task.num_obstacles
+    columns = OTHER_STATE + (("teammate",) if teammates else ())
+    prefix = "other" if teammates else "obstacle"
+    others = [f"{prefix}{j}_{name}" for j in range(teammates + k) for name in columns]
     return {
         "input": "state",
-        "input_shape": ["batch", STATE_BASE_DIM + OBSTACLE_STATE_DIM * k],
+        "input_shape": ["batch", STATE_BASE_DIM + len(columns) * (teammates + k)],
         "input_fields": ["target_x", "target_y", "target_theta", "target_vx", "target_vy"]
-        + ["robot_x", "robot_y", "robot_theta", "robot_vx", "robot_vy", "robot_w", *obstacles],
+        + ["robot_x", "robot_y", "robot_theta", "robot_vx", "robot_vy", "robot_w", *others],
         "output": "subgoal",
         "output_shape": ["batch", 5],
         "output_fields": ["x", "y", "theta", "vx", "vy"],
         "units": "m, rad, m/s, rad/s; field frame, origin at the centre, x along the length",
         "dtype": "float32",
-        "task": config.env.task,
-        "field": config.env.field,
-        "action_form": config.env.action_form,
-        "observation": config.env.observation,
-        "action_frame": config.env.action_frame,
-        "frame_skip": config.env.frame_skip,
+        "task": env.scenario_name,
+        "field": env.field,
+        "teammates": teammates,
+        "obstacles": k,
+        "action_form": env.action_form,
+        "observation": env.observation,
+        "action_frame": env.action_frame,
+        "frame_skip": env.frame_skip,
     }
 
 
@@ -168,31 +191,27 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
     actor, config = load_actor(run_dir)
     if config.kind != "manager":
         raise ValueError(f"{run_dir}: a {config.kind} run; export takes a manager run")
-    if config.scenario is not None:
-        raise ValueError(
-            f"{run_dir}: a shared manager of scenario {config.scenario.scenario!r}; export takes managers of "
-            "the paper's tasks (one robot, its obstacles), not yet of scenarios"
-        )
-    env, k = config.env, len(config.env.obstacles)
+    task, env = _task(config), config.task_config
     in_dim, out_dim = actor[0].in_features, actor[-2].out_features
-    if (in_dim, out_dim) != (env.obs_dim, env.act_dim):
+    if (in_dim, out_dim) != (task.obs_dim, task.act_dim):
         raise ValueError(
             f"{run_dir}: actor maps {in_dim} -> {out_dim} values; its config needs "
-            f"{env.obs_dim} -> {env.act_dim}"
+            f"{task.obs_dim} -> {task.act_dim}"
         )
-    field, robot = get_field(env.field), RobotSpec()
+    scales = task.scales
     module = ExportedManager(
         actor,
-        num_obstacles=k,
+        num_others=task.num_agents - 1 + task.num_obstacles,
         action_form=env.action_form,
-        zero_velocity=env.task != "baseline",
-        half_length=field.half_length,
-        half_width=field.half_width,
-        max_pos=field.max_pos,
-        max_v=robot.max_speed,
-        max_w=robot.max_ang_speed,
+        zero_velocity=task.zero_velocity,
+        half_length=scales["half_length"],
+        half_width=scales["half_width"],
+        max_pos=scales["max_pos"],
+        max_v=scales["max_v"],
+        max_w=scales["max_w"],
         neighbours=env.neighbours if env.observation == "neighbours" else None,
         target_frame=env.action_frame == "target",
+        teammate_column=task.num_agents > 1,
     )
     return module.eval(), config
 
@@ -205,7 +224,7 @@ def export_manager(run_dir: str | Path, fmt: str, out: str | Path | None = None)
     module, config = exported_manager(run_dir)
     out = Path(out) if out is not None else Path(run_dir) / f"manager{FORMATS[fmt]}"
     out.parent.mkdir(parents=True, exist_ok=True)
-    example = torch.zeros(2, STATE_BASE_DIM + OBSTACLE_STATE_DIM * module.num_obstacles)
+    example = torch.zeros(2, STATE_BASE_DIM + module.width * module.num_others)
     meta = json.dumps(layout(config))
     if fmt == "torchscript":
         with warnings.catch_warnings():  # torch 2.13 deprecates TorchScript; C++ stacks still load it

@@ -23,7 +23,7 @@ from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
 from hier_ssl.config import PPOConfig
-from hier_ssl.envs.vector import RslRlVecEnv, VectorEnv
+from hier_ssl.envs.vector import RslRlVecEnv, TorchView
 from hier_ssl.policies.actor import NumpyPolicy
 
 
@@ -108,7 +108,7 @@ class SelectingRunner(OnPolicyRunner):
 
 
 def make_ppo_runner(
-    env: VectorEnv,
+    env: TorchView,
     cfg: PPOConfig,
     log_dir: str | Path | None = None,
     device: str | torch.device = "cpu",

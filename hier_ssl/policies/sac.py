@@ -25,83 +25,12 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
-from typing import Literal
 
 import torch
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from hier_ssl.config import SACConfig
 from hier_ssl.policies.networks import SquashedGaussianActor, TwinQ
 from hier_ssl.policies.replay import Batch, ReplayBuffer
-
-
-class SACConfig(BaseModel):
-    """Hyper-parameters. Networks, optimisers, gamma, tau, batch, buffer and policy_frequency default to
-    the paper's public code (SPEC "SAC settings"); the keys where ours differ say what the public code
-    uses: a config with ``caps_actions: sampled``, ``actor_schedule: delayed``, ``learning_starts: 80000``
-    and ``alpha: 1.0`` (learned, no CAPS) or ``alpha: 0.2`` (with CAPS) reproduces it."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    hidden: tuple[int, ...] = (256, 256)
-    actor_lr: float = Field(3e-4, gt=0)
-    critic_lr: float = Field(1e-3, gt=0)
-    alpha_lr: float = Field(1e-3, gt=0)
-    gamma: float = Field(0.99, ge=0, le=1)
-    tau: float = Field(0.005, gt=0, le=1)
-    batch_size: int = Field(256, ge=1)
-    buffer_size: int = Field(1_000_000, ge=1)
-    learning_starts: int = Field(
-        5000,
-        ge=0,
-        description="transitions (vector steps x num_envs) of uniform random actions before the first "
-        "update; the public code: 5,000 vector steps x 16 envs = 80,000",
-    )
-    policy_frequency: int = Field(2, ge=1, description="the actor steps on every policy_frequency-th update")
-    actor_schedule: Literal["catch_up", "delayed"] = Field(
-        "catch_up",
-        description="actor steps on each policy_frequency-th update: catch_up runs policy_frequency of them "
-        "(CleanRL: as many actor as critic steps), delayed runs one (TD3, the paper's public code)",
-    )
-    alpha: float = Field(
-        0.2,
-        gt=0,
-        description="entropy coefficient: fixed, or the start value if learned; the public code learns it "
-        "from 1.0 without CAPS and fixes it at 0.2 with CAPS",
-    )
-    autotune_alpha: bool | None = Field(None, description="learn alpha; None means: learn unless caps")
-    target_entropy: float | None = Field(None, description="None means -act_dim")
-    caps: bool = False
-    caps_lambda_t: float = Field(1.0, ge=0)
-    caps_lambda_s: float = Field(5.0, ge=0)
-    caps_sigma: float = Field(0.05, ge=0)
-    caps_actions: Literal["mean", "sampled"] = Field(
-        "mean",
-        description="CAPS on the mean actions tanh(mean) at s, s', s_bar; or as the public code on sampled "
-        "actions, a'(s') the critic target's next action, s_bar clamped to +-SAMPLED_CAPS_OBS_BOUND",
-    )
-    updates_per_step: float = Field(1.0, gt=0, description="gradient updates per vector env step")
-    reward_scale: float = Field(
-        1.0, gt=0, description="multiplies rewards in the critic target; the env rewards stay as they are"
-    )
-
-    @field_validator("hidden")
-    @classmethod
-    def _hidden_positive(cls, hidden: tuple[int, ...]) -> tuple[int, ...]:
-        if not hidden or min(hidden) < 1:
-            raise ValueError(f"hidden must be a non-empty sequence of positive layer sizes, got {hidden}")
-        return hidden
-
-    @model_validator(mode="after")
-    def _caps_fixes_alpha(self) -> SACConfig:
-        if self.caps and self.autotune_alpha:
-            raise ValueError("autotune_alpha=True conflicts with caps=True: CAPS runs with a fixed alpha")
-        return self
-
-    @property
-    def learns_alpha(self) -> bool:
-        """Whether alpha is learned: ``autotune_alpha`` if given, else not ``caps``."""
-        return self.autotune_alpha if self.autotune_alpha is not None else not self.caps
-
 
 # The public code clamps the perturbed state s_bar of sampled CAPS to this box; observations are scaled to
 # about [-1, 1] (SPEC "Manager observation").

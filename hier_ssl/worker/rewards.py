@@ -20,8 +20,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hier_ssl.manager.observation import check_array
-
 GOTOPOINT_REWARD_TERMS = ("progress", "time", "smooth", "success")
 
 
@@ -35,10 +33,8 @@ def progress_reward(phi_before: ArrayLike, phi_after: ArrayLike) -> np.ndarray:
     return np.asarray(phi_before, dtype=np.float64) - np.asarray(phi_after, dtype=np.float64)
 
 
-def smooth_penalty(action: ArrayLike, prev_action: ArrayLike, cost: float) -> np.ndarray:
+def smooth_penalty(action: np.ndarray, prev_action: np.ndarray, cost: float) -> np.ndarray:
     """R_smooth = -cost * ||action - prev_action||^2. Shapes (N, 3) normalised commands -> (N,)."""
-    action = check_array("action", action, (None, 3))
-    prev_action = check_array("prev_action", prev_action, (action.shape[0], 3))
     return -cost * np.sum(np.square(action - prev_action), axis=1)
 
 
@@ -64,13 +60,7 @@ def gotopoint_reward(
     Returns:
         total (N,) and the (N,) terms named in GOTOPOINT_REWARD_TERMS, which sum to the total.
     """
-    action = check_array("action", action, (None, 3))
-    n = action.shape[0]
-    phi_before = check_array("phi_before", phi_before, (n,))
-    phi_after = check_array("phi_after", phi_after, (n,))
-    success = np.asarray(success)
-    if success.shape != (n,) or success.dtype != np.bool_:
-        raise ValueError(f"success must be a bool array of shape ({n},), got {success.dtype} {success.shape}")
+    n = len(action)
     terms = {
         "progress": progress_reward(phi_before, phi_after),
         "time": np.full(n, -time_cost),

@@ -5,6 +5,7 @@ import pytest
 
 from hier_ssl.config import EnvConfig, ObstacleConfig
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.scenario import Layout
 from hier_ssl.manager import encode_subgoal, task_reward
 
 
@@ -13,17 +14,17 @@ def _core(num_fields: int = 8, **settings: object) -> HierarchicalCore:
 
 
 def _direct(core: HierarchicalCore) -> np.ndarray:
-    """Actions that name the target itself: the trivial planner of an empty field."""
-    return encode_subgoal(core.target, "pose4", core.field.half_length, core.field.half_width)
+    """Actions (N, 1, 4) that name the target itself: the trivial planner of an empty field."""
+    return encode_subgoal(core.target[:, 0], "pose4", core.field.half_length, core.field.half_width)[:, None]
 
 
 def test_reset_sampling_respects_spec() -> None:
     core = _core(256)
     core.reset(seed=0)
-    s = core.state
-    assert np.all(np.abs(core.target[:, 0]) <= 2.9) and np.all(np.abs(core.target[:, 1]) <= 1.9)
-    assert np.all(np.linalg.norm(s.pos[:, 0] - core.target[:, :2], axis=1) >= 0.2)
-    np.testing.assert_array_equal(core.target[:, 3:], 0.0)
+    s, target = core.state, core.target[:, 0]
+    assert np.all(np.abs(target[:, 0]) <= 2.9) and np.all(np.abs(target[:, 1]) <= 1.9)
+    assert np.all(np.linalg.norm(s.pos[:, 0] - target[:, :2], axis=1) >= 0.2)
+    np.testing.assert_array_equal(target[:, 3:], 0.0)
 
 
 def test_midpoint_obstacle_starts_between_robot_and_target() -> None:
@@ -32,7 +33,7 @@ def test_midpoint_obstacle_starts_between_robot_and_target() -> None:
     )
     core.reset(seed=0)
     s = core.state
-    np.testing.assert_allclose(s.pos[:, 1], (s.pos[:, 0] + core.target[:, :2]) / 2)
+    np.testing.assert_allclose(s.pos[:, 1], (s.pos[:, 0] + core.target[:, 0, :2]) / 2)
 
 
 def test_direct_planner_solves_proposed_and_episode_stats_are_reported() -> None:
@@ -57,7 +58,7 @@ def test_frame_skip_sum_and_last_rewards() -> None:
     for mode in ("sum", "last"):
         core = _core(4, frame_skip=4, frame_skip_reward=mode)
         core.reset(seed=2)
-        action = np.tile([0.1, 0.1, 0.0, 1.0], (4, 1))
+        action = np.tile([0.1, 0.1, 0.0, 1.0], (4, 1, 1))
         rewards[mode] = core.step(action).reward
     # Proposed reward depends only on the held sub-goal, so 4 held steps sum to 4x the last one.
     np.testing.assert_allclose(rewards["sum"], 4 * rewards["last"], rtol=1e-6)
@@ -66,13 +67,14 @@ def test_frame_skip_sum_and_last_rewards() -> None:
 def test_reward_is_the_pure_function_of_the_step() -> None:
     core = _core(4, task="baseline")
     core.reset(seed=3)
-    action = np.tile([0.2, -0.3, 0.0, 1.0], (4, 1))
+    action = np.tile([0.2, -0.3, 0.0, 1.0], (4, 1, 1))
     result = core.step(action)
     s = core.state
+    success = result.info["success"][:, 0]
     expected, _ = task_reward(
-        "baseline", core.target, s.pos[:, 0], s.angle[:, 0], core.subgoal, result.info["success"]
+        "baseline", core.target[:, 0], s.pos[:, 0], s.angle[:, 0], core.subgoal[:, 0], success
     )
-    np.testing.assert_allclose(result.reward, expected, rtol=1e-6)
+    np.testing.assert_allclose(result.reward[:, 0], expected, rtol=1e-6)
 
 
 def test_same_seed_same_episode_bit_for_bit() -> None:
@@ -81,7 +83,7 @@ def test_same_seed_same_episode_bit_for_bit() -> None:
         obs = [core.reset(seed=7)]
         rng = np.random.default_rng(0)
         for _ in range(40):
-            obs.append(core.step(rng.uniform(-1, 1, (4, 4))).obs)
+            obs.append(core.step(rng.uniform(-1, 1, (4, 1, 4))).obs)
         return np.stack(obs)
 
     np.testing.assert_array_equal(run(), run())
@@ -128,7 +130,8 @@ def test_neighbour_observation_and_target_frame_keep_the_planners_results() -> N
 
     core = HierarchicalCore(env_config(task="obstacle", observation="neighbours", neighbours=2), 3)
     obs, s = core.reset(seed=0), core.state
-    assert obs.shape == (3, 13 + 2 * 6) == (3, core.obs_dim)
+    assert obs.shape == (3, 1, 13 + 2 * 6) == (3, 1, core.obs_dim)
+    obs = obs[:, 0]
     rel = (s.pos[:, 1] - s.pos[:, 0]) / core.field.max_pos
     np.testing.assert_allclose(obs[:, 13:15], rel, atol=1e-6)
     assert obs[:, 17:19].tolist() == [[0.0, 1.0]] * 3  # an obstacle, present
@@ -142,13 +145,14 @@ def test_target_frame_zero_action_drives_to_the_target() -> None:
     core.reset(seed=1)
     success = np.zeros(4, dtype=bool)
     while not core.done.all():
-        result = core.step(np.zeros((4, 4)))
+        result = core.step(np.zeros((4, 1, 4)))
         success[result.info["episode"]["field"]] = result.info["episode"]["success"] > 0
     assert success.all() and core.ep_cpad.max() == 0.0  # the direct sub-goal, never moved
 
 
 def test_starts_in_contact_are_refused_unless_allowed_and_then_end_as_collisions() -> None:
-    from hier_ssl.config import ConfigError, parse_config
+    from hier_ssl.config import ConfigError
+    from hier_ssl.envs import parse_config
 
     public_code = {"task": "obstacle", "obstacles": [{"behaviour": "stationary"}], "min_start_distance": 0.2}
     with pytest.raises(ConfigError, match="env.min_start_distance: .*allow_start_contact"):
@@ -160,5 +164,26 @@ def test_starts_in_contact_are_refused_unless_allowed_and_then_end_as_collisions
     assert 0 < inside.sum() < 64  # about 2 % of uniform starts lie within 0.4 m of their target
     result = core.step(_direct(core))
     # Every episode that began inside the collision distance ended in its first period as a collision.
-    assert result.info["collision"][inside].all()
-    assert result.terminated[inside].all()
+    assert result.info["collision"][inside, 0].all()
+    assert result.terminated[inside, 0].all()
+
+
+def test_a_scenario_layout_of_the_wrong_shape_is_named_at_reset() -> None:
+    """A scenario is a user's class: what its ``reset_world_at`` returns is checked where it enters (the
+    core's reset, and ``World.set_state`` for the robots), naming the array; nothing is reset."""
+    from hier_ssl.envs import make_scenario
+
+    scenario = make_scenario(EnvConfig(task="obstacle", obstacles=[ObstacleConfig()], min_start_distance=0.6))
+    core = HierarchicalCore(scenario, 2)
+    core.reset(seed=0)
+    before = core.state.pos.copy()
+    good = scenario.reset_world_at
+    bad = {
+        "target": lambda m, rng: Layout(good(m, rng).pos, good(m, rng).angle, np.zeros((m, 5))),
+        "pos": lambda m, rng: Layout(np.zeros((m, 1, 2)), np.zeros((m, 2)), np.zeros((m, 1, 5))),
+    }
+    for name, reset in bad.items():
+        scenario.reset_world_at = reset
+        with pytest.raises(ValueError, match=f"{name} has shape"):
+            core.reset()
+        np.testing.assert_array_equal(core.state.pos, before)

@@ -6,10 +6,16 @@ import torch
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 from hier_ssl.config import ConfigError
-from hier_ssl.envs import RslRlVecEnv
-from hier_ssl.envs.multi import MultiRobotCore, MultiRobotParallelEnv, MultiVectorEnv
-from hier_ssl.envs.scenarios import SCENARIOS, make_scenario, scenario_config
-from hier_ssl.evaluate_multi import evaluate_scenario
+from hier_ssl.envs import (
+    SCENARIOS,
+    HierarchicalCore,
+    HierarchicalSSLEnv,
+    RslRlVecEnv,
+    TorchVectorEnv,
+    make_scenario,
+    scenario_config,
+)
+from hier_ssl.evaluate import evaluate
 from hier_ssl.manager import HIT_REWARD, SUCCESS_REWARD, encode_subgoal
 from hier_ssl.manager.neighbours import (
     NEIGHBOUR_OBS_SLICES,
@@ -21,11 +27,11 @@ from hier_ssl.manager.neighbours import (
 from hier_ssl.manager.planners import make_planner
 
 
-def _build_env(scenario: str = "crossing", **overrides: object) -> MultiRobotParallelEnv:
-    return MultiRobotParallelEnv(scenario_config(scenario, **overrides))
+def _build_env(scenario: str = "crossing", **overrides: object) -> HierarchicalSSLEnv:
+    return HierarchicalSSLEnv(scenario_config(scenario, **overrides))
 
 
-def _place(env: MultiRobotParallelEnv, pos: np.ndarray, angle: np.ndarray | None = None) -> None:
+def _place(env: HierarchicalSSLEnv, pos: np.ndarray, angle: np.ndarray | None = None) -> None:
     """Put the robots of field 0 at ``pos`` (R, 2), standing still, and their sub-goals on themselves."""
     core, m = env.core, env.config.num_agents
     angle = np.zeros(len(pos)) if angle is None else angle
@@ -33,7 +39,7 @@ def _place(env: MultiRobotParallelEnv, pos: np.ndarray, angle: np.ndarray | None
     core.subgoal[0, :, 0:2], core.subgoal[0, :, 2] = pos[:m], angle[:m]
 
 
-def _hold(env: MultiRobotParallelEnv) -> dict[str, np.ndarray]:
+def _hold(env: HierarchicalSSLEnv) -> dict[str, np.ndarray]:
     """Actions naming each live robot's current pose as its sub-goal."""
     core = env.core
     pose = np.zeros((env.config.num_agents, 5))
@@ -95,7 +101,7 @@ def test_k_nearest_observation_on_hand_made_positions() -> None:
 
 
 def test_neighbour_slots_are_clipped_and_count_agnostic() -> None:
-    core = MultiRobotParallelEnv(scenario_config("crowd", num_obstacles=2, neighbours=6)).core
+    core = HierarchicalSSLEnv(scenario_config("crowd", num_obstacles=2, neighbours=6)).core
     obs = core.reset(seed=0)
     assert obs.shape == (1, 1, 13 + 6 * 6) and np.abs(obs).max() <= 1.2
     present = obs[0, 0, 13:].reshape(6, 6)[:, 5]
@@ -126,7 +132,7 @@ def test_agent_leaves_on_reaching_its_target(success_weight: float) -> None:
     np.testing.assert_allclose(env.core.world.state.pos[0, 0], before, atol=1e-9)
 
 
-def _collide(hit_weight: float) -> tuple[MultiRobotParallelEnv, dict, dict, dict]:
+def _collide(hit_weight: float) -> tuple[HierarchicalSSLEnv, dict, dict, dict]:
     env = _build_env("crossing", num_agents=3, hit_weight=hit_weight)
     env.reset(seed=0)
     # Robots 0 and 1 within the 0.2 m collision distance (not overlapping), robot 2 far away.
@@ -150,7 +156,7 @@ def test_teammate_collision_counts_for_both() -> None:
 
 
 def test_target_frame_actions_are_offsets_from_the_target() -> None:
-    core = MultiRobotCore(scenario_config("crowd", num_agents=2, action_frame="target"), num_fields=3)
+    core = HierarchicalCore(scenario_config("crowd", num_agents=2, action_frame="target"), num_fields=3)
     core.reset(seed=0)
     core.set_subgoal(np.zeros((3, 2, 4)), core.active)  # the zero action: the target itself
     np.testing.assert_allclose(core.subgoal, core.target)
@@ -183,7 +189,7 @@ def test_same_seed_same_episode() -> None:
 
 
 def test_vector_view_rows_absorb_after_leaving_and_reset_with_their_field() -> None:
-    env = MultiVectorEnv(scenario_config("crossing", num_agents=2, max_steps=64), num_fields=2)
+    env = TorchVectorEnv(scenario_config("crossing", num_agents=2, max_steps=64), num_fields=2)
     obs = env.reset(seed=0)
     assert obs.shape == (4, env.num_obs) and env.num_envs == 4
     # Field 0: robot 0 stands on its target and names it, robot 1 (which started there) a quarter turn
@@ -213,7 +219,7 @@ def test_vector_view_rows_absorb_after_leaving_and_reset_with_their_field() -> N
 
 
 def test_rsl_rl_adapter_accepts_the_vector_view() -> None:
-    env = RslRlVecEnv(MultiVectorEnv(scenario_config("formation"), num_fields=2))
+    env = RslRlVecEnv(TorchVectorEnv(scenario_config("formation"), num_fields=2))
     assert env.get_observations()["policy"].shape == (12, 49)
     _, reward, dones, extras = env.step(torch.zeros(12, 4))
     assert reward.shape == dones.shape == extras["time_outs"].shape == (12,)
@@ -255,8 +261,8 @@ def test_config_errors_name_the_key() -> None:
 def test_evaluation_is_seeded_and_direct_crossing_collides() -> None:
     config = scenario_config("crossing", num_agents=4)
     direct = make_planner("direct", config)
-    result = evaluate_scenario(direct, config, episodes=6, seed=3)
-    again = evaluate_scenario(direct, config, episodes=6, seed=3)
+    result = evaluate(direct, config, episodes=6, seed=3)
+    again = evaluate(direct, config, episodes=6, seed=3)
     np.testing.assert_array_equal(result["per_robot"]["length"], again["per_robot"]["length"])
     # Straight lines through the centre: every robot hits another one.
     assert result["robots"] == 24 and result["collision_rate"] == 1.0

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import pytest
 import torch
 
 import hier_ssl
@@ -31,3 +32,16 @@ def test_rsl_rl_adapter() -> None:
     td, reward, dones, extras = env.step(torch.zeros(4, 4))
     assert reward.shape == (4,) and dones.shape == (4,)
     assert extras["time_outs"].shape == (4,)
+
+
+def test_bad_actions_are_named_and_change_nothing() -> None:
+    env, twin = (hier_ssl.vector_env(task="proposed", num_envs=3, frame_skip=4) for _ in range(2))
+    env.reset(seed=1), twin.reset(seed=1)
+    with pytest.raises(ValueError, match=r"actions have shape \(3, 3\), expected \(3, 4\)"):
+        env.step(torch.zeros(3, 3))
+    nan = torch.zeros(3, 4)
+    nan[2, 1] = float("nan")
+    with pytest.raises(ValueError, match=r"actions of rows \[2\] hold NaN"):
+        env.step(nan)
+    action = torch.full((3, 4), 0.5)
+    assert torch.equal(env.step(action)[0], twin.step(action)[0])

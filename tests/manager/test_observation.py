@@ -3,7 +3,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
@@ -81,12 +80,3 @@ def test_batched_rows_match_single_fields_and_no_obstacle() -> None:
     for i in range(4):
         single = manager_observation(**{name: value[i : i + 1] for name, value in inputs.items()})
         np.testing.assert_array_equal(obs[i], single[0])
-
-
-@pytest.mark.parametrize(
-    ("name", "bad"),
-    [("target", np.zeros((2, 4))), ("pos", np.zeros((3, 2))), ("obs_vel", np.zeros((2, 2, 2)))],
-)
-def test_bad_shapes_raise_naming_the_argument(name: str, bad: np.ndarray) -> None:
-    with pytest.raises(ValueError, match=name):
-        manager_observation(**_build_inputs(n=2, k=1, **{name: bad}))

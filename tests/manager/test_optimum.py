@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hier_ssl.config import load_config
+from hier_ssl.envs import load_config
 from hier_ssl.manager import task_reward
 from hier_ssl.manager.optimum import finish_value, finishing_wins, hover_value, in_threshold_bonus
 
@@ -57,7 +57,7 @@ SHIPPED = sorted(
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: f"{p.parent.name}/{p.stem}")
 def test_every_default_config_rewards_finishing_over_hovering(path: Path) -> None:
     config = load_config(path)
-    task = config.scenario or config.env
+    task = config.task_config
     gamma = config.sac.gamma if config.algo == "sac" else config.ppo.gamma
     hover = hover_value(gamma, task.frame_skip, task.frame_skip_reward)
     assert finishing_wins(gamma, task.frame_skip, task.frame_skip_reward, task.success_weight), (

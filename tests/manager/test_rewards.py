@@ -44,8 +44,6 @@ def test_wrap_angle_and_pose_errors() -> None:
     pose5 = np.array([[3.0, 4.0, math.radians(-170), 9.0, 9.0]])
     d, delta = pose_errors(pose, pose5)
     np.testing.assert_allclose([d[0], delta[0]], [5.0, math.radians(20)])
-    with pytest.raises(ValueError, match="pose_b"):
-        pose_errors(pose, np.zeros((1, 4)))
 
 
 def _scene() -> dict[str, np.ndarray]:
@@ -129,8 +127,6 @@ def test_bad_options_raise() -> None:
         task_reward("walk", **_scene())
     with pytest.raises(ValueError, match="'sum'"):
         task_reward("baseline", **_scene(), success_mode="sum")
-    with pytest.raises(ValueError, match="success"):
-        task_reward("baseline", **(_scene() | {"success": np.array([1.0])}))
 
 
 def test_success_and_hit_weights_scale_their_terms_only() -> None:

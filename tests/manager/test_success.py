@@ -63,5 +63,3 @@ def test_collided() -> None:
     )
     assert collided(robot, obstacles).tolist() == [True, False, True]
     assert collided(robot, np.zeros((3, 0, 2))).tolist() == [False, False, False]
-    with pytest.raises(ValueError, match="obs_pos"):
-        collided(robot, np.zeros((2, 1, 2)))

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from hier_ssl.config import ConfigError, PPOConfig, dump_config, parse_config
-from hier_ssl.envs import vector_env
+from hier_ssl.config import ConfigError, PPOConfig, dump_config
+from hier_ssl.envs import parse_config, vector_env
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy

@@ -337,10 +337,9 @@ def test_sac_learns_to_reach_a_goal(tmp_path: Path, overrides: dict[str, object]
 
 
 def test_runner_stores_only_the_rows_of_robots_still_in_their_episode(tmp_path: Path) -> None:
-    from hier_ssl.envs.multi import MultiVectorEnv
-    from hier_ssl.envs.scenarios import scenario_config
+    from hier_ssl.envs import TorchVectorEnv, scenario_config
 
-    env = MultiVectorEnv(scenario_config("crossing", num_agents=3, action_frame="target"), num_fields=2)
+    env = TorchVectorEnv(scenario_config("crossing", num_agents=3, action_frame="target"), num_fields=2)
     live_rows = []
     step = env.step
 

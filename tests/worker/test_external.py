@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from hier_ssl import cli
-from hier_ssl.config import ConfigError, EnvConfig, parse_config
-from hier_ssl.envs import HierarchicalCore
-from hier_ssl.managers import compare
+from hier_ssl.compare import compare
+from hier_ssl.config import ConfigError, EnvConfig
+from hier_ssl.envs import HierarchicalCore, parse_config
 from hier_ssl.worker import (
     CheckedWorker,
     PaperGoToPoint,
@@ -173,7 +173,7 @@ def test_bad_commands_stop_the_step_with_one_error_naming_the_worker(name: str, 
     core = HierarchicalCore(EnvConfig(worker=f"{HERE}:{name}"), 3)
     core.reset(0)
     with pytest.raises(WorkerError, match=rf"worker '{HERE}:{name}' {message}"):
-        core.step(np.zeros((3, core.act_dim)))
+        core.step(np.zeros((3, 1, core.act_dim)))
 
 
 def test_a_worker_returning_no_numbers_is_named() -> None:

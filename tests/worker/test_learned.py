@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig, dump_config, parse_config
-from hier_ssl.envs import HierarchicalCore
+from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig, dump_config
+from hier_ssl.envs import HierarchicalCore, parse_config
 from hier_ssl.envs.gotopoint import GoToPointCore, GoToPointEnv
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
 from hier_ssl.train import train
@@ -104,8 +104,8 @@ def test_loading_is_read_only_and_the_core_runs_a_learned_worker(trained_run: Pa
     before = {p.name: p.read_bytes() for p in trained_run.iterdir() if p.is_file()}
     core = HierarchicalCore(EnvConfig(worker=f"{trained_run}+latency=1"), num_fields=2)
     core.reset(seed=0)
-    result = core.step(np.tile([0.1, 0.1, 0.0, 1.0], (2, 1)))
-    assert result.obs.shape == (2, 13)
+    result = core.step(np.tile([0.1, 0.1, 0.0, 1.0], (2, 1, 1)))
+    assert result.obs.shape == (2, 1, 13)
     assert {p.name: p.read_bytes() for p in trained_run.iterdir() if p.is_file()} == before
 
 

@@ -155,5 +155,5 @@ def test_core_takes_a_perturbed_worker_from_the_config() -> None:
     assert isinstance(core.worker, PerturbedWorker)
     core.reset(seed=0)
     for _ in range(3):
-        result = core.step(np.tile([0.5, 0.5, 0.0, 1.0], (2, 1)))
-    assert result.obs.shape == (2, 13)
+        result = core.step(np.tile([0.5, 0.5, 0.0, 1.0], (2, 1, 1)))
+    assert result.obs.shape == (2, 1, 13)

@@ -1,0 +1,181 @@
+"""Managers by name and their comparison on the same seeded episodes.
+
+A manager is a scripted planner ("direct", "sampling") or a training run directory, loaded as a numpy
+policy ``obs (B, O) -> actions (B, A)`` for ``hier_ssl.evaluate``. A run directory (``hier_ssl.train``)
+holds ``config.yaml`` and ``best_actor.pt``, the policy that scored best on the selection episodes (SAC
+always; PPO runs before model selection existed only have rsl-rl's ``model_<iteration>.pt`` files, and
+the latest is used). ``compare`` evaluates several managers on one task's or scenario's episodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hier_ssl.config import ScenarioConfig, TaskConfig, TrainConfig
+from hier_ssl.envs import env_config, make_scenario, task_config
+from hier_ssl.evaluate import Policy, evaluate
+from hier_ssl.manager.planners import PLANNERS, make_planner
+
+
+def is_planner(spec: str | Path) -> bool:
+    return str(spec) in PLANNERS
+
+
+def manager_name(spec: str | Path) -> str:
+    """How a manager is labelled in tables and figures: the planner's name or the run folder's name."""
+    return str(spec) if is_planner(spec) else Path(spec).resolve().name
+
+
+def run_config(run_dir: str | Path) -> TrainConfig:
+    """The TrainConfig a run was trained with; ValueError if ``run_dir`` is neither a planner nor a run."""
+    from hier_ssl.policies.actor import run_config as saved_config
+
+    if not Path(run_dir).is_dir():
+        known = ", ".join(PLANNERS)
+        raise ValueError(f"manager {str(run_dir)!r} is neither a planner ({known}) nor a run directory")
+    return saved_config(run_dir)
+
+
+def load_manager(spec: str | Path, config: TaskConfig) -> Policy:
+    """The manager ``spec`` (planner name or run directory) as a numpy policy acting in the task or
+    scenario ``config``, one row per live robot.
+
+    Raises ValueError when a run's network does not fit the task's observation or action size (e.g. a
+    manager trained without obstacles evaluated on the Obstacle task) or has no checkpoint.
+    """
+    if is_planner(spec):
+        return make_planner(str(spec), config)
+    import torch
+
+    from hier_ssl.policies.actor import load_actor
+
+    run_dir = Path(spec)
+    own, acting = make_scenario(run_config(run_dir).task_config), make_scenario(config)
+    trained, wanted = (own.obs_dim, own.act_dim), (acting.obs_dim, acting.act_dim)
+    if trained != wanted:
+        raise ValueError(
+            f"{run_dir} was trained with observations/actions of size {trained}, "
+            f"the environment it is asked to act in has {wanted}"
+        )
+    actor, _ = load_actor(run_dir)
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
+
+    return policy
+
+
+PLANNER_FRAME_SKIP = 16  # the paper's FSCAPS decision period, unless --frame-skip says otherwise
+# The keys that fix a manager's interface: a run acts in any task with its own values of these.
+INTERFACE_KEYS = ("action_form", "action_frame", "observation", "neighbours")
+
+
+def manager_env(
+    spec: str | Path,
+    task: str | None = None,
+    frame_skip: int | None = None,
+    worker: str | None = None,
+    given: TaskConfig | None = None,
+) -> TaskConfig:
+    """The task or scenario to evaluate ``spec`` in. With ``given``, that one (a run acting with its own
+    ``INTERFACE_KEYS``); otherwise a run's own, or for a planner the paper ``task``'s default environment
+    (``hier_ssl.envs.env_config``) deciding every ``PLANNER_FRAME_SKIP`` control steps. ``task`` (paper
+    tasks), ``frame_skip`` and ``worker`` override what these give."""
+    overrides: dict[str, Any] = {}
+    if frame_skip is not None:
+        overrides["frame_skip"] = frame_skip
+    if worker is not None:
+        overrides["worker"] = worker
+    if given is not None:
+        if not is_planner(spec):
+            own = run_config(spec).task_config
+            overrides |= {key: getattr(own, key) for key in INTERFACE_KEYS}
+        return given.model_copy(update=overrides)
+    if is_planner(spec):
+        overrides.setdefault("frame_skip", PLANNER_FRAME_SKIP)
+        return env_config(task=task or "proposed", **overrides)
+    base = run_config(spec).task_config
+    if task is not None and task != base.scenario_name:
+        overrides["task"] = task
+    return task_config(base, **overrides) if overrides else base
+
+
+@dataclass
+class Evaluation:
+    """One manager evaluated: its label, task config, the JSON ``record`` and ``evaluate``'s ``result``."""
+
+    name: str
+    env: TaskConfig
+    record: dict[str, Any]
+    result: dict[str, Any]
+
+
+def compare(
+    specs: Sequence[str | Path],
+    config: TaskConfig | None = None,
+    *,
+    task: str | None = None,
+    workers: Sequence[str | None] = (None,),
+    episodes: int = 1000,
+    seed: int = 0,
+    frame_skip: int | None = None,
+    record: Sequence[int] = (),
+    progress: bool = False,
+) -> list[Evaluation]:
+    """Evaluate every manager under every worker on the same seeded episodes (same starts, targets and
+    obstacle commands). Managers are all loaded before any is evaluated, so a bad name fails at once.
+
+    Every manager acts in ``config`` when it is given (runs with their own ``INTERFACE_KEYS``), and in the
+    first run's scenario when that run was trained on one. Otherwise runs keep their own environment and
+    planners take the paper ``task`` (default: the first run's, else "proposed"). Figures are per robot.
+    Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
+    robots' ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures.
+    """
+    from hier_ssl.report import label_outcomes, make_record
+
+    runs = [run_config(spec).task_config for spec in specs if not is_planner(spec)]
+    if config is None and runs and isinstance(runs[0], ScenarioConfig):
+        config = runs[0]
+    if task is None and config is None:  # planners follow the first run's task: every row, one episode set
+        task = runs[0].scenario_name if runs else None
+    jobs = []
+    for spec in specs:
+        for worker in workers:
+            acting = manager_env(spec, task, frame_skip, worker, given=config)
+            jobs.append((manager_name(spec), acting, load_manager(spec, acting)))
+    evaluations = []
+    for name, acting, policy in jobs:
+        result = evaluate(policy, acting, episodes, seed, record=record)
+        per = result["per_robot"]
+        label_outcomes(result, per["success"], per["collision"], per["cpad"])
+        context = {
+            "worker": acting.worker,
+            "task": acting.scenario_name,
+            "frame_skip": acting.frame_skip,
+            "seed": seed,
+            "robots": result["robots"],
+            "field_success_rate": result["field_success_rate"],
+        }
+        evaluations.append(Evaluation(name, acting, make_record(name, result, **context), result))
+        if progress:
+            print(f"  {name} ({acting.worker} worker): {result['eval_wall_s']:.1f} s", flush=True)
+    return evaluations
+
+
+__all__ = [
+    "INTERFACE_KEYS",
+    "PLANNERS",
+    "Evaluation",
+    "compare",
+    "is_planner",
+    "load_manager",
+    "manager_env",
+    "manager_name",
+    "run_config",
+]

@@ -1,0 +1,99 @@
+"""The one episode loop: a policy plays one seeded episode per field of a core to its end.
+
+With the same seed every policy meets the same starts, targets and obstacle motion. ``Recorder`` keeps
+the poses and sub-goals of chosen episodes, every control step, for figures and videos.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from hier_ssl.envs.core import HierarchicalCore
+
+Policy = Callable[[np.ndarray], np.ndarray]
+"""Manager observations (B, obs_dim) -> actions (B, act_dim) in [-1, 1], one row per live robot."""
+
+
+def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int] = ()) -> dict[str, Any]:
+    """Reset ``core`` (built without auto-reset) with ``seed``, one episode per field, and play every
+    episode to its end; the policy acts for the live robots only (its input rows shrink as robots leave).
+    The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
+    evaluation and ``hier-ssl render`` all run it.
+
+    Returns length (control steps), success, collision, cpad and distance (start to target, m), arrays
+    (N, M) of the controlled robots, and "trajectories": the ``record`` fields' episodes
+    (``Recorder.episode``).
+    """
+    record = check_record(record, core.num_fields)
+    obs = core.reset(seed)
+    recorder = Recorder(core, record) if record else None
+    shape = core.active.shape
+    start = core.world.state.pos[:, : shape[1]]
+    distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
+    ends = {
+        "length": np.zeros(shape, dtype=np.int64),
+        "success": np.zeros(shape, dtype=bool),
+        "collision": np.zeros(shape, dtype=bool),
+        "cpad": np.zeros(shape),
+    }
+    action = np.zeros(shape + (core.act_dim,))
+    while core.active.any():
+        live = core.active
+        action[live] = policy(obs[live])
+        result = core.step(action)
+        episode = result.info["episode"]
+        at = (episode["field"], episode["agent"])
+        for key in ends:
+            ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]
+        obs = result.obs
+    # A field's control steps stop counting when its last robot leaves: the recorded episode's length.
+    trajectories = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)] if recorder else []
+    return {**ends, "distance": distance, "trajectories": trajectories}
+
+
+def check_record(record: Sequence[int], episodes: int) -> list[int]:
+    """Episode indices to record, as ints; ValueError naming them if any is out of range."""
+    record = [int(i) for i in record]
+    if any(not 0 <= i < episodes for i in record):
+        raise ValueError(f"record: episode indices must be in [0, {episodes}), got {record}")
+    return record
+
+
+class Recorder:
+    """Poses and sub-goals of chosen fields after every control step, by wrapping a core's
+    ``control_step`` (the batched path of ``step`` is unchanged; the copies are of a few rows)."""
+
+    def __init__(self, core: Any, fields: Sequence[int]) -> None:
+        self.core, self.fields = core, np.asarray(fields)
+        self.target = core.target[self.fields].copy()
+        s = core.world.state
+        self.pos, self.angle, self.subgoal = [s.pos[self.fields]], [s.angle[self.fields]], []
+        self._step = core.control_step
+        core.control_step = self.control_step  # instance attribute: only this core is affected
+
+    def control_step(self, live: np.ndarray, *args: object, **kwargs: object) -> tuple:
+        out = self._step(live, *args, **kwargs)
+        s = self.core.world.state  # replaced by every world step; fancy indexing copies
+        self.pos.append(s.pos[self.fields])
+        self.angle.append(s.angle[self.fields])
+        self.subgoal.append(self.core.subgoal[self.fields])
+        return out
+
+    def episode(self, j: int, length: int) -> dict[str, object]:
+        """Recorded field ``j`` over its ``length`` control steps, M controlled robots (robots 0..M-1) of
+        R: ``controlled`` M; target (M, 5); robots (T+1, R, 2) and angles (T+1, R) from the reset on;
+        subgoal (T, M, 5), the sub-goals in force at each control step. Metres, radians, field frame."""
+        return {
+            "field": int(self.fields[j]),
+            "controlled": self.target.shape[1],
+            "target": self.target[j],
+            "robots": np.stack([p[j] for p in self.pos[: length + 1]]),
+            "angles": np.stack([a[j] for a in self.angle[: length + 1]]),
+            "subgoal": np.stack([g[j] for g in self.subgoal[:length]]).reshape(length, -1, 5),
+        }
+
+
+__all__ = ["Policy", "Recorder", "check_record", "play"]

@@ -1,0 +1,28 @@
+"""The world: field geometry, robot bodies, obstacle behaviours and contacts, N fields in one pymunk space.
+
+Everything crosses this boundary as arrays with a leading (fields, robots) pair of axes. Drawing
+(``hier_ssl.world.render``, matplotlib) is imported where it is used.
+"""
+
+from __future__ import annotations
+
+from hier_ssl.world.field import FIELDS, Field, get_field
+from hier_ssl.world.obstacles import OBSTACLES, PublicCodeRandom, RandomWalk, Stationary, make_obstacle
+from hier_ssl.world.physics import RobotSpec, RobotState, World, to_field_frame, to_robot_frame, wrap_angle
+
+__all__ = [
+    "FIELDS",
+    "OBSTACLES",
+    "Field",
+    "PublicCodeRandom",
+    "RandomWalk",
+    "RobotSpec",
+    "RobotState",
+    "Stationary",
+    "World",
+    "get_field",
+    "make_obstacle",
+    "to_field_frame",
+    "to_robot_frame",
+    "wrap_angle",
+]

@@ -1,0 +1,76 @@
+"""The package's layers hold: what each may import (README "Layout"), and that an environment without
+learning brings no torch."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).parents[1] / "hier_ssl"
+# Layer (a path under hier_ssl/) -> packages it must not import, anywhere in its modules.
+FORBIDDEN = {
+    "config.py": ("hier_ssl",),
+    "world": ("hier_ssl.manager", "hier_ssl.worker", "hier_ssl.policies", "hier_ssl.envs"),
+    "worker": ("hier_ssl.manager", "hier_ssl.envs"),
+    "manager": ("hier_ssl.policies", "hier_ssl.envs"),
+    "policies": ("hier_ssl.world",),
+}
+
+
+def _imports(path: Path, top_level_only: bool = False) -> list[str]:
+    """Modules ``path`` imports (every ``import`` and ``from`` statement, or the module-level ones)."""
+    tree = ast.parse(path.read_text())
+    nodes = tree.body if top_level_only else ast.walk(tree)
+    names = []
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.append(node.module)
+    return names
+
+
+@pytest.mark.parametrize("layer", sorted(FORBIDDEN))
+def test_layers_import_only_what_they_may(layer: str) -> None:
+    root = PACKAGE / layer
+    files = [root] if root.is_file() else sorted(root.rglob("*.py"))
+    bad = [
+        (path.relative_to(PACKAGE).as_posix(), name)
+        for path in files
+        for name in _imports(path)
+        if any(name == f or name.startswith(f + ".") for f in FORBIDDEN[layer])
+    ]
+    assert not bad, bad
+
+
+def test_a_worker_loads_a_learned_network_only_on_first_use() -> None:
+    # The policies' loader (and torch with it) comes with a learned worker, not with the package.
+    bad = [
+        (path.name, name)
+        for path in sorted((PACKAGE / "worker").glob("*.py"))
+        for name in _imports(path, top_level_only=True)
+        if name.startswith("hier_ssl.policies") or (name == "torch" and path.name != "learned.py")
+    ]
+    assert not bad, bad
+
+
+_ENV_WITHOUT_TORCH = """
+import sys
+import hier_ssl
+from hier_ssl.world import World
+env = hier_ssl.parallel_env(task="proposed", frame_skip=1)
+env.reset(seed=0)
+env.step({"manager_0": env.action_space("manager_0").sample()})
+scenario = hier_ssl.scenario_env("crossing", num_agents=2)
+scenario.reset(seed=0)
+heavy = sorted(m for m in ("torch", "rsl_rl", "tensorboard", "tensordict") if m in sys.modules)
+assert not heavy, heavy
+"""
+
+
+def test_an_environment_without_learning_imports_no_torch() -> None:
+    subprocess.run([sys.executable, "-c", _ENV_WITHOUT_TORCH], check=True, cwd=PACKAGE.parent)

@@ -288,6 +288,18 @@ def _add_eval(subparsers: argparse._SubParsersAction) -> None:
         "--out", default=None, metavar="DIR", help="tables and figure (default: runs/eval/TASK-sSEED)"
     )
     ev.add_argument("--video", action="store_true", help="also write an animated GIF of the figure's episode")
+    ev.add_argument(
+        "--policy",
+        choices=("best", "final"),
+        default="best",
+        help="a run's checkpoint: the one model selection kept, or the one training ended with "
+        "(default: %(default)s)",
+    )
+    ev.add_argument(
+        "--sample",
+        action="store_true",
+        help="runs sample their actions (the paper's test script) instead of the mean",
+    )
     ev.set_defaults(func=_eval)
 
 
@@ -316,6 +328,8 @@ def _eval(args: argparse.Namespace) -> int:
         seed=args.seed,
         frame_skip=args.frame_skip,
         record=record,
+        which=args.policy,
+        sample=args.sample,
     )
     first = evaluations[0]
     task = first.env.scenario_name
@@ -323,7 +337,8 @@ def _eval(args: argparse.Namespace) -> int:
     if isinstance(first.env, ScenarioConfig):
         what = f"scenario {task} ({first.record['robots'] // args.episodes} robots a field)"
     out = Path(args.out) if args.out else Path("runs") / "eval" / f"{task}-s{args.seed}"
-    print(f"{what}, {args.episodes} episodes, seed {args.seed}; lengths in 25 ms control steps\n")
+    acting = f"runs act with their {args.policy} checkpoint, {'sampled' if args.sample else 'mean'} actions"
+    print(f"{what}, {args.episodes} episodes, seed {args.seed}; {acting}; lengths in 25 ms control steps\n")
     print(markdown_table([e.record for e in evaluations]))
     for e in evaluations:
         where = f"{e.env.worker} worker, frame skip {e.env.frame_skip}"

@@ -14,8 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from hier_ssl.config import ScenarioConfig, TaskConfig, TrainConfig
 from hier_ssl.envs import env_config, make_scenario, task_config
 from hier_ssl.evaluate import Policy, evaluate
@@ -41,18 +39,21 @@ def run_config(run_dir: str | Path) -> TrainConfig:
     return saved_config(run_dir)
 
 
-def load_manager(spec: str | Path, config: TaskConfig) -> Policy:
+def load_manager(
+    spec: str | Path, config: TaskConfig, which: str = "best", sample: bool = False, seed: int = 0
+) -> Policy:
     """The manager ``spec`` (planner name or run directory) as a numpy policy acting in the task or
-    scenario ``config``, one row per live robot.
+    scenario ``config``, one row per live robot. A run acts with its ``which`` checkpoint ("best", the one
+    model selection kept, or "final", the one training ended with) and its mean action, or with ``sample``
+    actions drawn from its policy (seeded by ``seed``; the paper's test script samples). Planners are
+    deterministic and ignore both.
 
     Raises ValueError when a run's network does not fit the task's observation or action size (e.g. a
-    manager trained without obstacles evaluated on the Obstacle task) or has no checkpoint.
+    manager trained without obstacles evaluated on the Obstacle task) or has no such checkpoint.
     """
     if is_planner(spec):
         return make_planner(str(spec), config)
-    import torch
-
-    from hier_ssl.policies.actor import load_actor
+    from hier_ssl.policies.actor import load_policy
 
     run_dir = Path(spec)
     own, acting = make_scenario(run_config(run_dir).task_config), make_scenario(config)
@@ -62,13 +63,7 @@ def load_manager(spec: str | Path, config: TaskConfig) -> Policy:
             f"{run_dir} was trained with observations/actions of size {trained}, "
             f"the environment it is asked to act in has {wanted}"
         )
-    actor, _ = load_actor(run_dir)
-
-    def policy(obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
-
-    return policy
+    return load_policy(run_dir, sample=sample, seed=seed, which=which)
 
 
 PLANNER_FRAME_SKIP = 16  # the paper's FSCAPS decision period, unless --frame-skip says otherwise
@@ -127,9 +122,13 @@ def compare(
     frame_skip: int | None = None,
     record: Sequence[int] = (),
     progress: bool = False,
+    which: str = "best",
+    sample: bool = False,
 ) -> list[Evaluation]:
     """Evaluate every manager under every worker on the same seeded episodes (same starts, targets and
     obstacle commands). Managers are all loaded before any is evaluated, so a bad name fails at once.
+    Runs act with their ``which`` checkpoint, sampling their actions with ``sample`` (``load_manager``);
+    records say which ("policy": "best" | "final", "actions": "mean" | "sampled"; planners "-").
 
     Every manager acts in ``config`` when it is given (runs with their own ``INTERFACE_KEYS``), and in the
     first run's scenario when that run was trained on one. Otherwise runs keep their own environment and
@@ -148,9 +147,11 @@ def compare(
     for spec in specs:
         for worker in workers:
             acting = manager_env(spec, task, frame_skip, worker, given=config)
-            jobs.append((manager_name(spec), acting, load_manager(spec, acting)))
+            policy = load_manager(spec, acting, which, sample, seed)
+            labels = ("-", "-") if is_planner(spec) else (which, "sampled" if sample else "mean")
+            jobs.append((manager_name(spec), acting, policy, labels))
     evaluations = []
-    for name, acting, policy in jobs:
+    for name, acting, policy, (checkpoint, actions) in jobs:
         result = evaluate(policy, acting, episodes, seed, record=record)
         per = result["per_robot"]
         label_outcomes(result, per["success"], per["collision"], per["cpad"])
@@ -161,6 +162,8 @@ def compare(
             "seed": seed,
             "robots": result["robots"],
             "field_success_rate": result["field_success_rate"],
+            "policy": checkpoint,
+            "actions": actions,
         }
         evaluations.append(Evaluation(name, acting, make_record(name, result, **context), result))
         if progress:

@@ -29,10 +29,11 @@ def evaluate(
 
     Returns success_rate and collision_rate (shares of robots), field_success_rate (share of episodes in
     which every robot succeeded), episode_length (control steps until each robot left; max_steps for a
-    timeout) and cpad as {median, q1, q3, min, max}, optimal_ratio_median (time to the target over the
-    analytic rest-to-rest minimum under the robot's speed and acceleration limits, robots that
-    succeeded), time_to_target_s_median (robots that succeeded, seconds), robots (episodes x M), the
-    per-robot arrays (E, M) under "per_robot" (length, success, collision, cpad, distance), and
+    timeout), cpad and cpad_public (the paper's public code's variant, ``play``) as {median, q1, q3, min,
+    max}, optimal_ratio_median (time to the target over the analytic rest-to-rest minimum under the robot's
+    speed and acceleration limits, robots that succeeded), time_to_target_s_median (robots that
+    succeeded, seconds), robots (episodes x M), the per-robot arrays (E, M) under "per_robot" (length,
+    success, collision, cpad, cpad_public, distance), and
     eval_wall_s. With ``record`` (episode indices), "trajectories" holds one dict per recorded episode
     (``hier_ssl.envs.play.Recorder.episode``), every control step of it.
     """
@@ -52,6 +53,7 @@ def evaluate(
         "field_success_rate": float(success.all(axis=1).mean()),
         "episode_length": summarize(length.ravel()),
         "cpad": summarize(cpad.ravel()),
+        "cpad_public": summarize(ends["cpad_public"].ravel()),
         "optimal_ratio_median": optimal_ratio_median(length, success, distance, core.robot, dt),
         "time_to_target_s_median": float(np.median(length[success]) * dt) if solved else nan,
         "per_robot": {
@@ -59,6 +61,7 @@ def evaluate(
             "success": success,
             "collision": collision,
             "cpad": cpad,
+            "cpad_public": ends["cpad_public"],
             "distance": distance,
         },
     }

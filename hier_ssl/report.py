@@ -102,6 +102,7 @@ RECORD_KEYS = (
     "collision_rate",
     "episode_length",
     "cpad",
+    "cpad_public",
     "optimal_ratio_median",
     "eval_wall_s",
 )

@@ -22,7 +22,7 @@ from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.vector import TorchVectorEnv, TorchView
 from hier_ssl.evaluate import Policy, evaluate
-from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE, sac_policy
+from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE, load_policy, sac_policy
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
@@ -130,7 +130,8 @@ def train(
     progress: bool = True,
     on_selection: Callable[[dict], None] | None = None,
 ) -> dict[str, Any]:
-    """Train as ``config`` says into ``run_dir`` (or continue it), then evaluate; returns eval.json's dict.
+    """Train as ``config`` says into ``run_dir`` (or continue it), then evaluate the best and the final
+    policy on held-out episodes; returns eval.json's dict (the best policy's figures, "final" the final's).
 
     ``on_selection`` receives each row of the learning curve (curve.csv's columns) once it is written.
     """
@@ -147,25 +148,37 @@ def train(
         policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress, on_selection)
     else:
         policy, train_wall_s = _train_ppo(config, env, run_dir, resume, on_selection=on_selection)
-    result = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
+    # Both policies on the held-out episodes: the paper reports its final models, we keep the best.
+    final = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
+    best = final
+    if (run_dir / BEST_ACTOR_FILE).is_file():
+        best = evaluate_run(load_policy(run_dir, which="best"), config, EVALUATION_SEED + config.seed)
     summary = {
-        "success_rate": result["success_rate"],
-        "episode_length_median": result["episode_length"]["median"],
-        "cpad_median": result["cpad"]["median"],
-        "collision_rate": result["collision_rate"],
-        "episodes": result["episodes"],
+        "policy": "best" if best is not final else "final",
+        **_figures(best),
+        "final": _figures(final),
+        "episodes": best["episodes"],
         "train_wall_s": round(train_wall_s, 1),
-        "episode_length": result["episode_length"],
-        "cpad": result["cpad"],
         "task": config.task_config.scenario_name,
         "worker": config.task_config.worker,
         # Figures are per robot; "episodes" counts fields.
-        "robots": result["robots"],
-        "field_success_rate": result["field_success_rate"],
-        "optimal_ratio_median": result["optimal_ratio_median"],
+        "robots": best["robots"],
     }
     atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
+
+
+def _figures(result: dict[str, Any]) -> dict[str, Any]:
+    """What eval.json keeps of an evaluation (``hier_ssl.evaluate.evaluate``'s dict)."""
+    keys = ("success_rate", "collision_rate", "field_success_rate", "optimal_ratio_median")
+    return {
+        **{key: result[key] for key in keys},
+        "episode_length_median": result["episode_length"]["median"],
+        "cpad_median": result["cpad"]["median"],
+        "cpad_public_median": result["cpad_public"]["median"],
+        "episode_length": result["episode_length"],
+        "cpad": result["cpad"],
+    }
 
 
 def _train_sac(
@@ -187,8 +200,6 @@ def _train_sac(
         runner.load(run_dir)
     runner.learn(config.total_steps)
     runner.close()
-    if (run_dir / BEST_ACTOR_FILE).is_file():
-        runner.sac.actor.load_state_dict(torch.load(run_dir / BEST_ACTOR_FILE, weights_only=True)["actor"])
     return sac_policy(runner.sac.actor), runner.train_time_s
 
 
@@ -234,10 +245,7 @@ def _train_ppo(
     if remaining > 0:  # a resumed run that had finished has nothing left to learn
         runner.learn(remaining)
     runner.on_save = None
-    train_time_s = time.perf_counter() - start - evaluating
-    if (run_dir / BEST_ACTOR_FILE).is_file():
-        load_ppo(runner, run_dir / BEST_ACTOR_FILE)
-    return policy, train_time_s
+    return policy, time.perf_counter() - start - evaluating
 
 
 def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str, Any]:
@@ -271,3 +279,10 @@ def print_summary(summary: dict[str, Any]) -> None:
     print(f"| episode length, median (Q1 - Q3) | {quartiles} |")
     print(f"| CPAD m, median (Q1 - Q3) | {cpad['median']:.3f} ({cpad['q1']:.3f} - {cpad['q3']:.3f}) |")
     print(f"| training wall time | {summary['train_wall_s']:.0f} s |")
+    final = summary.get("final")
+    if final is not None and summary.get("policy") == "best":
+        print(
+            f"(the {summary['policy']} policy of the selection curve; the final policy: "
+            f"{100 * final['success_rate']:.1f} % success, {100 * final['collision_rate']:.1f} % collisions, "
+            f"median length {final['episode_length_median']:.0f}, median CPAD {final['cpad_median']:.3f} m)"
+        )

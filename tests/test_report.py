@@ -101,6 +101,20 @@ def test_recorded_episode_matches_the_metrics() -> None:
         evaluate(make_planner("direct", config), config, 6, record=[6])
 
 
+def test_both_cpads_of_a_recorded_episode_match_the_metric_functions() -> None:
+    config = env_config(task="obstacle", frame_skip=16)
+    result = evaluate(make_planner("sampling", config), config, 8, seed=1, record=range(8))
+    per = {key: value[:, 0] for key, value in result["per_robot"].items()}
+    moved = 0
+    for episode in result["trajectories"]:
+        subgoals = episode["subgoal"][:, 0, :2]
+        assert cpad(subgoals) == pytest.approx(per["cpad"][episode["field"]])
+        assert cpad(subgoals, "public_code") == pytest.approx(per["cpad_public"][episode["field"]])
+        moved += per["cpad_public"][episode["field"]] < per["cpad"][episode["field"]]
+    assert moved > 0  # detours of several moves, where the two definitions differ
+    assert result["cpad_public"]["median"] <= result["cpad"]["median"]
+
+
 def test_same_manager_same_seed_gives_identical_tables() -> None:
     first, second = (compare(["sampling", "direct"], task="obstacle", episodes=40, seed=5) for _ in range(2))
     assert markdown_table([e.record for e in first]) == markdown_table([e.record for e in second])

@@ -14,10 +14,12 @@ import torch
 
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.evaluate import evaluate
 from hier_ssl.manager import decode_subgoal
+from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE
-from hier_ssl.train import train
+from hier_ssl.train import EVALUATION_SEED, train
 
 TINY = {
     "name": "tiny",
@@ -61,8 +63,16 @@ def test_sac_caps_learns_to_aim_sub_goals_at_the_target(tmp_path: Path) -> None:
         "episodes",
         "train_wall_s",
     }
-    assert keys <= set(json.loads((tmp_path / "eval.json").read_text()))
+    saved = json.loads((tmp_path / "eval.json").read_text())
+    assert keys <= set(saved)
     assert summary["episodes"] == 20
+    # Both policies are evaluated on the same held-out episodes and labelled: the selection's best at the
+    # top level, the one training ended with under "final"; each is what its checkpoint file plays.
+    assert saved["policy"] == "best" and keys - {"episodes", "train_wall_s"} <= set(saved["final"])
+    for which, figures in (("best", saved), ("final", saved["final"])):
+        again = evaluate(load_policy(tmp_path, which=which), config.task_config, 20, EVALUATION_SEED)
+        assert figures["success_rate"] == again["success_rate"], which
+        assert figures["episode_length"] == again["episode_length"], which
 
 
 def _cli(*args: str, **kwargs) -> subprocess.Popen:

@@ -23,9 +23,11 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
     evaluation and ``hier-ssl render`` all run it.
 
-    Returns length (control steps), success, collision, cpad and distance (start to target, m), arrays
-    (N, M) of the controlled robots, and "trajectories": the ``record`` fields' episodes
-    (``Recorder.episode``).
+    Returns length (control steps), success, collision, cpad, cpad_public and distance (start to target,
+    m), arrays (N, M) of the controlled robots, and "trajectories": the ``record`` fields' episodes
+    (``Recorder.episode``). ``cpad`` is the paper's definition (the sum of the sub-goal's moves);
+    ``cpad_public`` what the paper's public code computed for its tables, the square root of the sum of
+    the squared moves (``hier_ssl.manager.metrics.cpad``).
     """
     record = check_record(record, core.num_fields)
     obs = core.reset(seed)
@@ -40,10 +42,15 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
         "cpad": np.zeros(shape),
     }
     action = np.zeros(shape + (core.act_dim,))
+    squared_moves = np.zeros(shape)
     while core.active.any():
         live = core.active
         action[live] = policy(obs[live])
+        # The first decision's move away from the reset sub-goal (the robot's own pose) is no move.
+        moving, before = live & (core.decisions > 0), core.subgoal[..., 0:2].copy()
         result = core.step(action)
+        moved = np.sum((core.subgoal[..., 0:2] - before) ** 2, axis=-1)
+        squared_moves += np.where(moving, moved, 0.0)
         episode = result.info["episode"]
         at = (episode["field"], episode["agent"])
         for key in ends:
@@ -51,7 +58,8 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
         obs = result.obs
     # A field's control steps stop counting when its last robot leaves: the recorded episode's length.
     trajectories = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)] if recorder else []
-    return {**ends, "distance": distance, "trajectories": trajectories}
+    cpad_public = np.sqrt(squared_moves)
+    return {**ends, "cpad_public": cpad_public, "distance": distance, "trajectories": trajectories}
 
 
 def check_record(record: Sequence[int], episodes: int) -> list[int]:

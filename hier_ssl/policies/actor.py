@@ -8,8 +8,10 @@ Both learners' actors are an MLP whose mean action is squashed into [-1, 1]: SAC
 no rsl-rl, tensordict or distribution objects, so the module scripts and exports as it is. The layer
 sizes are read from the weights, so a checkpoint cannot disagree with the config about them.
 
-Checkpoints are read with ``torch.load(weights_only=True)``: ``best_actor.pt`` for SAC, the
-highest-numbered ``model_*.pt`` for PPO (rsl-rl keeps no "best"; the last is what training ended with).
+Checkpoints are read with ``torch.load(weights_only=True)``. Every loader takes ``which``: "best" (the
+default) is the policy model selection kept, ``best_actor.pt`` (PPO runs from before model selection: their
+highest-numbered ``model_*.pt``); "final" is the policy training ended with, SAC's ``model.pt`` or PPO's
+highest-numbered ``model_*.pt``. The paper reports its final models.
 
 The paper's test script evaluates *sampled* actions (SPEC "Public-code details"): ``load_policy(run_dir,
 sample=True, seed=...)`` draws them from the whole SAC actor (``SquashedGaussianActor``, log-std head
@@ -34,7 +36,8 @@ from hier_ssl.policies.networks import SquashedGaussianActor
 NumpyPolicy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1], float32."""
 
-CONFIG_FILE, BEST_ACTOR_FILE = "config.yaml", "best_actor.pt"
+CONFIG_FILE, BEST_ACTOR_FILE, FINAL_SAC_FILE = "config.yaml", "best_actor.pt", "model.pt"
+CHECKPOINTS = ("best", "final")
 _PPO_FILE = re.compile(r"model_(\d+)\.pt")
 
 
@@ -92,21 +95,29 @@ def run_config(run_dir: str | Path) -> TrainConfig:
     return validate_config(load_yaml(run_dir / CONFIG_FILE))
 
 
-def checkpoint_path(run_dir: str | Path, config: TrainConfig) -> Path:
-    """The file ``load_actor`` reads: ``best_actor.pt`` (the actor kept by model selection; SAC runs always
-    have one), else for PPO the last ``model_<iteration>.pt``."""
+def checkpoint_path(run_dir: str | Path, config: TrainConfig, which: str = "best") -> Path:
+    """The file the loaders read for the ``which`` ("best" or "final") policy of the run (module
+    docstring); a ``ConfigError`` names what is missing."""
     run_dir = Path(run_dir)
+    if which not in CHECKPOINTS:
+        raise ConfigError(f"checkpoint {which!r}: expected one of {list(CHECKPOINTS)}")
+    best = run_dir / BEST_ACTOR_FILE
     if config.algo == "sac":
-        path = run_dir / BEST_ACTOR_FILE
+        path = best if which == "best" else run_dir / FINAL_SAC_FILE
         if not path.is_file():
-            raise ConfigError(f"{run_dir}: no usable checkpoint ({BEST_ACTOR_FILE} missing)")
+            raise ConfigError(f"{run_dir}: no {which} checkpoint ({path.name} missing)")
         return path
-    if (run_dir / BEST_ACTOR_FILE).is_file():  # the best PPO policy on the selection episodes
-        return run_dir / BEST_ACTOR_FILE
+    if which == "best" and best.is_file():  # the best PPO policy on the selection episodes
+        return best
     saved = [(int(m.group(1)), p) for p in run_dir.glob("model_*.pt") if (m := _PPO_FILE.fullmatch(p.name))]
     if not saved:
         raise ConfigError(f"{run_dir}: no usable checkpoint (no PPO model_<iteration>.pt)")
     return max(saved)[1]
+
+
+def _sac_actor_state(saved: dict, path: Path) -> dict[str, torch.Tensor]:
+    """The actor weights: ``best_actor.pt`` holds {"actor": ...}, ``model.pt`` {"sac": {"actor": ...}}."""
+    return saved["sac"]["actor"] if path.name == FINAL_SAC_FILE else saved["actor"]
 
 
 @contextmanager
@@ -125,18 +136,19 @@ def _ppo_actor_state(saved: dict) -> dict[str, torch.Tensor]:
     return state
 
 
-def load_actor(run_dir: str | Path) -> tuple[nn.Sequential, TrainConfig]:
-    """The run's deterministic actor, frozen (eval mode, no gradients), and its config.
+def load_actor(run_dir: str | Path, which: str = "best") -> tuple[nn.Sequential, TrainConfig]:
+    """The run's deterministic actor (its ``which`` checkpoint), frozen (eval mode, no gradients), and its
+    config.
 
     Shape of the actor: (B, obs_dim) float32 -> (B, act_dim) in [-1, 1]. ValueErrors (``ConfigError``)
     name the run directory or the checkpoint file when either is unusable.
     """
     config = run_config(run_dir)
-    path = checkpoint_path(run_dir, config)
+    path = checkpoint_path(run_dir, config, which)
     with _reading(path, config.algo):
         saved = torch.load(path, map_location="cpu", weights_only=True)
         if config.algo == "sac":
-            state = saved["actor"]
+            state = _sac_actor_state(saved, path)
             act_dim = _linear_layers(state, "net.")[-1][0].shape[0] // 2
             actor = mean_actor(state, "net.", nn.ReLU, act_dim, nn.Tanh())
         else:
@@ -193,8 +205,8 @@ def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Genera
     return policy
 
 
-def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0) -> NumpyPolicy:
-    """The run's policy as a numpy function, on the CPU.
+def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which: str = "best") -> NumpyPolicy:
+    """The run's policy (its ``which`` checkpoint, "best" or "final") as a numpy function, on the CPU.
 
     ``sample=False``: the deterministic actor of ``load_actor``. ``sample=True``: actions drawn from the
     policy's distribution (SAC: tanh of a Gaussian sample; PPO: the Gaussian, clipped to [-1, 1]) with a
@@ -202,7 +214,7 @@ def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0) -> Num
     (N, obs_dim), output (N, act_dim) float32 in [-1, 1]. ``ConfigError`` names an unusable run or file.
     """
     if not sample:
-        actor, _ = load_actor(run_dir)
+        actor, _ = load_actor(run_dir, which)
 
         def policy(obs: np.ndarray) -> np.ndarray:
             with torch.no_grad():
@@ -210,16 +222,17 @@ def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0) -> Num
 
         return policy
     config = run_config(run_dir)
-    path = checkpoint_path(run_dir, config)
+    path = checkpoint_path(run_dir, config, which)
     generator = torch.Generator().manual_seed(seed)
     with _reading(path, config.algo):
         saved = torch.load(path, map_location="cpu", weights_only=True)
         if config.algo == "sac":
-            return _sampling_sac_policy(saved["actor"], generator)
+            return _sampling_sac_policy(_sac_actor_state(saved, path), generator)
         return _sampling_ppo_policy(_ppo_actor_state(saved), generator)
 
 
 __all__ = [
+    "CHECKPOINTS",
     "NumpyPolicy",
     "checkpoint_path",
     "freeze",

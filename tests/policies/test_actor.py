@@ -90,3 +90,23 @@ def test_a_checkpoint_without_the_std_is_refused_naming_the_file(tmp_path: Path)
     torch.save({**saved, "iter": 0}, run_dir / "model_0.pt")
     with pytest.raises(ConfigError, match=r"model_0\.pt: not a usable ppo checkpoint .*std"):
         load_policy(run_dir, sample=True)
+
+
+def test_final_and_best_checkpoints_are_both_readable_and_distinct(sac_run) -> None:
+    from hier_ssl.policies.actor import checkpoint_path, load_actor, run_config
+
+    run_dir, best = sac_run
+    torch.manual_seed(7)
+    final = SquashedGaussianActor(OBS_DIM, ACT_DIM, hidden=(16, 24))
+    torch.save({"sac": {"actor": final.state_dict()}, "step": 9}, run_dir / "model.pt")
+    x = torch.from_numpy(_obs())
+    with torch.no_grad():
+        for which, actor in (("best", best), ("final", final)):
+            np.testing.assert_allclose(load_actor(run_dir, which)[0](x), actor.deterministic(x), atol=1e-6)
+            sampled = load_policy(run_dir, sample=True, seed=3, which=which)(_obs())
+            np.testing.assert_allclose(sampled, actor(x, torch.Generator().manual_seed(3))[0], atol=1e-6)
+    with pytest.raises(ConfigError, match="checkpoint 'last'"):
+        checkpoint_path(run_dir, run_config(run_dir), "last")
+    (run_dir / "model.pt").unlink()
+    with pytest.raises(ConfigError, match="no final checkpoint"):
+        load_actor(run_dir, "final")

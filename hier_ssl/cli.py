@@ -245,7 +245,7 @@ def _export(args: argparse.Namespace) -> int:
 
 def _add_eval(subparsers: argparse._SubParsersAction) -> None:
     from hier_ssl.manager.planners import PLANNERS
-    from hier_ssl.report import TASKS
+    from hier_ssl.paper_tables import TASKS
 
     ev = subparsers.add_parser(
         "eval",
@@ -355,13 +355,28 @@ def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
     from hier_ssl.launch_options import add_launch_flags
 
     rep = subparsers.add_parser(
-        "reproduce", help="train and evaluate the paper's 12 configurations, write report.md (resumable)"
+        "reproduce",
+        help="train the paper's 12 configurations in both families (resumable), evaluate them beside the "
+        "planners, write results/paper-tables.md and .csv",
+    )
+    rep.add_argument(
+        "--family",
+        action="append",
+        choices=("paper", "defaults"),
+        default=None,
+        help="configuration family: the public code's settings or ours (repeatable; default: both)",
     )
     rep.add_argument(
         "--only", nargs="+", default=[], metavar="NAME", help="e.g. proposed/fscaps, obstacle (default: all)"
     )
-    rep.add_argument("--seeds", type=_positive_int, default=1, help="training seeds per config (default: 1)")
-    rep.add_argument("--out", default="runs/reproduce", metavar="DIR", help="(default: %(default)s)")
+    rep.add_argument(
+        "--seeds",
+        type=_positive_int,
+        default=None,
+        help="training seeds per config (default: 3, and 1 for the paper family's non-FSCAPS rows)",
+    )
+    rep.add_argument("--out", default="runs/reproduce", metavar="DIR", help="runs (default: %(default)s)")
+    rep.add_argument("--results", default="results", metavar="DIR", help="tables (default: %(default)s)")
     rep.add_argument(
         "--episodes", type=_positive_int, default=1000, help="evaluation episodes (default: 1000)"
     )
@@ -369,6 +384,7 @@ def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every config"
     )
+    rep.add_argument("--no-train", action="store_true", help="only evaluate the runs that have finished")
     rep.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_launch_flags(rep)
     rep.set_defaults(func=_reproduce)
@@ -376,17 +392,20 @@ def _add_reproduce(subparsers: argparse._SubParsersAction) -> None:
 
 def _reproduce(args: argparse.Namespace) -> int:
     from hier_ssl.launch_options import LaunchOptions
-    from hier_ssl.reproduce import reproduce
+    from hier_ssl.reproduce import FAMILIES, reproduce
 
     report = reproduce(
+        families=args.family or tuple(FAMILIES),
         only=args.only,
         seeds=args.seeds,
         out=args.out,
+        results=args.results,
         episodes=args.episodes,
         config_dir=args.config_dir,
         overrides=args.set,
         progress=not args.no_progress,
         launch_options=LaunchOptions.from_args(args),
+        train=not args.no_train,
     )
     print(f"wrote {report}")
     return 0

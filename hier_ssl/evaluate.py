@@ -51,6 +51,8 @@ def evaluate(
         "success_rate": float(success.mean()),
         "collision_rate": float(collision.mean()),
         "field_success_rate": float(success.all(axis=1).mean()),
+        # Episodes that began inside the collision distance (they end as collisions at once).
+        "start_contact_rate": float((ends["start_gap"] < core.config.collision_distance).mean()),
         "episode_length": summarize(length.ravel()),
         "cpad": summarize(cpad.ravel()),
         "cpad_public": summarize(ends["cpad_public"].ravel()),

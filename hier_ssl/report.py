@@ -27,72 +27,6 @@ import numpy as np
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec, RobotState
 
-SETUPS = ("vanilla", "frame_skip", "caps", "fscaps")
-SETUP_TITLES = {"vanilla": "Vanilla", "frame_skip": "Frame Skip", "caps": "CAPS", "fscaps": "FSCAPS"}
-TASKS = ("baseline", "proposed", "obstacle")
-
-
-def _dist(median: float, q1: float, q3: float, mx: float, mn: float) -> dict[str, float]:
-    return {"median": median, "q1": q1, "q3": q3, "max": mx, "min": mn}
-
-
-# The paper's Tables 1 and 2 (1000 test episodes each): episode length in control steps, CPAD in m,
-# collision rate as a fraction (Obstacle task only).
-PAPER_RESULTS: dict[tuple[str, str], dict[str, Any]] = {
-    ("baseline", "vanilla"): {
-        "episode_length": _dist(1200, 1200, 1200, 1200, 52),
-        "cpad": _dist(20.84, 14.42, 26.75, 47.66, 1.39),
-    },
-    ("proposed", "vanilla"): {
-        "episode_length": _dist(128, 102, 152, 1200, 35),
-        "cpad": _dist(6.03, 3.93, 8.07, 16.43, 0.20),
-    },
-    ("baseline", "frame_skip"): {
-        "episode_length": _dist(198, 150, 265, 1200, 49),
-        "cpad": _dist(13.53, 11.03, 16.55, 38.40, 3.46),
-    },
-    ("proposed", "frame_skip"): {
-        "episode_length": _dist(119, 95, 141, 223, 33),
-        "cpad": _dist(1.31, 0.60, 2.12, 6.80, 0.01),
-    },
-    ("baseline", "caps"): {
-        "episode_length": _dist(1200, 731, 1200, 1200, 37),
-        "cpad": _dist(13.97, 9.61, 16.31, 22.86, 1.91),
-    },
-    ("proposed", "caps"): {
-        "episode_length": _dist(113, 91, 134, 1200, 33),
-        "cpad": _dist(1.29, 0.81, 1.87, 3.81, 0.14),
-    },
-    ("baseline", "fscaps"): {
-        "episode_length": _dist(109, 87, 130, 196, 34),
-        "cpad": _dist(0.58, 0.36, 0.87, 2.22, 0.02),
-    },
-    ("proposed", "fscaps"): {
-        "episode_length": _dist(114, 92, 137, 193, 31),
-        "cpad": _dist(0.06, 0.05, 0.08, 0.16, 0.00),
-    },
-    ("obstacle", "vanilla"): {
-        "episode_length": _dist(1200, 1200, 1200, 1200, 132),
-        "cpad": _dist(12.38, 10.70, 14.21, 35.03, 4.10),
-        "collision_rate": 0.1238,
-    },
-    ("obstacle", "frame_skip"): {
-        "episode_length": _dist(1200, 1200, 1200, 1200, 148),
-        "cpad": _dist(6.03, 5.24, 6.90, 11.35, 2.23),
-        "collision_rate": 0.0561,
-    },
-    ("obstacle", "caps"): {
-        "episode_length": _dist(1200, 1200, 1200, 1200, 670),
-        "cpad": _dist(11.35, 10.55, 12.17, 20.60, 4.10),
-        "collision_rate": 0.0132,
-    },
-    ("obstacle", "fscaps"): {
-        "episode_length": _dist(115, 113, 158, 1200, 79),
-        "cpad": _dist(1.27, 1.06, 1.53, 5.87, 0.55),
-        "collision_rate": 0.0061,
-    },
-}
-
 RECORD_KEYS = (
     "manager",
     "worker",
@@ -445,45 +379,9 @@ def write_evaluation(
     return paths
 
 
-# -- the paper beside ours -----------------------------------------------------------------------------------
-
-
-def paper_comparison(rows: Sequence[tuple[str, str, dict[str, Any] | None]]) -> str:
-    """Markdown: for each (task, setup, our record or None) our episode length, CPAD, collision and
-    success beside the paper's, median (Q1 - Q3) (setups without paper numbers, such as the planners
-    "direct" and "sampling", show "-" there)."""
-    lines = [
-        "| Task | Setup | Manager | Length ours | Length paper | CPAD m ours | CPAD m paper | Collision ours "
-        "| Collision paper | Success ours | Time / optimum ours |",
-        "|" + "---|" * 11,
-    ]
-    for task, setup, record in rows:
-        paper = PAPER_RESULTS.get((task, setup))
-        p_len = _iqr(paper["episode_length"], 0) if paper else "-"
-        p_cpad = _iqr(paper["cpad"], 2) if paper else "-"
-        p_coll = f"{100 * paper['collision_rate']:.2f} %" if paper and "collision_rate" in paper else "-"
-        if record is None:
-            ours = ["not run"] + ["-"] * 4
-        else:
-            ours = [
-                _iqr(record["episode_length"], 0),
-                _iqr(record["cpad"], 2),
-                f"{100 * record['collision_rate']:.2f} %",
-                f"{100 * record['success_rate']:.1f} %",
-                _number(record["optimal_ratio_median"], 2),
-            ]
-        name = SETUP_TITLES.get(setup, setup)
-        manager = str(record["manager"]) if record is not None else "-"
-        cells = [task, name, manager, ours[0], p_len, ours[1], p_cpad, ours[2], p_coll, ours[3], ours[4]]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
-
-
 __all__ = [
     "HEADERS",
-    "PAPER_RESULTS",
     "RECORD_KEYS",
-    "SETUPS",
     "csv_table",
     "episode_video",
     "figure3",
@@ -491,7 +389,6 @@ __all__ = [
     "make_record",
     "markdown_table",
     "outcome",
-    "paper_comparison",
     "pick_episode",
     "table_cells",
     "write_evaluation",

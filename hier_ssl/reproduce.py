@@ -1,155 +1,288 @@
-"""``hier-ssl reproduce``: train the paper's 12 configurations (or some), evaluate them beside the scripted
-planners on the same episodes, and write one ``report.md`` with the paper's numbers beside ours.
+"""``hier-ssl reproduce``: train the paper's twelve configurations in both families, evaluate every run on the
+same episodes beside the scripted planners, and write the paper's tables with ours beside them.
 
-Layout under ``out``: ``runs/<name>-s<seed>/`` (one training run each, ``hier_ssl.train``), and per task
-``<task>/table.{md,csv,tex}``, ``<task>/fig3.png``, ``<task>/eval.json``; ``report.md`` links them.
-Resumable: the runs train through ``hier_ssl.launch`` (in turn, as local processes or as Ray Tune trials),
-which skips finished runs, resumes killed ones and trains the rest.
+Families (``FAMILIES``): "paper", the public code's settings (``configs/paper/<task>/<setup>.yaml``), and
+"defaults", ours (``configs/<task>/<setup>.yaml``). Runs live in ``out/runs/<name>-s<seed>/`` and train
+through ``hier_ssl.launch`` (in turn, as local processes or as Ray Tune trials), which skips finished runs,
+resumes killed ones and trains the rest; with ``train=False`` only finished runs are evaluated, so the
+tables can be written while long runs go on. Evaluations are cached in ``out/evals/``.
+
+Every manager of a task plays the same ``episodes`` episodes (seed ``eval_seed``) drawn as the paper's
+public code draws them (its family's config: start 0.2 m from the target, the obstacle on the midpoint);
+each run acts with its own interface (observation, action form and frame, frame skip, worker). Writes
+``results/paper-tables.md`` and ``.csv`` (``hier_ssl.paper_tables``) and ``results/fig3-<task>.png``.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import apply_overrides, load_yaml
+from hier_ssl.config import TaskConfig, TrainConfig, apply_overrides, load_yaml
 from hier_ssl.config import config_dir as shipped_configs
 from hier_ssl.envs import parse_config
 from hier_ssl.launch import Job, launch
 from hier_ssl.launch_options import LaunchOptions
-from hier_ssl.report import SETUP_TITLES, SETUPS, TASKS
+from hier_ssl.paper_tables import SETUPS, TASKS, Row, csv_text, markdown, paper_record
 from hier_ssl.train import EVAL_FILE
 
+FAMILIES = {"paper": "paper/{task}/{setup}.yaml", "defaults": "{task}/{setup}.yaml"}
+FAMILY_TITLES = {"paper": "paper family", "defaults": "defaults"}
+# How each family's runs are evaluated, as (checkpoint, sampled actions): the paper's protocol first.
+VARIANTS = {
+    "paper": (("final", True), ("final", False), ("best", False)),
+    "defaults": (("best", False), ("final", False)),
+}
 PLANNER_ROWS = ("direct", "sampling")
+# What fixes the episodes a manager plays (not how it acts): taken from the paper family's config.
+EPISODE_KEYS = (
+    "field",
+    "obstacles",
+    "min_start_distance",
+    "allow_start_contact",
+    "max_steps",
+    "spawn_margin",
+    "d_th",
+    "theta_th_deg",
+    "speed_th",
+    "collision_distance",
+    "dt",
+    "substeps",
+)
 
 
-def paper_configs(
-    config_dir: str | Path | None = None, only: Sequence[str] = ()
-) -> list[tuple[str, str, Path]]:
-    """(task, setup, config path) of the paper's configurations, in the paper's order, or of those named
-    in ``only`` ("proposed/fscaps" or "proposed-fscaps"; a bare task such as "obstacle" names its four).
-    ``config_dir`` defaults to the shipped configs."""
-    config_dir = Path(config_dir) if config_dir is not None else shipped_configs()
-    every = [(task, setup, config_dir / task / f"{setup}.yaml") for task in TASKS for setup in SETUPS]
-    if only:
-        wanted = set()
-        for name in only:
-            key = name.replace("-", "/", 1) if "/" not in name else name
-            match = [c for c in every if key in (c[0], f"{c[0]}/{c[1]}")]
-            if not match:
-                known = ", ".join(f"{t}/{s}" for t, s, _ in every)
-                raise ValueError(f"--only {name!r}: not a paper configuration; known: {known}")
-            wanted.update((t, s) for t, s, _ in match)
-        every = [c for c in every if (c[0], c[1]) in wanted]
-    for _, _, path in every:
-        if not path.is_file():
-            raise ValueError(f"config file not found: {path}")
-    return every
+def default_seeds(family: str, setup: str) -> int:
+    """Training seeds of a configuration: 3 for our defaults and for the paper family's FSCAPS rows, 1 for
+    the paper family's other rows (a paper-budget run is about 25 minutes of one core)."""
+    return 3 if family == "defaults" or setup == "fscaps" else 1
+
+
+@dataclass(frozen=True)
+class Planned:
+    """One training run of the tables."""
+
+    family: str
+    task: str
+    setup: str
+    config: TrainConfig
+    run_dir: Path
+
+
+def select(only: Sequence[str] = ()) -> list[tuple[str, str]]:
+    """(task, setup) of the paper's rows in its order, or of those ``only`` names ("proposed/fscaps",
+    "proposed-fscaps", or a bare task for its four)."""
+    every = [(task, setup) for task in TASKS for setup in SETUPS]
+    if not only:
+        return every
+    wanted = set()
+    for name in only:
+        key = name.replace("-", "/", 1) if "/" not in name else name
+        match = [c for c in every if key in (c[0], f"{c[0]}/{c[1]}")]
+        if not match:
+            known = ", ".join(f"{t}/{s}" for t, s in every)
+            raise ValueError(f"--only {name!r}: not a paper configuration; known: {known}")
+        wanted.update(match)
+    return [c for c in every if c in wanted]
+
+
+def plan(
+    families: Sequence[str],
+    only: Sequence[str] = (),
+    seeds: int | None = None,
+    out: Path = Path("runs/reproduce"),
+    config_dir: str | Path | None = None,
+    overrides: Sequence[str] = (),
+) -> list[Planned]:
+    """Every run the tables need, each config validated before anything trains. ``seeds`` overrides
+    ``default_seeds``; seeds count up from each config's own."""
+    root = Path(config_dir) if config_dir is not None else shipped_configs()
+    runs = []
+    for family in families:
+        if family not in FAMILIES:
+            raise ValueError(f"family {family!r}: expected one of {sorted(FAMILIES)}")
+        for task, setup in select(only):
+            path = root / FAMILIES[family].format(task=task, setup=setup)
+            data = apply_overrides(load_yaml(path), list(overrides))
+            base = int(data.get("seed", 0))
+            for k in range(seeds or default_seeds(family, setup)):
+                config = parse_config({**data, "seed": base + k})
+                runs.append(
+                    Planned(family, task, setup, config, out / "runs" / f"{config.name}-s{config.seed}")
+                )
+    return runs
+
+
+def episodes_of(task: str, config_dir: str | Path | None = None) -> TaskConfig:
+    """The paper family's environment of ``task``: whose episodes every manager of the table plays."""
+    root = Path(config_dir) if config_dir is not None else shipped_configs()
+    path = root / FAMILIES["paper"].format(task=task, setup="fscaps")
+    return parse_config(load_yaml(path)).task_config
+
+
+def acting_config(own: TaskConfig, episodes: TaskConfig) -> TaskConfig:
+    """``own`` (how a manager acts) playing ``episodes``'s episodes."""
+    return own.model_copy(update={key: getattr(episodes, key) for key in EPISODE_KEYS})
+
+
+def evaluate_run(
+    run: Planned, which: str, sample: bool, episodes: TaskConfig, count: int, seed: int, cache: Path
+) -> dict[str, Any]:
+    """The record of one run evaluated one way, from ``cache`` when it was evaluated so before (a cached
+    record older than the run's eval.json is stale)."""
+    from hier_ssl.compare import load_manager
+    from hier_ssl.evaluate import evaluate
+    from hier_ssl.report import make_record
+
+    actions = "sampled" if sample else "mean"
+    path = cache / f"{run.run_dir.name}-{which}-{actions}-e{count}-s{seed}.json"
+    finished = (run.run_dir / EVAL_FILE).stat().st_mtime
+    if path.is_file() and path.stat().st_mtime >= finished:
+        return json.loads(path.read_text())
+    acting = acting_config(run.config.task_config, episodes)
+    result = evaluate(load_manager(run.run_dir, acting, which, sample, seed), acting, count, seed)
+    trained = json.loads((run.run_dir / EVAL_FILE).read_text())
+    record = make_record(
+        run.run_dir.name,
+        result,
+        policy=which,
+        actions=actions,
+        seed=seed,
+        start_contact_rate=result["start_contact_rate"],
+        train_wall_s=trained.get("train_wall_s"),
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({k: None if v != v else v for k, v in record.items()}, indent=2) + "\n")
+    return record
+
+
+def table_rows(
+    runs: Sequence[Planned], count: int, seed: int, cache: Path, config_dir: str | Path | None, progress: bool
+) -> tuple[list[Row], dict[str, float]]:
+    """The tables' rows for the finished runs of ``runs`` (others are left out), the paper's own rows and
+    the planners'; and per task the share of its episodes that begin in contact."""
+    from hier_ssl.compare import load_manager
+    from hier_ssl.evaluate import evaluate
+    from hier_ssl.report import make_record
+
+    rows, contact = [], {}
+    for task in dict.fromkeys(run.task for run in runs):
+        episodes = episodes_of(task, config_dir)
+        for setup in dict.fromkeys(run.setup for run in runs if run.task == task):
+            rows.append(Row(task, setup, "paper", "final", "sampled", [paper_record(task, setup)]))
+            for family in FAMILIES:
+                done = [r for r in runs if (r.task, r.setup, r.family) == (task, setup, family)]
+                done = [r for r in done if (r.run_dir / EVAL_FILE).is_file()]
+                for which, sample in VARIANTS[family] if done else ():
+                    records = [evaluate_run(r, which, sample, episodes, count, seed, cache) for r in done]
+                    actions = "sampled" if sample else "mean"
+                    rows.append(Row(task, setup, FAMILY_TITLES[family], which, actions, records))
+                    if progress:
+                        print(
+                            f"  {task}/{setup} {family} {which} {actions}: {len(records)} run(s)", flush=True
+                        )
+        planner_env = episodes.model_copy(update={"frame_skip": 16})
+        for name in PLANNER_ROWS:
+            result = evaluate(load_manager(name, planner_env), planner_env, count, seed)
+            rows.append(Row(task, "-", "planner", name, "-", [make_record(name, result)]))
+            contact[task] = result["start_contact_rate"]
+    return rows, contact
+
+
+def write_figures(
+    runs: Sequence[Planned], results: Path, config_dir: str | Path | None, seed: int
+) -> list[Path]:
+    """Fig. 3 per task: one episode (the recorded one most managers solve) played by each family's first
+    finished FSCAPS run (paper family: final policy, sampled; defaults: best) and by the planners."""
+    from hier_ssl.compare import load_manager
+    from hier_ssl.evaluate import evaluate
+    from hier_ssl.report import figure3, label_outcomes, pick_episode
+    from hier_ssl.world.field import get_field
+
+    paths = []
+    for task in dict.fromkeys(run.task for run in runs):
+        episodes = episodes_of(task, config_dir)
+        panels = []
+        for family, (which, sample) in (("paper", ("final", True)), ("defaults", ("best", False))):
+            done = [r for r in runs if (r.task, r.setup, r.family) == (task, "fscaps", family)]
+            done = [r for r in done if (r.run_dir / EVAL_FILE).is_file()]
+            if done:
+                acting = acting_config(done[0].config.task_config, episodes)
+                policy = load_manager(done[0].run_dir, acting, which, sample, seed)
+                panels.append((f"{FAMILY_TITLES[family]} FSCAPS", acting, policy))
+        planner_env = episodes.model_copy(update={"frame_skip": 16})
+        panels += [(name, planner_env, load_manager(name, planner_env)) for name in PLANNER_ROWS]
+        recorded = []
+        for name, acting, policy in panels:
+            result = evaluate(policy, acting, 16, seed, record=range(16))
+            per = result["per_robot"]
+            label_outcomes(result, per["success"], per["collision"], per["cpad"])
+            recorded.append((name, result["trajectories"]))
+        j = pick_episode([[t["outcome"][0] == "success" for t in ts] for _, ts in recorded])
+        title = f"{task}: episode {j} of seed {seed}"
+        path = results / f"fig3-{task}.png"
+        paths.append(
+            figure3([(n, ts[j]) for n, ts in recorded], get_field(episodes.field), path, title=title)
+        )
+    return paths
 
 
 def reproduce(
+    families: Sequence[str] = tuple(FAMILIES),
     only: Sequence[str] = (),
-    seeds: int = 1,
+    seeds: int | None = None,
     out: str | Path = "runs/reproduce",
+    results: str | Path = "results",
     episodes: int = 1000,
     config_dir: str | Path | None = None,
     overrides: Sequence[str] = (),
     eval_seed: int = 0,
     progress: bool = True,
     launch_options: LaunchOptions | None = None,
+    train: bool = True,
 ) -> Path:
-    """Train what is missing, evaluate everything, write ``out``/report.md; returns its path.
-
-    ``seeds`` runs per configuration (training seeds config.seed, config.seed + 1, ...); ``overrides``
-    are ``key=value`` settings applied to every config (e.g. ``total_steps=2000`` for a quick pass);
-    ``launch_options`` say where the runs train (``hier_ssl.launch``: in turn, as processes, on Ray).
-    """
-    from hier_ssl.compare import compare
-    from hier_ssl.report import write_evaluation
-
-    if seeds < 1:
-        raise ValueError(f"seeds must be >= 1, got {seeds}")
-    out = Path(out)
-    # Every config is validated before anything is trained.
-    plans: list[tuple[str, str, Path]] = []
-    jobs = []
-    for task, setup, path in paper_configs(config_dir, only):
-        data = apply_overrides(load_yaml(path), list(overrides))
-        base_seed = int(data.get("seed", 0))
-        for k in range(seeds):
-            config = parse_config({**data, "seed": base_seed + k})
-            jobs.append(Job(config, out / "runs" / f"{config.name}-s{config.seed}"))
-            plans.append((task, setup, jobs[-1].run_dir))
-    launch(jobs, launch_options or LaunchOptions(), progress=progress, tune_dir=out / "tune")
-
-    sections = []
-    for task in TASKS:
-        runs = [(setup, run_dir) for t, setup, run_dir in plans if t == task]
-        if not runs:
-            continue
-        print(f"evaluating the {task} managers on {episodes} episodes (seed {eval_seed})", flush=True)
-        specs = [run_dir for _, run_dir in runs] + list(PLANNER_ROWS)
-        evaluations = compare(
-            specs,
-            task=task,
-            episodes=episodes,
-            seed=eval_seed,
-            record=range(min(16, episodes)),
-            progress=True,
-        )
-        write_evaluation(evaluations, out / task, json_path=out / task / "eval.json", title=task)
-        setups = [setup for setup, _ in runs] + list(PLANNER_ROWS)
-        rows = [(task, s, e.record) for s, e in zip(setups, evaluations, strict=True)]
-        sections.append(_section(task, rows, evaluations, [run_dir for _, run_dir in runs]))
-
-    report = out / "report.md"
-    report.parent.mkdir(parents=True, exist_ok=True)
-    report.write_text(_header(episodes, eval_seed, seeds) + "\n".join(sections))
-    return report
+    """Train what is missing (unless ``train`` is False), evaluate every finished run, write
+    ``results``/paper-tables.md, .csv and the figures; returns the Markdown file's path."""
+    out, results = Path(out), Path(results)
+    runs = plan(families, only, seeds, out, config_dir, overrides)
+    if train:
+        jobs = [Job(run.config, run.run_dir) for run in runs]
+        launch(jobs, launch_options or LaunchOptions(), progress=progress, tune_dir=out / "tune")
+    if progress:
+        print(f"evaluating on {episodes} episodes per task (seed {eval_seed})", flush=True)
+    rows, contact = table_rows(runs, episodes, eval_seed, out / "evals", config_dir, progress)
+    results.mkdir(parents=True, exist_ok=True)
+    (results / "paper-tables.csv").write_text(csv_text(rows))
+    figures = write_figures(runs, results, config_dir, eval_seed)
+    text = _header(episodes, eval_seed, contact) + markdown(rows)
+    text += "\n" + "\n".join(f"![{p.stem}]({p.name})" for p in figures) + "\n"
+    path = results / "paper-tables.md"
+    path.write_text(text)
+    return path
 
 
-def _header(episodes: int, eval_seed: int, seeds: int) -> str:
+def _header(episodes: int, seed: int, contact: dict[str, float]) -> str:
+    starts = ", ".join(f"{task} {100 * share:.1f} %" for task, share in contact.items())
     return (
-        '# Reproduction of "Planning the path with Reinforcement Learning" (RoboCup SSL)\n\n'
-        f"Every manager is evaluated on the same {episodes} seeded episodes per task (seed {eval_seed}): "
-        "same starts, targets and obstacle commands. Learned managers act in their own training environment "
-        "(frame skip, worker); the scripted planners `direct` (sub-goal = target) and `sampling` (sampled "
-        "sub-goals, obstacles predicted at constant velocity, fastest collision-free bang-bang "
-        "trajectory) decide every 16 control steps. "
-        f"{seeds} training seed(s) per configuration.\n\n"
-        "Cells are median (Q1 - Q3) over episodes; lengths in control steps of 25 ms (1200 = timeout). "
-        "*Time / optimum*: episode time over the analytic minimum time to the target under the robot's "
-        "speed and acceleration limits, median over successful episodes.\n\n"
-        "**CPAD differs from the paper's column.** We compute CPAD as the paper defines it: the sum of "
-        "the distances between consecutive (x, y) sub-goals, one per control step. The paper's public "
-        "code, which produced its tables, takes sqrt(sum of squared distances) instead (never larger; "
-        '`hier_ssl.manager.metrics.cpad(..., variant="public_code")`). Compare CPAD trends, not values.\n\n'
+        '# "Planning the path with Reinforcement Learning": the paper\'s tables and ours\n\n'
+        "Written by `hier-ssl reproduce` (hier_ssl/reproduce.py). Every manager of a task plays the same "
+        f"{episodes} episodes (seed {seed}), drawn as the paper's public code draws them; learned managers "
+        "act with their own interface, frame skip and worker; the planners decide every 16 control steps. "
+        "*paper*: the paper's published numbers (final models, sampled actions). *paper family*: our runs "
+        "of the public code's settings (configs/paper/); *defaults*: our runs of our defaults (configs/, "
+        'README "Deviations from the paper"). *Policy*: the checkpoint training ended with (final) or '
+        "the one model selection kept (best), acting with sampled or mean actions.\n\n"
+        "Cells: the median over training seeds of each run's figure, with the seeds' min - max. A run's "
+        "figures: success and collision rates, the median episode length in control steps of 25 ms (1200 "
+        "= timeout), the median CPAD as the paper defines it (sum of the sub-goal's moves) and as its "
+        "public code computes it (square root of the sum of squared moves: the paper's tables), the median "
+        "time over the time-optimal bound (successful episodes), the training wall time (2-core machine, "
+        "usually beside another run).\n\n"
+        f"Episodes that begin inside the collision distance (start 0.2 m from the target, obstacle on the "
+        f"midpoint) end as collisions for every manager: {starts or 'none'}.\n\n"
     )
 
 
-def _section(
-    task: str, rows: list[tuple[str, str, dict[str, Any]]], evaluations: list, runs: list[Path]
-) -> str:
-    from hier_ssl.report import markdown_table, paper_comparison
-
-    lines = [
-        f"## {task.capitalize()} task\n",
-        paper_comparison(rows),
-        "Full table:\n",
-        markdown_table([e.record for e in evaluations]),
-    ]
-    trained = []
-    for run_dir in runs:
-        summary = json.loads((run_dir / EVAL_FILE).read_text()) if (run_dir / EVAL_FILE).is_file() else {}
-        if "train_wall_s" in summary:
-            trained.append(f"{run_dir.name} {summary['train_wall_s']:.0f} s")
-    if trained:
-        lines.append("Training wall time: " + ", ".join(trained) + ".\n")
-    names = ", ".join(SETUP_TITLES.get(s, s) for _, s, _ in rows)
-    lines.append(f"![{task}: {names}, one episode]({task}/fig3.png)\n")
-    return "\n".join(lines) + "\n"
-
-
-__all__ = ["paper_configs", "reproduce"]
+__all__ = ["EPISODE_KEYS", "FAMILIES", "VARIANTS", "Planned", "default_seeds", "plan", "reproduce", "select"]

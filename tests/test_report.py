@@ -14,14 +14,13 @@ from hier_ssl.envs import env_config
 from hier_ssl.evaluate import evaluate
 from hier_ssl.manager import cpad, min_time_to_pose
 from hier_ssl.manager.planners import make_planner
+from hier_ssl.paper_tables import PAPER_RESULTS, Row, csv_text, markdown, paper_record
 from hier_ssl.report import (
-    PAPER_RESULTS,
     csv_table,
     episode_video,
     figure3,
     latex_table,
     markdown_table,
-    paper_comparison,
     pick_episode,
     table_cells,
 )
@@ -73,12 +72,24 @@ def test_markdown_csv_and_latex_hold_the_same_row() -> None:
     assert "eval_wall" not in md[0] + rows[0] + tex  # tables are reproducible: no wall times
 
 
-def test_paper_comparison_puts_the_papers_numbers_beside_ours() -> None:
-    text = paper_comparison([("proposed", "fscaps", RECORD), ("obstacle", "caps", None)])
-    lines = text.splitlines()
-    assert "| proposed | FSCAPS | proposed_fscaps | 114 (92 - 137) | 114 (92 - 137) |" in lines[2]
-    assert lines[3].startswith("| obstacle | CAPS | - | not run | 1200 (1200 - 1200) |")
-    assert "1.32 %" in lines[3]
+def test_paper_tables_put_the_papers_numbers_beside_the_median_and_spread_over_seeds() -> None:
+    seeds = [
+        {**RECORD, "success_rate": s, "collision_rate": c, "train_wall_s": w}
+        for s, c, w in ((0.99, 0.01, 600.0), (0.95, 0.03, 660.0), (0.97, 0.0, 540.0))
+    ]
+    rows = [
+        Row("obstacle", "fscaps", "paper", "final", "sampled", [paper_record("obstacle", "fscaps")]),
+        Row("obstacle", "fscaps", "defaults", "best", "mean", seeds),
+    ]
+    lines = markdown(rows).splitlines()
+    # The paper's CPAD column is its public code's: it stands under that column, ours under both.
+    assert lines[4] == "| FSCAPS | paper | final, sampled | - | - | 0.6 | 115 | - | 1.27 | - | - |"
+    assert lines[5] == (
+        "| FSCAPS | defaults | best, mean | 3 | 97.0 (95.0 - 99.0) | 1.0 (0.0 - 3.0) | 114 | 0.06 | - "
+        "| 1.33 | 10.0 (9.0 - 11.0) |"
+    )
+    table = csv_text(rows).splitlines()
+    assert table[2].startswith("obstacle,fscaps,defaults,best,mean,3,97.0,95.0,99.0,1.0,0.0,3.0,114.0,114.0")
 
 
 def test_recorded_episode_matches_the_metrics() -> None:
@@ -144,7 +155,7 @@ def test_pick_episode_prefers_episodes_most_managers_solve() -> None:
     assert pick_episode([[False, False], [False, False]]) == 0
 
 
-def test_reproduce_trains_missing_runs_once_and_reports(
+def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     import torch
@@ -158,21 +169,26 @@ def test_reproduce_trains_missing_runs_once_and_reports(
         trained.append(run_dir.name)
         run_dir.mkdir(parents=True)
         (run_dir / "config.yaml").write_text(dump_config(config))
-        actor = SquashedGaussianActor(13, 4, config.sac.hidden)
-        torch.save({"actor": actor.state_dict()}, run_dir / "best_actor.pt")
-        (run_dir / "eval.json").write_text(json.dumps({"train_wall_s": 1.0}))
+        actor = SquashedGaussianActor(13, 4, config.sac.hidden).state_dict()
+        torch.save({"actor": actor}, run_dir / "best_actor.pt")
+        torch.save({"sac": {"actor": actor}}, run_dir / "model.pt")
+        (run_dir / "eval.json").write_text(json.dumps({"train_wall_s": 60.0}))
 
     monkeypatch.setattr(launch_module, "train", fake_train)
-    configs = Path(__file__).parents[1] / "configs"
-    args = {"only": ["proposed/fscaps"], "out": tmp_path, "episodes": 3, "config_dir": configs}
-    args["overrides"] = ["sac.hidden=[8, 8]"]
-    report = reproduce_module.reproduce(**args, progress=False)
+    args = {"only": ["proposed/fscaps"], "out": tmp_path / "runs", "results": tmp_path / "results"}
+    args |= {"episodes": 3, "overrides": ["sac.hidden=[8, 8]"], "seeds": 1, "progress": False}
+    report = reproduce_module.reproduce(**args)
     text = report.read_text()
-    assert trained == ["proposed-fscaps-s0"]
-    assert "| proposed | FSCAPS | proposed-fscaps-s0 |" in text and "114 (92 - 137)" in text
-    assert "| proposed | direct | direct |" in text and "sqrt(sum of squared distances)" in text
-    assert (tmp_path / "proposed" / "fig3.png").is_file() and (tmp_path / "proposed" / "table.tex").is_file()
-    reproduce_module.reproduce(**args, progress=False)
-    assert trained == ["proposed-fscaps-s0"]  # finished runs are skipped
+    assert sorted(trained) == ["paper-proposed-fscaps-s0", "proposed-fscaps-s0"]
+    assert "| FSCAPS | paper | final, sampled | - | - | - | 114 | - | 0.06 | - | - |" in text
+    for source, policy in (("paper family", "final, sampled"), ("paper family", "best, mean")):
+        assert f"| FSCAPS | {source} | {policy} | 1 |" in text
+    assert "| FSCAPS | defaults | final, mean | 1 |" in text and "| - | planner | sampling | - |" in text
+    assert (tmp_path / "results" / "paper-tables.csv").is_file()
+    assert (tmp_path / "results" / "fig3-proposed.png").is_file() and "fig3-proposed.png" in text
+    cached = sorted(p.name for p in (tmp_path / "runs" / "evals").iterdir())
+    assert len(cached) == 5 and "proposed-fscaps-s0-best-mean-e3-s0.json" in cached
+    reproduce_module.reproduce(**args)
+    assert len(trained) == 2  # finished runs are skipped
     with pytest.raises(ValueError, match="not a paper configuration"):
-        reproduce_module.reproduce(only=["proposed/sac"], out=tmp_path, config_dir=configs)
+        reproduce_module.reproduce(only=["proposed/sac"], out=tmp_path)

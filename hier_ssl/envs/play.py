@@ -23,18 +23,24 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
     evaluation and ``hier-ssl render`` all run it.
 
-    Returns length (control steps), success, collision, cpad, cpad_public and distance (start to target,
-    m), arrays (N, M) of the controlled robots, and "trajectories": the ``record`` fields' episodes
-    (``Recorder.episode``). ``cpad`` is the paper's definition (the sum of the sub-goal's moves);
-    ``cpad_public`` what the paper's public code computed for its tables, the square root of the sum of
-    the squared moves (``hier_ssl.manager.metrics.cpad``).
+    Returns length (control steps), success, collision, cpad, cpad_public, distance (start to target, m)
+    and start_gap (to the nearest other robot at reset, m), arrays (N, M) of the controlled robots, and
+    "trajectories": the ``record`` fields' episodes (``Recorder.episode``). ``cpad`` is the paper's
+    definition (the sum of the sub-goal's moves); ``cpad_public`` what the paper's public code computed for
+    its tables, the square root of the sum of the squared moves (``hier_ssl.manager.metrics.cpad``).
     """
     record = check_record(record, core.num_fields)
     obs = core.reset(seed)
     recorder = Recorder(core, record) if record else None
     shape = core.active.shape
-    start = core.world.state.pos[:, : shape[1]]
+    pos = core.world.state.pos
+    start = pos[:, : shape[1]]
     distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
+    # Centre distance to the nearest other robot at reset: under the collision distance the episode
+    # begins in contact (the public code's 0.2 m starts with a midpoint obstacle allow it).
+    gaps = np.linalg.norm(start[:, :, None] - pos[:, None], axis=-1)
+    gaps[:, np.arange(shape[1]), np.arange(shape[1])] = np.inf
+    start_gap = gaps.min(axis=2, initial=np.inf)
     ends = {
         "length": np.zeros(shape, dtype=np.int64),
         "success": np.zeros(shape, dtype=bool),
@@ -59,7 +65,13 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     # A field's control steps stop counting when its last robot leaves: the recorded episode's length.
     trajectories = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)] if recorder else []
     cpad_public = np.sqrt(squared_moves)
-    return {**ends, "cpad_public": cpad_public, "distance": distance, "trajectories": trajectories}
+    return {
+        **ends,
+        "cpad_public": cpad_public,
+        "distance": distance,
+        "start_gap": start_gap,
+        "trajectories": trajectories,
+    }
 
 
 def check_record(record: Sequence[int], episodes: int) -> list[int]:

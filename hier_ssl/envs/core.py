@@ -28,7 +28,7 @@ from hier_ssl.envs.rules import score_control_step
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.worker import Worker, make_worker
+from hier_ssl.worker import Worker, make_worker, resolve_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
 from hier_ssl.world.field import Field
 from hier_ssl.world.obstacles import make_obstacle
@@ -72,7 +72,8 @@ def controlled_worker_observation(
 class HierarchicalCore:
     """N fields of one scenario: ``reset``, ``step(actions (N, M, A))``, ``observe``.
 
-    ``task`` is a task config (``EnvConfig`` or ``ScenarioConfig``) or a built scenario; ``worker``
+    ``task`` is a task config (``EnvConfig`` or ``ScenarioConfig``) or a built scenario; ``worker`` (a
+    spec, or an object, class or factory of the worker protocol: ``hier_ssl.worker.resolve_worker``)
     replaces the one the config names. ``active`` (N, M) says which robots are still in their episode.
     ``autoreset`` resets a field inside ``step`` once no robot is left in it (vector view); without it a
     finished field holds still until ``reset`` (PettingZoo view, evaluation: one episode per field).
@@ -83,7 +84,7 @@ class HierarchicalCore:
         task: TaskConfig | Scenario,
         num_fields: int = 1,
         autoreset: bool = True,
-        worker: Worker | None = None,
+        worker: str | Worker | None = None,
     ) -> None:
         scenario = task if isinstance(task, Scenario) else make_scenario(task)
         self.scenario, self.config = scenario, scenario.config
@@ -93,7 +94,10 @@ class HierarchicalCore:
         self.num_agents, self.num_obstacles = m, k
         self.world = World(num_fields, m + k, scenario.field, dt=cfg.dt, substeps=cfg.substeps)
         self.field, self.robot = self.world.field, self.world.robot
-        self.worker = worker if worker is not None else make_worker(cfg.worker, self.robot, cfg.dt)
+        if worker is None:
+            self.worker = make_worker(cfg.worker, self.robot, cfg.dt)
+        else:
+            self.worker = resolve_worker(worker, self.robot, cfg.dt)
         # Each group's behaviour moves its obstacles as rows (field f, obstacle j) -> f * count + j.
         self.obstacles: list[tuple[Any, slice]] = []
         first = m
@@ -110,6 +114,7 @@ class HierarchicalCore:
         self._teammate = self._others < m
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
+        self.interrupted = False  # an exception stopped a decision part-way: no step until reset()
 
         n = num_fields
         self.target = np.zeros((n, m, 5))
@@ -140,6 +145,7 @@ class HierarchicalCore:
         if seed is not None:
             self.seed(seed)
         self.reset_fields(np.arange(self.num_fields))
+        self.interrupted = False
         return self.observe()
 
     def reset_fields(self, fields: np.ndarray) -> None:
@@ -315,22 +321,53 @@ class HierarchicalCore:
         start = self.active.copy()
         if not start.any():
             raise RuntimeError("step() with every episode finished: call reset() first")
+        held = self.check_steppable()
         clipped = self.set_subgoal(action, start)
         live = start.copy()
         reward = np.zeros(live.shape)
         success, collision, timeout = (np.zeros(live.shape, dtype=bool) for _ in range(3))
         elapsed = np.zeros(live.shape, dtype=np.int64)
-        for _ in range(cfg.frame_skip):
-            r, succ, hit, _ = self.control_step(live)
-            reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
-            elapsed += live
-            success |= succ
-            collision |= hit & ~succ
-            timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
-            live &= ~(success | collision | timeout)
-            if not live.any():
-                break
+        try:
+            for _ in range(cfg.frame_skip):
+                r, succ, hit, _ = self.control_step(live)
+                reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
+                elapsed += live
+                success |= succ
+                collision |= hit & ~succ
+                timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
+                live &= ~(success | collision | timeout)
+                if not live.any():
+                    break
+        except Exception:
+            self.abandon(held)
+            raise
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
+
+    # -- a step that fails ---------------------------------------------------------------------------------
+    # A worker runs user code, and what it raises (a WorkerError, or its own exception) must not leave a
+    # decision half made. The worker is called first in every control step, before the obstacles, the
+    # world or any count moves, so a failure at a decision's first control step is undone whole: the
+    # sub-goals, decision counts and CPAD it had set go back. A failure later in the decision (frame_skip
+    # > 1) comes after the world has moved; the fields cannot be put back, so the core refuses to step
+    # until reset().
+
+    def check_steppable(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """What a decision changes before its first control step, for ``abandon``; a RuntimeError if an
+        earlier step stopped part-way."""
+        if self.interrupted:
+            raise RuntimeError(
+                "an exception stopped an earlier step() part-way through a decision: call reset() first"
+            )
+        return self.subgoal.copy(), self.decisions.copy(), self.ep_cpad.copy(), self.control_steps
+
+    def abandon(self, held: tuple[np.ndarray, np.ndarray, np.ndarray, int]) -> None:
+        """After an exception inside a step: put back what ``check_steppable`` held if no control step
+        ran since, else mark the core ``interrupted``."""
+        subgoal, decisions, cpad, control_steps = held
+        if self.control_steps != control_steps:
+            self.interrupted = True
+            return
+        self.subgoal[...], self.decisions[...], self.ep_cpad[...] = subgoal, decisions, cpad
 
     def finish(
         self,

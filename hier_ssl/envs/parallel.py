@@ -12,6 +12,7 @@ the last of them, when the episode is over. Actions are checked here, once, nami
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -30,11 +31,13 @@ MANAGER = "manager_0"
 class HierarchicalSSLEnv(ParallelEnv):
     metadata = {"name": "hier_ssl_v0", "render_modes": ["human", "rgb_array"], "is_parallelizable": True}
 
-    def __init__(self, config: TaskConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(
+        self, config: TaskConfig | None = None, render_mode: str | None = None, worker: Any = None
+    ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
         self.render_mode = render_mode
-        self.core = HierarchicalCore(config or EnvConfig(), 1, autoreset=False)
+        self.core = HierarchicalCore(config or EnvConfig(), 1, autoreset=False, worker=worker)
         self.config = cfg = self.core.config
         m, k = self.core.num_agents, self.core.num_obstacles
         self.managers = [f"manager_{i}" for i in range(m)]
@@ -147,6 +150,7 @@ class HierarchicalSSLEnv(ParallelEnv):
     def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:
         """One control step with exposed agents; the managers act on decision steps only."""
         core, m = self.core, self.core.num_agents
+        held = core.check_steppable()
         live = core.active.copy()
         decision = core.steps[0] % self.config.frame_skip == 0
         clipped = core.set_subgoal(manager_action, live) if decision else np.zeros((1, m), dtype=np.int64)
@@ -156,7 +160,11 @@ class HierarchicalSSLEnv(ParallelEnv):
         obstacles = None
         if self.obstacle_agents:
             obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None]
-        reward, success, hit, _ = core.control_step(live, worker, obstacles)
+        try:
+            reward, success, hit, _ = core.control_step(live, worker, obstacles)
+        except Exception:  # the scripted worker's: the sub-goal set above goes back (core.abandon)
+            core.abandon(held)
+            raise
         collision = hit & ~success
         timeout = live & ~success & ~hit & (core.steps >= self.config.max_steps)[:, None]
         s = core.state
@@ -214,11 +222,13 @@ class ManagerEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array"]}
 
-    def __init__(self, config: TaskConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(
+        self, config: TaskConfig | None = None, render_mode: str | None = None, worker: Any = None
+    ) -> None:
         config = (config or EnvConfig()).model_copy(
             update={"expose_worker": False, "expose_obstacles": False}
         )
-        self.env = HierarchicalSSLEnv(config, render_mode=render_mode)
+        self.env = HierarchicalSSLEnv(config, render_mode=render_mode, worker=worker)
         if self.env.managers != [MANAGER]:
             raise ValueError(f"ManagerEnv drives one manager; this task has {len(self.env.managers)}")
         self.render_mode = render_mode

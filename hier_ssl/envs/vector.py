@@ -115,8 +115,10 @@ class TorchVectorEnv(TorchView):
     robots have left.
     """
 
-    def __init__(self, config: TaskConfig, num_fields: int, device: str | torch.device = "cpu") -> None:
-        core = HierarchicalCore(config, num_fields, autoreset=True)
+    def __init__(
+        self, config: TaskConfig, num_fields: int, device: str | torch.device = "cpu", worker: Any = None
+    ) -> None:
+        core = HierarchicalCore(config, num_fields, autoreset=True, worker=worker)
         self.config = core.config
         decisions = -(-self.config.max_steps // self.config.frame_skip)
         shape = (num_fields, core.num_agents, core.act_dim)

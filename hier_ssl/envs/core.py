@@ -313,9 +313,10 @@ class HierarchicalCore:
 
         ``info`` holds, per robot (N, M): ``control_steps`` it was live for, ``success``, ``collision``,
         ``action_clipped``, ``subgoal`` (N, M, 5) and ``live`` (the robots this decision acted for);
-        ``final_obs`` (N, M, O), the observation before any auto-reset; and ``episode``, one entry per robot
-        that left: ``field``, ``agent``, ``return``, ``length`` (control steps), ``decisions``, ``success``,
-        ``collision``, ``cpad``.
+        ``final_obs`` (N, M, O), the observation before any auto-reset; and ``task``, the task's episode
+        statistics, one entry per robot that left: ``field``, ``agent``, ``return``, ``length`` (control
+        steps), ``decisions``, ``success``, ``collision``, ``cpad``. (Not ``episode``: Gymnasium's
+        ``RecordEpisodeStatistics`` and SB3's ``Monitor`` write that key; every view passes ``task`` on.)
         """
         cfg = self.config
         start = self.active.copy()
@@ -392,7 +393,7 @@ class HierarchicalCore:
             "action_clipped": clipped,
             "subgoal": self.subgoal.copy(),
             "live": start,
-            "episode": {
+            "task": {
                 "field": field,
                 "agent": agent,
                 "return": self.ep_return[field, agent].copy(),

@@ -117,8 +117,8 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def _outputs(self, result: StepResult) -> tuple[dict, dict, dict, dict, dict]:
         """The five dicts of ``step`` for the agents live before it, from the core's result."""
-        info, episode = result.info, result.info["episode"]
-        ended = {int(i): row for row, i in enumerate(episode["agent"])}
+        info, stats = result.info, result.info["task"]
+        ended = {int(i): row for row, i in enumerate(stats["agent"])}
         obs = self._observations(result.obs[0])
         rewards, terms, truncs, infos = {}, {}, {}, {}
         for agent in self.agents:
@@ -144,7 +144,7 @@ class HierarchicalSSLEnv(ParallelEnv):
             }
             if i in ended:
                 skip = ("field", "agent")
-                infos[agent]["episode"] = {k: v[ended[i]] for k, v in episode.items() if k not in skip}
+                infos[agent]["task"] = {k: v[ended[i]] for k, v in stats.items() if k not in skip}
         return obs, rewards, terms, truncs, infos
 
     def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:

@@ -44,7 +44,7 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
         live = core.active
         action[live] = policy(obs[live])
         result = core.step(action)
-        episode = result.info["episode"]
+        episode = result.info["task"]
         at = (episode["field"], episode["agent"])
         for key in ends:
             ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]

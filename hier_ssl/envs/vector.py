@@ -22,7 +22,7 @@ class TorchView:
     returns obs (rows, O) float32, reward (rows,), terminated (rows,), truncated (rows,), info.
 
     Finished episodes are reset inside the step: ``obs`` is already the new episode's first observation
-    and ``info["final_obs"]`` the last one of the old episode; ``info["episode"]`` holds one 1-D tensor
+    and ``info["final_obs"]`` the last one of the old episode; ``info["task"]`` holds one 1-D tensor
     entry per finished episode. A core whose results carry ``info["live"]`` (per robot) marks the rows
     whose transition is real; a robot that has left while its field plays on is a row in an absorbing
     state: observation all zeros (no live observation is: it holds sin and cos of two angles), reward 0,
@@ -30,7 +30,7 @@ class TorchView:
     into it.
     """
 
-    # Per-row info arrays a core may report besides "final_obs" and "episode", passed on as tensors.
+    # Per-row info arrays a core may report besides "final_obs" and "task", passed on as tensors.
     _PER_ROW = ("control_steps", "action_clipped")
 
     def __init__(
@@ -85,10 +85,10 @@ class TorchView:
         action = self._check(actions)
         result: StepResult = self.core.step(action.reshape(self.action_shape))
         info, live = result.info, result.info.get("live")
-        keys = [k for k in info["episode"] if k not in ("field", "agent")]
+        keys = [k for k in info["task"] if k not in ("field", "agent")]
         out = {
             "final_obs": self._rows(info["final_obs"], live),
-            "episode": {k: self._tensor(info["episode"][k]) for k in keys},
+            "task": {k: self._tensor(info["task"][k]) for k in keys},
         }
         if live is not None:
             out["live"] = self._tensor(live.ravel(), torch.bool)
@@ -109,7 +109,7 @@ class TorchVectorEnv(TorchView):
     """N fields of any task or scenario for one shared policy, managers acting and workers and obstacles
     scripted; ``num_envs`` = N x M rows.
 
-    ``info`` besides "final_obs" (rows, O) and "episode" (per robot that left: return, length in control
+    ``info`` besides "final_obs" (rows, O) and "task" (per robot that left: return, length in control
     steps, decisions, success, collision, cpad): "live" (rows,) bool, the rows whose transition is real,
     for learners that can mask; "control_steps" and "action_clipped" (rows,). A field resets once all its
     robots have left.
@@ -156,7 +156,7 @@ class RslRlVecEnv(VecEnv):
         dones = terminated | truncated
         self.episode_length_buf += 1
         self.episode_length_buf[dones] = 0
-        log = {f"/episode/{k}": v.mean() for k, v in info["episode"].items() if v.numel()}
+        log = {f"/episode/{k}": v.mean() for k, v in info["task"].items() if v.numel()}
         extras = {"time_outs": truncated, "log": log}
         return self._group(obs), reward, dones.long(), extras
 

@@ -22,6 +22,7 @@ from pettingzoo import ParallelEnv
 from hier_ssl.config import EnvConfig, TaskConfig
 from hier_ssl.envs.core import OBSTACLE_AGENT_OBS_DIM, HierarchicalCore, StepResult
 from hier_ssl.envs.rules import check_action
+from hier_ssl.envs.state import CLIP, global_state, state_dim
 from hier_ssl.manager import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 
@@ -29,6 +30,10 @@ MANAGER = "manager_0"
 
 
 class HierarchicalSSLEnv(ParallelEnv):
+    """One field of a paper task or scenario as a PettingZoo ParallelEnv (module docstring). ``state()``
+    is the field's global state for centralised critics, a (D,) float32 vector in ``state_space``
+    (columns: ``hier_ssl.envs.state``)."""
+
     metadata = {"name": "hier_ssl_v0", "render_modes": ["human", "rgb_array"], "is_parallelizable": True}
 
     def __init__(
@@ -57,6 +62,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         for agent in self.obstacle_agents:
             self._obs_spaces[agent] = box(-1.2, 1.2, (OBSTACLE_AGENT_OBS_DIM,))
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
+        self.state_space = box(-CLIP, CLIP, (state_dim(m, k),))
         self.agents: list[str] = []
         self._trails: list[list[np.ndarray]] = []
         self._window = None
@@ -66,6 +72,12 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def action_space(self, agent: str) -> spaces.Box:
         return self._act_spaces[agent]
+
+    def state(self) -> np.ndarray:
+        """The global state (D,) float32 of the field: every robot's pose and velocity, every controlled
+        robot's target, held sub-goal and whether it is still in its episode, normalised like the
+        observations (``hier_ssl.envs.state`` lists the columns). Computed when called."""
+        return global_state(self.core)[0]
 
     def _observations(self, manager_obs: np.ndarray) -> dict[str, np.ndarray]:
         """Observations of the live agents; ``manager_obs`` (M, O) of field 0."""

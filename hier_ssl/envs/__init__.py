@@ -3,7 +3,8 @@
 Every task is a scenario (``hier_ssl.envs.scenario``) of the core (``hier_ssl.envs.core``): the paper's
 Baseline, Proposed and Obstacle tasks from an ``EnvConfig``, the multi-robot scenarios from a
 ``ScenarioConfig``. The torch views (``vector_env``, ``TorchVectorEnv``, ``RslRlVecEnv``) bring torch and
-rsl-rl with them and are loaded on first use; the PettingZoo and Gymnasium views need neither.
+rsl-rl with them and are loaded on first use; the PettingZoo and Gymnasium views (``manager_env``, and
+``manager_vector_env``, a ``gymnasium.vector.VectorEnv``) need neither.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 
 from hier_ssl.config import EnvConfig, ScenarioConfig, TaskConfig
 from hier_ssl.envs.core import HierarchicalCore, StepResult
+from hier_ssl.envs.gym_vector import ManagerVectorEnv
 from hier_ssl.envs.parallel import HierarchicalSSLEnv, ManagerEnv
 from hier_ssl.envs.play import Policy, play
 from hier_ssl.envs.registry import (
@@ -94,6 +96,19 @@ def manager_env(
     return ManagerEnv(task_config(config, **settings), render_mode=render_mode, worker=worker)
 
 
+def manager_vector_env(
+    config: str | Path | TaskConfig | None = None,
+    num_fields: int = 16,
+    worker: Any = None,
+    **settings: Any,
+) -> ManagerVectorEnv:
+    """The batched view as a ``gymnasium.vector.VectorEnv``, numpy in and out, same-step autoreset: one
+    row per (field, controlled robot), e.g. ``manager_vector_env(task="proposed", num_fields=8,
+    frame_skip=16)`` (``hier_ssl.envs.gym_vector``)."""
+    settings, worker = _worker_apart(worker, settings)
+    return ManagerVectorEnv(task_config(config, **settings), num_fields, worker=worker)
+
+
 def scenario_env(
     scenario: str | Path | ScenarioConfig,
     render_mode: str | None = None,
@@ -137,6 +152,7 @@ __all__ = [
     "HierarchicalSSLEnv",
     "Layout",
     "ManagerEnv",
+    "ManagerVectorEnv",
     "Policy",
     "RslRlVecEnv",
     "Scenario",
@@ -149,6 +165,7 @@ __all__ = [
     "load_config",
     "make_scenario",
     "manager_env",
+    "manager_vector_env",
     "parse_config",
     "parallel_env",
     "play",

@@ -50,8 +50,9 @@ class HierarchicalSSLEnv(ParallelEnv):
         self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if cfg.expose_obstacles else []
         self.possible_agents = self.managers + self.workers + self.obstacle_agents
         self.per_control_step = cfg.expose_worker or cfg.expose_obstacles
+        # One frame per step: a decision (frame_skip control steps), or one control step with exposed agents.
         period = cfg.dt * (1 if self.per_control_step else cfg.frame_skip)
-        self.metadata = {**self.metadata, "render_fps": max(1, round(1 / period))}
+        self.metadata = {**self.metadata, "render_fps": 1 / period}
         box = functools.partial(spaces.Box, dtype=np.float32)
         manager_obs = box(-1.2, 1.2, (self.core.obs_dim,))
         self._obs_spaces = {a: manager_obs for a in self.managers}
@@ -230,13 +231,19 @@ class HierarchicalSSLEnv(ParallelEnv):
 
 class ManagerEnv(gymnasium.Env):
     """Single-agent Gymnasium view: the manager of one field with one controlled robot; worker and
-    obstacles scripted."""
+    obstacles scripted. One step is one decision; an episode ends, truncated, after ``max_episode_steps``
+    decisions (``max_steps`` control steps) if the robot has not left it before. Render modes: "human"
+    (a matplotlib window, drawn every step) and "rgb_array"; ``render_fps`` is one frame per decision."""
 
-    metadata = {"render_modes": ["rgb_array"]}
+    metadata = {"render_modes": ["human", "rgb_array"]}
 
     def __init__(
         self, config: TaskConfig | None = None, render_mode: str | None = None, worker: Any = None
     ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"ManagerEnv: render_mode {render_mode!r} is not one of {self.metadata['render_modes']}"
+            )
         config = (config or EnvConfig()).model_copy(
             update={"expose_worker": False, "expose_obstacles": False}
         )
@@ -244,8 +251,10 @@ class ManagerEnv(gymnasium.Env):
         if self.env.managers != [MANAGER]:
             raise ValueError(f"ManagerEnv drives one manager; this task has {len(self.env.managers)}")
         self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": self.env.metadata["render_fps"]}
         self.observation_space = self.env.observation_space(MANAGER)
         self.action_space = self.env.action_space(MANAGER)
+        self.max_episode_steps = -(-self.env.config.max_steps // self.env.config.frame_skip)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
@@ -258,6 +267,9 @@ class ManagerEnv(gymnasium.Env):
 
     def render(self) -> np.ndarray | None:
         return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
 
 
 __all__ = ["MANAGER", "HierarchicalSSLEnv", "ManagerEnv"]

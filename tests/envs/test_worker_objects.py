@@ -3,6 +3,7 @@ planners; and a worker that fails inside a step leaves the core as it was, or re
 
 from __future__ import annotations
 
+import gymnasium
 import numpy as np
 import pytest
 import torch
@@ -67,6 +68,11 @@ def test_every_constructor_takes_an_object_and_steps_with_it() -> None:
         assert _inner(view.core).calls == view.config.frame_skip, name
     core = HierarchicalCore(EnvConfig(), 2, worker=Counting)  # a class is built, as an import spec is
     assert isinstance(_inner(core), Counting)
+    worker = Counting()
+    made = gymnasium.make("hier_ssl/Obstacle-v0", frame_skip=4, worker=worker)
+    made.reset(seed=0)
+    made.step(made.action_space.sample())
+    assert worker.calls == 4 and _inner(made.unwrapped.env.core) is worker
 
 
 def test_a_spec_given_as_worker_goes_into_the_config() -> None:

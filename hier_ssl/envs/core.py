@@ -26,9 +26,10 @@ from hier_ssl.config import TaskConfig
 from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import score_control_step
 from hier_ssl.envs.scenario import Scenario
+from hier_ssl.envs.step_guard import abandon, hold
 from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.worker import Worker, make_worker, resolve_worker
+from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
 from hier_ssl.world.field import Field
 from hier_ssl.world.obstacles import make_obstacle
@@ -94,10 +95,7 @@ class HierarchicalCore:
         self.num_agents, self.num_obstacles = m, k
         self.world = World(num_fields, m + k, scenario.field, dt=cfg.dt, substeps=cfg.substeps)
         self.field, self.robot = self.world.field, self.world.robot
-        if worker is None:
-            self.worker = make_worker(cfg.worker, self.robot, cfg.dt)
-        else:
-            self.worker = resolve_worker(worker, self.robot, cfg.dt)
+        self.worker = resolve_worker(cfg.worker if worker is None else worker, self.robot, cfg.dt)
         # Each group's behaviour moves its obstacles as rows (field f, obstacle j) -> f * count + j.
         self.obstacles: list[tuple[Any, slice]] = []
         first = m
@@ -322,7 +320,7 @@ class HierarchicalCore:
         start = self.active.copy()
         if not start.any():
             raise RuntimeError("step() with every episode finished: call reset() first")
-        held = self.check_steppable()
+        held = hold(self)
         clipped = self.set_subgoal(action, start)
         live = start.copy()
         reward = np.zeros(live.shape)
@@ -339,36 +337,10 @@ class HierarchicalCore:
                 live &= ~(success | collision | timeout)
                 if not live.any():
                     break
-        except Exception:
-            self.abandon(held)
+        except Exception:  # from the worker: undone, or the core needs a reset (step_guard)
+            abandon(self, held)
             raise
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
-
-    # -- a step that fails ---------------------------------------------------------------------------------
-    # A worker runs user code, and what it raises (a WorkerError, or its own exception) must not leave a
-    # decision half made. The worker is called first in every control step, before the obstacles, the
-    # world or any count moves, so a failure at a decision's first control step is undone whole: the
-    # sub-goals, decision counts and CPAD it had set go back. A failure later in the decision (frame_skip
-    # > 1) comes after the world has moved; the fields cannot be put back, so the core refuses to step
-    # until reset().
-
-    def check_steppable(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """What a decision changes before its first control step, for ``abandon``; a RuntimeError if an
-        earlier step stopped part-way."""
-        if self.interrupted:
-            raise RuntimeError(
-                "an exception stopped an earlier step() part-way through a decision: call reset() first"
-            )
-        return self.subgoal.copy(), self.decisions.copy(), self.ep_cpad.copy(), self.control_steps
-
-    def abandon(self, held: tuple[np.ndarray, np.ndarray, np.ndarray, int]) -> None:
-        """After an exception inside a step: put back what ``check_steppable`` held if no control step
-        ran since, else mark the core ``interrupted``."""
-        subgoal, decisions, cpad, control_steps = held
-        if self.control_steps != control_steps:
-            self.interrupted = True
-            return
-        self.subgoal[...], self.decisions[...], self.ep_cpad[...] = subgoal, decisions, cpad
 
     def finish(
         self,

@@ -23,6 +23,7 @@ from hier_ssl.config import EnvConfig, TaskConfig
 from hier_ssl.envs.core import OBSTACLE_AGENT_OBS_DIM, HierarchicalCore, StepResult
 from hier_ssl.envs.rules import check_action
 from hier_ssl.envs.state import CLIP, global_state, state_dim
+from hier_ssl.envs.step_guard import abandon, hold
 from hier_ssl.manager import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 
@@ -163,7 +164,7 @@ class HierarchicalSSLEnv(ParallelEnv):
     def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:
         """One control step with exposed agents; the managers act on decision steps only."""
         core, m = self.core, self.core.num_agents
-        held = core.check_steppable()
+        held = hold(core)
         live = core.active.copy()
         decision = core.steps[0] % self.config.frame_skip == 0
         clipped = core.set_subgoal(manager_action, live) if decision else np.zeros((1, m), dtype=np.int64)
@@ -175,8 +176,8 @@ class HierarchicalSSLEnv(ParallelEnv):
             obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None]
         try:
             reward, success, hit, _ = core.control_step(live, worker, obstacles)
-        except Exception:  # the scripted worker's: the sub-goal set above goes back (core.abandon)
-            core.abandon(held)
+        except Exception:  # the scripted worker's: the sub-goal set above goes back (step_guard)
+            abandon(core, held)
             raise
         collision = hit & ~success
         timeout = live & ~success & ~hit & (core.steps >= self.config.max_steps)[:, None]

@@ -22,6 +22,9 @@ Each id's default settings are the task's own (``frame_skip`` 1 for the paper's 
 number in the registry that would be wrong for every other ``frame_skip``. The env truncates at the
 same decision itself.
 
+``worker=`` may be a spec string or a worker object; Gymnasium copies ``make``'s keyword arguments into
+``env.spec``, so an object must be deep-copyable (the env runs the object given, not the copy).
+
 ``gymnasium.make_vec(id, num_envs=N)`` gives the batched ``hier_ssl.envs.ManagerVectorEnv`` (one core
 stepping N fields, same-step autoreset) rather than N copies of the env.
 

@@ -9,6 +9,7 @@ the latest is used). ``compare`` evaluates several managers on one task's or sce
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ from hier_ssl.config import ScenarioConfig, TaskConfig, TrainConfig
 from hier_ssl.envs import env_config, make_scenario, task_config
 from hier_ssl.evaluate import Policy, evaluate
 from hier_ssl.manager.planners import PLANNERS, make_planner
+from hier_ssl.worker import worker_name
 
 
 def is_planner(spec: str | Path) -> bool:
@@ -40,19 +42,25 @@ def run_config(run_dir: str | Path) -> TrainConfig:
 
 
 def load_manager(
-    spec: str | Path, config: TaskConfig, which: str = "best", sample: bool = False, seed: int = 0
+    spec: str | Path,
+    config: TaskConfig,
+    which: str = "best",
+    sample: bool = False,
+    seed: int = 0,
+    worker: Any = None,
 ) -> Policy:
     """The manager ``spec`` (planner name or run directory) as a numpy policy acting in the task or
     scenario ``config``, one row per live robot. A run acts with its ``which`` checkpoint ("best", the one
     model selection kept, or "final", the one training ended with) and its mean action, or with ``sample``
-    actions drawn from its policy (seeded by ``seed``; the paper's test script samples). Planners are
-    deterministic and ignore both.
+    actions drawn from its policy (seeded by ``seed``; the paper's test script samples). A planner is
+    deterministic; it reads the limits of ``worker`` (an object of the worker protocol) where given, else
+    of the worker ``config`` names.
 
     Raises ValueError when a run's network does not fit the task's observation or action size (e.g. a
     manager trained without obstacles evaluated on the Obstacle task) or has no such checkpoint.
     """
     if is_planner(spec):
-        return make_planner(str(spec), config)
+        return make_planner(str(spec), config, worker)
     from hier_ssl.policies.actor import load_policy
 
     run_dir = Path(spec)
@@ -103,12 +111,22 @@ def manager_env(
 
 @dataclass
 class Evaluation:
-    """One manager evaluated: its label, task config, the JSON ``record`` and ``evaluate``'s ``result``."""
+    """One manager evaluated: its label, task config, the JSON ``record``, ``evaluate``'s ``result`` and
+    the worker's label (``env.worker``, or ``module:Class`` for a worker given as an object)."""
 
     name: str
     env: TaskConfig
     record: dict[str, Any]
     result: dict[str, Any]
+    worker: str
+
+
+def worker_apart(worker: Any) -> tuple[str | None, Any]:
+    """(spec, object): a worker spec string or run directory, or None, stays a spec for the task config;
+    an object, class or factory of the worker protocol is handed to the core as it is."""
+    if worker is None or isinstance(worker, (str, os.PathLike)):
+        return (None if worker is None else os.fspath(worker)), None
+    return None, worker
 
 
 def compare(
@@ -116,7 +134,7 @@ def compare(
     config: TaskConfig | None = None,
     *,
     task: str | None = None,
-    workers: Sequence[str | None] = (None,),
+    workers: Sequence[Any] = (None,),
     episodes: int = 1000,
     seed: int = 0,
     frame_skip: int | None = None,
@@ -135,6 +153,10 @@ def compare(
     planners take the paper ``task`` (default: the first run's, else "proposed"). Figures are per robot.
     Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
     robots' ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures.
+
+    ``workers`` are specs (``"paper"``, ``"my_pkg.control:Ctrl+latency=2"``, a run directory), None (each
+    manager's own), or Python objects of the worker protocol (their classes or factories too), labelled
+    ``module:Class`` in records and tables (``hier_ssl.worker.worker_name``).
     """
     from hier_ssl.report import label_outcomes, make_record
 
@@ -146,17 +168,19 @@ def compare(
     jobs = []
     for spec in specs:
         for worker in workers:
-            acting = manager_env(spec, task, frame_skip, worker, given=config)
-            policy = load_manager(spec, acting, which, sample, seed)
+            worker_spec, obj = worker_apart(worker)
+            acting = manager_env(spec, task, frame_skip, worker_spec, given=config)
+            label = acting.worker if obj is None else worker_name(obj)
+            policy = load_manager(spec, acting, which, sample, seed, obj)
             labels = ("-", "-") if is_planner(spec) else (which, "sampled" if sample else "mean")
-            jobs.append((manager_name(spec), acting, policy, labels))
+            jobs.append((manager_name(spec), acting, policy, obj, label, labels))
     evaluations = []
-    for name, acting, policy, (checkpoint, actions) in jobs:
-        result = evaluate(policy, acting, episodes, seed, record=record)
+    for name, acting, policy, obj, label, (checkpoint, actions) in jobs:
+        result = evaluate(policy, acting, episodes, seed, record=record, worker=obj)
         per = result["per_robot"]
         label_outcomes(result, per["success"], per["collision"], per["cpad"])
         context = {
-            "worker": acting.worker,
+            "worker": label,
             "task": acting.scenario_name,
             "frame_skip": acting.frame_skip,
             "seed": seed,
@@ -165,9 +189,9 @@ def compare(
             "policy": checkpoint,
             "actions": actions,
         }
-        evaluations.append(Evaluation(name, acting, make_record(name, result, **context), result))
+        evaluations.append(Evaluation(name, acting, make_record(name, result, **context), result, label))
         if progress:
-            print(f"  {name} ({acting.worker} worker): {result['eval_wall_s']:.1f} s", flush=True)
+            print(f"  {name} ({label} worker): {result['eval_wall_s']:.1f} s", flush=True)
     return evaluations
 
 
@@ -181,4 +205,5 @@ __all__ = [
     "manager_env",
     "manager_name",
     "run_config",
+    "worker_apart",
 ]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,9 +21,16 @@ from hier_ssl.world.physics import RobotSpec
 
 
 def evaluate(
-    policy: Policy, config: TaskConfig, episodes: int, seed: int = 0, record: Sequence[int] = ()
+    policy: Policy,
+    config: TaskConfig,
+    episodes: int,
+    seed: int = 0,
+    record: Sequence[int] = (),
+    worker: Any = None,
 ) -> dict[str, object]:
-    """Run ``episodes`` episodes of the task or scenario ``config`` and summarise them per robot.
+    """Run ``episodes`` episodes of the task or scenario ``config`` and summarise them per robot, driven by
+    ``worker`` (a spec, or an object, class or factory of the worker protocol) where given, else by the
+    worker ``config`` names.
 
     The policy sees only the robots still in their episode (its input has fewer rows as they leave), so a
     row-wise policy costs nothing for finished ones.
@@ -40,7 +48,7 @@ def evaluate(
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     start = time.perf_counter()
-    core = HierarchicalCore(config, episodes, autoreset=False)
+    core = HierarchicalCore(config, episodes, autoreset=False, worker=worker)
     ends = play(core, policy, seed, record)
     length, success, collision, cpad = ends["length"], ends["success"], ends["collision"], ends["cpad"]
     distance, dt = ends["distance"], core.config.dt

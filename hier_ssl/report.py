@@ -359,7 +359,7 @@ def write_evaluation(
     records = [e.record for e in evaluations]
     paths = write_tables(records, out_dir)
     several_workers = len({r["worker"] for r in records}) > 1
-    labels = [f"{e.name} ({e.env.worker})" if several_workers else e.name for e in evaluations]
+    labels = [f"{e.name} ({e.worker})" if several_workers else e.name for e in evaluations]
     recorded = [e.result.get("trajectories") for e in evaluations]
     if evaluations and all(recorded):
         j = pick_episode([[np.mean(np.equal(t["outcome"], "success")) for t in ts] for ts in recorded])

@@ -67,6 +67,14 @@ env.reset(seed=0)
 env.step({"manager_0": env.action_space("manager_0").sample()})
 scenario = hier_ssl.scenario_env("crossing", num_agents=2)
 scenario.reset(seed=0)
+scenario.state()
+import gymnasium
+gym_env = gymnasium.make("hier_ssl/Obstacle-v0", frame_skip=16)  # registered by importing hier_ssl
+gym_env.reset(seed=0)
+gym_env.step(gym_env.action_space.sample())
+vec = gymnasium.make_vec("hier_ssl/Proposed-v0", num_envs=2)
+vec.reset(seed=0)
+vec.step(vec.action_space.sample())
 heavy = sorted(m for m in ("torch", "rsl_rl", "tensorboard", "tensordict") if m in sys.modules)
 assert not heavy, heavy
 """

@@ -1,6 +1,6 @@
-"""The README's own-controller example, run as written: the controller saved as the file the README
-names, the command line run by the installed ``hier-ssl`` from that directory, the Python snippet run
-there too."""
+"""The README's examples, run as written: the own-controller example (the controller saved as the file
+the README names, the command line run by the installed ``hier-ssl`` from that directory, the Python
+snippets run there too), the Gymnasium / Stable-Baselines3 / CleanRL snippets and the multi-agent one."""
 
 from __future__ import annotations
 
@@ -25,12 +25,26 @@ def _blocks(section: str) -> dict[str, list[str]]:
     return blocks
 
 
+def _environment() -> dict[str, str]:
+    # One torch thread: two OpenMP threads stall badly on a busy 2-core CPU (tests/conftest.py).
+    return {**os.environ, "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"}
+
+
+def _run(snippet: str, cwd: Path) -> list[list[str]]:
+    """The snippet's printed lines, split into words; it must exit 0."""
+    done = subprocess.run(
+        [sys.executable, "-c", snippet], cwd=cwd, env=_environment(), capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    return [line.split() for line in done.stdout.splitlines()]
+
+
 def test_the_workers_section_example_runs_as_written(tmp_path: Path) -> None:
     blocks = _blocks("Workers")
-    controller, snippet = blocks["python"]
+    controller, snippet, objects = blocks["python"]
     (command,) = blocks["bash"]
     (tmp_path / "my_controller.py").write_text(controller)
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    env = _environment()
 
     # The console script, not `python -m`: it must find my_controller.py in the directory it runs in.
     script = Path(sys.executable).parent / "hier-ssl"
@@ -42,11 +56,35 @@ def test_the_workers_section_example_runs_as_written(tmp_path: Path) -> None:
         for worker in ("my_controller:Proportional", "paper"):
             assert f"| {manager} | {worker} |" in done.stdout
 
-    done = subprocess.run(
-        [sys.executable, "-c", snippet], cwd=tmp_path, env=env, capture_output=True, text=True
-    )
-    assert done.returncode == 0, done.stderr
-    rows = [line.split() for line in done.stdout.splitlines()]
+    rows = _run(snippet, tmp_path)
     assert [row[0] for row in rows] == ["my_controller:Proportional", "my_controller:Proportional+latency=4"]
     for _, success, length in rows:
         assert 0.9 <= float(success) <= 1.0 and 0 < float(length) < 1200
+
+    # The controller as an object: labelled module:Class beside the paper's worker, for both planners.
+    rows = _run(objects, tmp_path)
+    assert [row[:2] for row in rows] == [
+        ["direct", "my_controller:Proportional"],
+        ["direct", "paper"],
+        ["sampling", "my_controller:Proportional"],
+        ["sampling", "paper"],
+    ]
+    assert all(0.9 <= float(row[2]) <= 1.0 for row in rows)
+
+
+def test_the_gymnasium_section_examples_run_as_written(tmp_path: Path) -> None:
+    sb3, vector = _blocks("Gymnasium, Stable-Baselines3, CleanRL")["python"]
+    (row,) = _run(sb3, tmp_path)
+    limit, length, success, cpad = row
+    assert int(limit) == 75 and 1 <= int(length) <= 75 and success in ("0.0", "1.0") and float(cpad) >= 0
+    rows = _run(vector, tmp_path)
+    assert len(rows) >= 8  # 150 decisions of 8 fields: every field ends an episode (at most 75 each)
+    for words in rows:
+        assert words[0] == "field" and 0 <= int(words[1].rstrip(":")) < 8 and words[-1] == "m"
+
+
+def test_the_multi_agent_example_runs_as_written(tmp_path: Path) -> None:
+    (snippet,) = _blocks("Multi-agent learners: the global state")["python"]
+    ((space, *states, steps),) = _run(snippet, tmp_path)
+    assert space == "(80,)"  # 7 x 4 robot columns + 13 x 4 controlled-robot columns
+    assert "".join(states) == f"({steps},80)" and int(steps) >= 1

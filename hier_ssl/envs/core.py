@@ -26,9 +26,10 @@ from hier_ssl.config import TaskConfig
 from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import score_control_step
 from hier_ssl.envs.scenario import Scenario
+from hier_ssl.envs.step_guard import abandon, hold
 from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.worker import Worker, make_worker
+from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
 from hier_ssl.world.field import Field
 from hier_ssl.world.obstacles import make_obstacle
@@ -72,7 +73,8 @@ def controlled_worker_observation(
 class HierarchicalCore:
     """N fields of one scenario: ``reset``, ``step(actions (N, M, A))``, ``observe``.
 
-    ``task`` is a task config (``EnvConfig`` or ``ScenarioConfig``) or a built scenario; ``worker``
+    ``task`` is a task config (``EnvConfig`` or ``ScenarioConfig``) or a built scenario; ``worker`` (a
+    spec, or an object, class or factory of the worker protocol: ``hier_ssl.worker.resolve_worker``)
     replaces the one the config names. ``active`` (N, M) says which robots are still in their episode.
     ``autoreset`` resets a field inside ``step`` once no robot is left in it (vector view); without it a
     finished field holds still until ``reset`` (PettingZoo view, evaluation: one episode per field).
@@ -83,7 +85,7 @@ class HierarchicalCore:
         task: TaskConfig | Scenario,
         num_fields: int = 1,
         autoreset: bool = True,
-        worker: Worker | None = None,
+        worker: str | Worker | None = None,
     ) -> None:
         scenario = task if isinstance(task, Scenario) else make_scenario(task)
         self.scenario, self.config = scenario, scenario.config
@@ -93,7 +95,7 @@ class HierarchicalCore:
         self.num_agents, self.num_obstacles = m, k
         self.world = World(num_fields, m + k, scenario.field, dt=cfg.dt, substeps=cfg.substeps)
         self.field, self.robot = self.world.field, self.world.robot
-        self.worker = worker if worker is not None else make_worker(cfg.worker, self.robot, cfg.dt)
+        self.worker = resolve_worker(cfg.worker if worker is None else worker, self.robot, cfg.dt)
         # Each group's behaviour moves its obstacles as rows (field f, obstacle j) -> f * count + j.
         self.obstacles: list[tuple[Any, slice]] = []
         first = m
@@ -110,6 +112,7 @@ class HierarchicalCore:
         self._teammate = self._others < m
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
+        self.interrupted = False  # an exception stopped a decision part-way: no step until reset()
 
         n = num_fields
         self.target = np.zeros((n, m, 5))
@@ -140,6 +143,7 @@ class HierarchicalCore:
         if seed is not None:
             self.seed(seed)
         self.reset_fields(np.arange(self.num_fields))
+        self.interrupted = False
         return self.observe()
 
     def reset_fields(self, fields: np.ndarray) -> None:
@@ -307,29 +311,35 @@ class HierarchicalCore:
 
         ``info`` holds, per robot (N, M): ``control_steps`` it was live for, ``success``, ``collision``,
         ``action_clipped``, ``subgoal`` (N, M, 5) and ``live`` (the robots this decision acted for);
-        ``final_obs`` (N, M, O), the observation before any auto-reset; and ``episode``, one entry per robot
-        that left: ``field``, ``agent``, ``return``, ``length`` (control steps), ``decisions``, ``success``,
-        ``collision``, ``cpad``.
+        ``final_obs`` (N, M, O), the observation before any auto-reset; and ``task``, the task's episode
+        statistics, one entry per robot that left: ``field``, ``agent``, ``return``, ``length`` (control
+        steps), ``decisions``, ``success``, ``collision``, ``cpad``. (Not ``episode``: Gymnasium's
+        ``RecordEpisodeStatistics`` and SB3's ``Monitor`` write that key; every view passes ``task`` on.)
         """
         cfg = self.config
         start = self.active.copy()
         if not start.any():
             raise RuntimeError("step() with every episode finished: call reset() first")
+        held = hold(self)
         clipped = self.set_subgoal(action, start)
         live = start.copy()
         reward = np.zeros(live.shape)
         success, collision, timeout = (np.zeros(live.shape, dtype=bool) for _ in range(3))
         elapsed = np.zeros(live.shape, dtype=np.int64)
-        for _ in range(cfg.frame_skip):
-            r, succ, hit, _ = self.control_step(live)
-            reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
-            elapsed += live
-            success |= succ
-            collision |= hit & ~succ
-            timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
-            live &= ~(success | collision | timeout)
-            if not live.any():
-                break
+        try:
+            for _ in range(cfg.frame_skip):
+                r, succ, hit, _ = self.control_step(live)
+                reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
+                elapsed += live
+                success |= succ
+                collision |= hit & ~succ
+                timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
+                live &= ~(success | collision | timeout)
+                if not live.any():
+                    break
+        except Exception:  # from the worker: undone, or the core needs a reset (step_guard)
+            abandon(self, held)
+            raise
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
 
     def finish(
@@ -355,7 +365,7 @@ class HierarchicalCore:
             "action_clipped": clipped,
             "subgoal": self.subgoal.copy(),
             "live": start,
-            "episode": {
+            "task": {
                 "field": field,
                 "agent": agent,
                 "return": self.ep_return[field, agent].copy(),

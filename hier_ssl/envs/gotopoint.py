@@ -161,7 +161,7 @@ class GoToPointCore:
         """One 25 ms control step of every live field with normalised commands ``action`` (N, 3).
 
         Returns obs (N, 9), reward (N,), terminated (N,) on success, truncated (N,) at ``max_steps``, and
-        info: "success" (N,), reward "terms", "final_obs" (N, 9) before any auto-reset, and "episode" with
+        info: "success" (N,), reward "terms", "final_obs" (N, 9) before any auto-reset, and "task" with
         one entry per finished episode (field, return, length in control steps, success, start_distance).
         """
         cfg, task = self.config, self.task
@@ -200,7 +200,7 @@ class GoToPointCore:
         info: dict[str, object] = {
             "success": terminated,
             "terms": terms,
-            "episode": {
+            "task": {
                 "field": idx,
                 "return": self.ep_return[idx].copy(),
                 "length": self.steps[idx].copy(),
@@ -222,7 +222,7 @@ class GoToPointEnv(TorchView):
     ``RslRlVecEnv`` and ``make_ppo_runner`` take it as they are.
 
     ``step(actions (N, 3) in [-1, 1])`` returns obs (N, 9) float32, reward (N,), terminated (N,),
-    truncated (N,), info with "final_obs" and "episode" (1-D tensors: return, length, success,
+    truncated (N,), info with "final_obs" and "task" (1-D tensors: return, length, success,
     start_distance).
     """
 

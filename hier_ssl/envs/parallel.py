@@ -12,6 +12,7 @@ the last of them, when the episode is over. Actions are checked here, once, nami
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -21,6 +22,8 @@ from pettingzoo import ParallelEnv
 from hier_ssl.config import EnvConfig, TaskConfig
 from hier_ssl.envs.core import OBSTACLE_AGENT_OBS_DIM, HierarchicalCore, StepResult
 from hier_ssl.envs.rules import check_action
+from hier_ssl.envs.state import CLIP, global_state, state_dim
+from hier_ssl.envs.step_guard import abandon, hold
 from hier_ssl.manager import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 
@@ -28,13 +31,19 @@ MANAGER = "manager_0"
 
 
 class HierarchicalSSLEnv(ParallelEnv):
+    """One field of a paper task or scenario as a PettingZoo ParallelEnv (module docstring). ``state()``
+    is the field's global state for centralised critics, a (D,) float32 vector in ``state_space``
+    (columns: ``hier_ssl.envs.state``)."""
+
     metadata = {"name": "hier_ssl_v0", "render_modes": ["human", "rgb_array"], "is_parallelizable": True}
 
-    def __init__(self, config: TaskConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(
+        self, config: TaskConfig | None = None, render_mode: str | None = None, worker: Any = None
+    ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
         self.render_mode = render_mode
-        self.core = HierarchicalCore(config or EnvConfig(), 1, autoreset=False)
+        self.core = HierarchicalCore(config or EnvConfig(), 1, autoreset=False, worker=worker)
         self.config = cfg = self.core.config
         m, k = self.core.num_agents, self.core.num_obstacles
         self.managers = [f"manager_{i}" for i in range(m)]
@@ -42,8 +51,9 @@ class HierarchicalSSLEnv(ParallelEnv):
         self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if cfg.expose_obstacles else []
         self.possible_agents = self.managers + self.workers + self.obstacle_agents
         self.per_control_step = cfg.expose_worker or cfg.expose_obstacles
+        # One frame per step: a decision (frame_skip control steps), or one control step with exposed agents.
         period = cfg.dt * (1 if self.per_control_step else cfg.frame_skip)
-        self.metadata = {**self.metadata, "render_fps": max(1, round(1 / period))}
+        self.metadata = {**self.metadata, "render_fps": 1 / period}
         box = functools.partial(spaces.Box, dtype=np.float32)
         manager_obs = box(-1.2, 1.2, (self.core.obs_dim,))
         self._obs_spaces = {a: manager_obs for a in self.managers}
@@ -54,6 +64,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         for agent in self.obstacle_agents:
             self._obs_spaces[agent] = box(-1.2, 1.2, (OBSTACLE_AGENT_OBS_DIM,))
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
+        self.state_space = box(-CLIP, CLIP, (state_dim(m, k),))
         self.agents: list[str] = []
         self._trails: list[list[np.ndarray]] = []
         self._window = None
@@ -63,6 +74,12 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def action_space(self, agent: str) -> spaces.Box:
         return self._act_spaces[agent]
+
+    def state(self) -> np.ndarray:
+        """The global state (D,) float32 of the field: every robot's pose and velocity, every controlled
+        robot's target, held sub-goal and whether it is still in its episode, normalised like the
+        observations (``hier_ssl.envs.state`` lists the columns). Computed when called."""
+        return global_state(self.core)[0]
 
     def _observations(self, manager_obs: np.ndarray) -> dict[str, np.ndarray]:
         """Observations of the live agents; ``manager_obs`` (M, O) of field 0."""
@@ -114,8 +131,8 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def _outputs(self, result: StepResult) -> tuple[dict, dict, dict, dict, dict]:
         """The five dicts of ``step`` for the agents live before it, from the core's result."""
-        info, episode = result.info, result.info["episode"]
-        ended = {int(i): row for row, i in enumerate(episode["agent"])}
+        info, stats = result.info, result.info["task"]
+        ended = {int(i): row for row, i in enumerate(stats["agent"])}
         obs = self._observations(result.obs[0])
         rewards, terms, truncs, infos = {}, {}, {}, {}
         for agent in self.agents:
@@ -141,12 +158,13 @@ class HierarchicalSSLEnv(ParallelEnv):
             }
             if i in ended:
                 skip = ("field", "agent")
-                infos[agent]["episode"] = {k: v[ended[i]] for k, v in episode.items() if k not in skip}
+                infos[agent]["task"] = {k: v[ended[i]] for k, v in stats.items() if k not in skip}
         return obs, rewards, terms, truncs, infos
 
     def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:
         """One control step with exposed agents; the managers act on decision steps only."""
         core, m = self.core, self.core.num_agents
+        held = hold(core)
         live = core.active.copy()
         decision = core.steps[0] % self.config.frame_skip == 0
         clipped = core.set_subgoal(manager_action, live) if decision else np.zeros((1, m), dtype=np.int64)
@@ -156,7 +174,11 @@ class HierarchicalSSLEnv(ParallelEnv):
         obstacles = None
         if self.obstacle_agents:
             obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None]
-        reward, success, hit, _ = core.control_step(live, worker, obstacles)
+        try:
+            reward, success, hit, _ = core.control_step(live, worker, obstacles)
+        except Exception:  # the scripted worker's: the sub-goal set above goes back (step_guard)
+            abandon(core, held)
+            raise
         collision = hit & ~success
         timeout = live & ~success & ~hit & (core.steps >= self.config.max_steps)[:, None]
         s = core.state
@@ -210,20 +232,30 @@ class HierarchicalSSLEnv(ParallelEnv):
 
 class ManagerEnv(gymnasium.Env):
     """Single-agent Gymnasium view: the manager of one field with one controlled robot; worker and
-    obstacles scripted."""
+    obstacles scripted. One step is one decision; an episode ends, truncated, after ``max_episode_steps``
+    decisions (``max_steps`` control steps) if the robot has not left it before. Render modes: "human"
+    (a matplotlib window, drawn every step) and "rgb_array"; ``render_fps`` is one frame per decision."""
 
-    metadata = {"render_modes": ["rgb_array"]}
+    metadata = {"render_modes": ["human", "rgb_array"]}
 
-    def __init__(self, config: TaskConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(
+        self, config: TaskConfig | None = None, render_mode: str | None = None, worker: Any = None
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"ManagerEnv: render_mode {render_mode!r} is not one of {self.metadata['render_modes']}"
+            )
         config = (config or EnvConfig()).model_copy(
             update={"expose_worker": False, "expose_obstacles": False}
         )
-        self.env = HierarchicalSSLEnv(config, render_mode=render_mode)
+        self.env = HierarchicalSSLEnv(config, render_mode=render_mode, worker=worker)
         if self.env.managers != [MANAGER]:
             raise ValueError(f"ManagerEnv drives one manager; this task has {len(self.env.managers)}")
         self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": self.env.metadata["render_fps"]}
         self.observation_space = self.env.observation_space(MANAGER)
         self.action_space = self.env.action_space(MANAGER)
+        self.max_episode_steps = -(-self.env.config.max_steps // self.env.config.frame_skip)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
@@ -236,6 +268,9 @@ class ManagerEnv(gymnasium.Env):
 
     def render(self) -> np.ndarray | None:
         return self.env.render()
+
+    def close(self) -> None:
+        self.env.close()
 
 
 __all__ = ["MANAGER", "HierarchicalSSLEnv", "ManagerEnv"]

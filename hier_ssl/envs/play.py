@@ -57,7 +57,7 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
         result = core.step(action)
         moved = np.sum((core.subgoal[..., 0:2] - before) ** 2, axis=-1)
         squared_moves += np.where(moving, moved, 0.0)
-        episode = result.info["episode"]
+        episode = result.info["task"]
         at = (episode["field"], episode["agent"])
         for key in ends:
             ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]

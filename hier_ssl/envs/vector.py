@@ -1,7 +1,8 @@
 """The batched torch views of the core (auto-reset) and their rsl-rl-lib ``VecEnv`` adapter.
 
 Rows are (field, controlled robot) pairs, row = field * M + robot, so one policy acts for every robot
-(with M = 1, a row is a field). This is the protocol ``hier_ssl.policies.sac_runner.VectorEnv`` describes.
+(with M = 1, a row is a field; ``hier_ssl.envs.rows``). This is the protocol
+``hier_ssl.policies.sac_runner.VectorEnv`` describes.
 """
 
 from __future__ import annotations
@@ -14,24 +15,21 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from hier_ssl.config import TaskConfig
-from hier_ssl.envs.core import HierarchicalCore, StepResult
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.rows import RowView
 
 
-class TorchView:
-    """A numpy core with auto-reset, seen through torch tensors: ``step(actions (rows, A) in [-1, 1])``
-    returns obs (rows, O) float32, reward (rows,), terminated (rows,), truncated (rows,), info.
+class TorchView(RowView):
+    """A numpy core with auto-reset, seen through torch tensors: ``step(actions (rows, A) in [-1, 1])``,
+    a tensor or any array-like, returns obs (rows, O) float32, reward (rows,), terminated (rows,),
+    truncated (rows,), info, as tensors on ``device``.
 
-    Finished episodes are reset inside the step: ``obs`` is already the new episode's first observation
-    and ``info["final_obs"]`` the last one of the old episode; ``info["episode"]`` holds one 1-D tensor
-    entry per finished episode. A core whose results carry ``info["live"]`` (per robot) marks the rows
-    whose transition is real; a robot that has left while its field plays on is a row in an absorbing
-    state: observation all zeros (no live observation is: it holds sin and cos of two angles), reward 0,
-    terminated every step, so learners that store every row learn a value of 0 there and never bootstrap
-    into it.
+    The rows and their info are ``RowView``'s: finished episodes are reset inside the step (``obs`` is
+    already the new episode's first observation, ``info["final_obs"]`` the last one of the old episode),
+    ``info["task"]`` holds one 1-D tensor entry per finished episode, ``info["live"]`` marks the rows
+    whose transition is real where the core reports it (rows of robots that have left are absorbing).
+    ``single_observation_space`` and ``single_action_space`` are one row's Boxes.
     """
-
-    # Per-row info arrays a core may report besides "final_obs" and "episode", passed on as tensors.
-    _PER_ROW = ("control_steps", "action_clipped")
 
     def __init__(
         self,
@@ -41,66 +39,41 @@ class TorchView:
         max_episode_length: int,
         device: str | torch.device = "cpu",
     ) -> None:
-        self.core = core
-        self.num_fields = core.num_fields
-        self.action_shape = action_shape  # what the core's step takes: (N, A), or (N, M, A)
-        self.num_envs = int(np.prod(action_shape[:-1]))  # rows
-        self.num_obs, self.num_actions = num_obs, action_shape[-1]
-        self.max_episode_length = max_episode_length
+        super().__init__(core, num_obs, action_shape, max_episode_length)
         self.device = torch.device(device)
 
     def _tensor(self, array: np.ndarray, dtype: torch.dtype = torch.float32) -> torch.Tensor:
         return torch.as_tensor(array, device=self.device).to(dtype)
 
-    def _rows(self, array: np.ndarray, keep: np.ndarray | None = None) -> torch.Tensor:
-        """Per-robot values (N, M, ...) or (N, ...) as rows (rows, ...); zeros where not ``keep``."""
-        array = array.reshape(self.num_envs, -1)
-        if keep is not None:
-            array = np.where(keep.reshape(self.num_envs, 1), array, array.dtype.type(0))
-        return self._tensor(array)
-
     def reset(self, seed: int | None = None) -> torch.Tensor:
-        return self._rows(self.core.reset(seed))
-
-    def _active(self) -> np.ndarray | None:
-        """Which rows are in an episode (rows of the core's shape); None: all of them."""
-        return None
+        return self._tensor(self.reset_rows(seed))
 
     def observe(self) -> torch.Tensor:
-        return self._rows(self.core.observe(), self._active())
+        return self._tensor(self.observe_rows())
 
-    def _check(self, actions: torch.Tensor) -> np.ndarray:
-        action = actions.detach().to("cpu", torch.float64).numpy()
-        if action.shape != (self.num_envs, self.num_actions):
-            expected = (self.num_envs, self.num_actions)
-            raise ValueError(f"actions have shape {tuple(action.shape)}, expected {expected}")
-        if not np.isfinite(action).all():
-            rows = np.flatnonzero(~np.isfinite(action).all(axis=1))
-            raise ValueError(f"actions of rows {rows.tolist()} hold NaN or infinite values")
-        return action
+    def check_actions(self, actions: Any) -> np.ndarray:
+        if isinstance(actions, torch.Tensor):
+            actions = actions.detach().to("cpu", torch.float64).numpy()
+        return super().check_actions(actions)
 
     def step(
-        self, actions: torch.Tensor
+        self, actions: torch.Tensor | np.ndarray
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, dict[str, Any]]:
-        action = self._check(actions)
-        result: StepResult = self.core.step(action.reshape(self.action_shape))
-        info, live = result.info, result.info.get("live")
-        keys = [k for k in info["episode"] if k not in ("field", "agent")]
+        obs, reward, terminated, truncated, info = self.step_rows(actions)
         out = {
-            "final_obs": self._rows(info["final_obs"], live),
-            "episode": {k: self._tensor(info["episode"][k]) for k in keys},
+            "final_obs": self._tensor(info["final_obs"]),
+            "task": {k: self._tensor(v) for k, v in info["task"].items()},
         }
-        if live is not None:
-            out["live"] = self._tensor(live.ravel(), torch.bool)
-        for key in self._PER_ROW:
+        if "live" in info:
+            out["live"] = self._tensor(info["live"], torch.bool)
+        for key in self.PER_ROW:
             if key in info:
-                out[key] = self._tensor(info[key].ravel(), torch.int64)
-        terminated = result.terminated if live is None else result.terminated | ~live
+                out[key] = self._tensor(info[key], torch.int64)
         return (
-            self._rows(result.obs, self._active()),
-            self._tensor(result.reward.ravel()),
-            self._tensor(terminated.ravel(), torch.bool),
-            self._tensor(result.truncated.ravel(), torch.bool),
+            self._tensor(obs),
+            self._tensor(reward),
+            self._tensor(terminated, torch.bool),
+            self._tensor(truncated, torch.bool),
             out,
         )
 
@@ -109,21 +82,20 @@ class TorchVectorEnv(TorchView):
     """N fields of any task or scenario for one shared policy, managers acting and workers and obstacles
     scripted; ``num_envs`` = N x M rows.
 
-    ``info`` besides "final_obs" (rows, O) and "episode" (per robot that left: return, length in control
+    ``info`` besides "final_obs" (rows, O) and "task" (per robot that left: return, length in control
     steps, decisions, success, collision, cpad): "live" (rows,) bool, the rows whose transition is real,
     for learners that can mask; "control_steps" and "action_clipped" (rows,). A field resets once all its
     robots have left.
     """
 
-    def __init__(self, config: TaskConfig, num_fields: int, device: str | torch.device = "cpu") -> None:
-        core = HierarchicalCore(config, num_fields, autoreset=True)
+    def __init__(
+        self, config: TaskConfig, num_fields: int, device: str | torch.device = "cpu", worker: Any = None
+    ) -> None:
+        core = HierarchicalCore(config, num_fields, autoreset=True, worker=worker)
         self.config = core.config
         decisions = -(-self.config.max_steps // self.config.frame_skip)
         shape = (num_fields, core.num_agents, core.act_dim)
         super().__init__(core, core.obs_dim, shape, decisions, device)
-
-    def _active(self) -> np.ndarray:
-        return self.core.active
 
 
 class RslRlVecEnv(VecEnv):
@@ -154,7 +126,7 @@ class RslRlVecEnv(VecEnv):
         dones = terminated | truncated
         self.episode_length_buf += 1
         self.episode_length_buf[dones] = 0
-        log = {f"/episode/{k}": v.mean() for k, v in info["episode"].items() if v.numel()}
+        log = {f"/episode/{k}": v.mean() for k, v in info["task"].items() if v.numel()}
         extras = {"time_outs": truncated, "log": log}
         return self._group(obs), reward, dones.long(), extras
 

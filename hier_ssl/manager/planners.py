@@ -294,15 +294,18 @@ class SamplingPlanner:
         )
 
 
-def make_planner(name: str, config: TaskSettings, **options: object) -> DirectPlanner | SamplingPlanner:
+def make_planner(
+    name: str, config: TaskSettings, worker: object = None, **options: object
+) -> DirectPlanner | SamplingPlanner:
     """The scripted manager ``name`` ("direct" or "sampling") for environments built from ``config``.
 
-    The sampling planner's rollout uses the world's robot limits, its speed capped by the configured
-    worker's own cap where it states one (``max_speed``: the paper's worker stops at 2.2 m/s) and its
-    braking by the worker's braking acceleration where it has one. ``options`` override planner settings
-    (e.g. ``margin=0.1``).
+    The sampling planner's rollout uses the world's robot limits, its speed capped by the worker's own
+    cap where it states one (``max_speed``: the paper's worker stops at 2.2 m/s) and its braking by the
+    worker's braking acceleration where it has one. The worker is ``worker`` (a spec, or an object, class
+    or factory of the worker protocol) where given, else the one ``config`` names. ``options`` override
+    planner settings (e.g. ``margin=0.1``).
     """
-    from hier_ssl.worker import make_worker
+    from hier_ssl.worker import resolve_worker
 
     if name not in PLANNERS:
         raise ValueError(f"unknown planner {name!r}; known: {list(PLANNERS)}")
@@ -310,7 +313,7 @@ def make_planner(name: str, config: TaskSettings, **options: object) -> DirectPl
     layout = {"observation": config.observation, "action_frame": config.action_frame}
     if name == "direct":
         return DirectPlanner(fld, config.action_form, max_v=robot.max_speed, **layout, **options)
-    worker = make_worker(config.worker, robot, config.dt)
+    worker = resolve_worker(config.worker if worker is None else worker, robot, config.dt)
     brake = getattr(worker, "brake_accel", None)
     settings = {
         "max_speed": getattr(worker, "max_speed", robot.max_speed),

@@ -41,7 +41,7 @@ class VectorEnv(Protocol):
         Returns obs (num_envs, num_obs), already the reset observation where an episode finished;
         reward (num_envs,) float32; terminated, truncated (num_envs,) bool; info with
         ``info["final_obs"]`` (num_envs, num_obs), the true last observation (equal to obs where nothing
-        finished), and ``info["episode"]``, a dict of 1-D tensors with one entry per episode that ended
+        finished), and ``info["task"]``, a dict of 1-D tensors with one entry per episode that ended
         this step (e.g. "return", "length", "success"), possibly empty.
         """
         ...
@@ -204,7 +204,7 @@ class SACRunner:
                 self.sac.process_env_step(*rows)
                 self._obs = next_obs
                 self.step += 1
-                for key, values in info["episode"].items():
+                for key, values in info["task"].items():
                     if values.numel():
                         episode_stats[key].append(values.detach())
                 # Learn: updates_per_step gradient updates per vector step, once warm-up data is in.

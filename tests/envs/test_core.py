@@ -42,7 +42,7 @@ def test_direct_planner_solves_proposed_and_episode_stats_are_reported() -> None
     lengths, successes, cpads = [], [], []
     for _ in range(30):
         result = core.step(_direct(core))
-        episode = result.info["episode"]
+        episode = result.info["task"]
         lengths += list(episode["length"])
         successes += list(episode["success"])
         cpads += list(episode["cpad"])
@@ -101,7 +101,7 @@ def test_collision_ends_obstacle_episode_as_failure() -> None:
     collisions = 0
     for _ in range(20):
         result = core.step(_direct(core))
-        collisions += int(result.info["episode"]["collision"].sum())
+        collisions += int(result.info["task"]["collision"].sum())
         assert not (result.info["success"] & result.info["collision"]).any()
     # Driving straight at a target with a still obstacle on the midpoint always hits it.
     assert collisions >= 8
@@ -146,7 +146,7 @@ def test_target_frame_zero_action_drives_to_the_target() -> None:
     success = np.zeros(4, dtype=bool)
     while not core.done.all():
         result = core.step(np.zeros((4, 1, 4)))
-        success[result.info["episode"]["field"]] = result.info["episode"]["success"] > 0
+        success[result.info["task"]["field"]] = result.info["task"]["success"] > 0
     assert success.all() and core.ep_cpad.max() == 0.0  # the direct sub-goal, never moved
 
 

@@ -109,7 +109,7 @@ def test_success_ends_the_episode_with_the_bonus_and_autoresets() -> None:
     result = core.step(np.zeros((3, 3)))
     assert result.terminated.tolist() == [True, False, False] and not result.truncated.any()
     assert result.reward[0] > 9.0 and result.reward[1] < 1.0
-    episode = result.info["episode"]
+    episode = result.info["task"]
     assert episode["field"].tolist() == [0] and episode["length"].tolist() == [1]
     assert episode["success"].tolist() == [1.0]
     # Field 0 starts over: a new sub-goal, and obs differs from the final observation.
@@ -165,7 +165,7 @@ def test_vector_view_and_rsl_rl_adapter() -> None:
     for _ in range(5):
         obs, reward, terminated, truncated, info = env.step(torch.zeros(4, 3))
     assert reward.dtype == torch.float32 and truncated.dtype == torch.bool
-    assert set(info["episode"]) == {"return", "length", "success", "start_distance"}
+    assert set(info["task"]) == {"return", "length", "success", "start_distance"}
     adapter = RslRlVecEnv(GoToPointEnv(EnvConfig(), GoToPointConfig(), 4, seed=0))
     td, reward, dones, extras = adapter.step(torch.full((4, 3), 5.0))  # clamped to [-1, 1]
     assert td["policy"].shape == (4, 9) and dones.shape == (4,)

@@ -59,7 +59,7 @@ def test_frame_skip_gives_75_decisions_per_timed_out_episode() -> None:
         steps += infos["manager_0"]["control_steps"]
     assert truncs["manager_0"]
     assert decisions == 75 and steps == 1200
-    assert infos["manager_0"]["episode"]["length"] == 1200
+    assert infos["manager_0"]["task"]["length"] == 1200
 
 
 def test_bad_actions_raise_naming_the_agent() -> None:

@@ -121,7 +121,7 @@ def test_agent_leaves_on_reaching_its_target(success_weight: float) -> None:
     _, rewards, terms, truncs, infos = env.step(actions)
     assert terms == {"manager_0": True, "manager_1": False} and not any(truncs.values())
     assert infos["manager_0"]["success"] and not infos["manager_0"]["collision"]
-    assert infos["manager_0"]["control_steps"] == 1 and infos["manager_0"]["episode"]["success"] == 1.0
+    assert infos["manager_0"]["control_steps"] == 1 and infos["manager_0"]["task"]["success"] == 1.0
     # One control step inside the thresholds (+10 +1) plus R_t times its weight.
     assert rewards["manager_0"] == pytest.approx(11.0 + success_weight * SUCCESS_REWARD)
     assert env.agents == ["manager_1"]
@@ -145,7 +145,7 @@ def test_teammate_collision_counts_for_both() -> None:
     env, rewards, terms, infos = _collide(hit_weight=1.0)
     assert terms == {"manager_0": True, "manager_1": True, "manager_2": False}
     for agent in ("manager_0", "manager_1"):
-        assert infos[agent]["collision"] and infos[agent]["episode"]["collision"] == 1.0
+        assert infos[agent]["collision"] and infos[agent]["task"]["collision"] == 1.0
         assert rewards[agent] < HIT_REWARD / 2
     assert env.agents == ["manager_2"]
     # hit_weight scales R_hit alone: the same collision at weight 3 costs two more R_hit.
@@ -207,7 +207,7 @@ def test_vector_view_rows_absorb_after_leaving_and_reset_with_their_field() -> N
     obs, reward, terminated, truncated, info = env.step(actions)
     assert terminated.tolist() == [True, False, False, False] and info["live"].all()
     assert info["final_obs"][0].abs().sum() > 0 and obs[0].abs().sum() == 0
-    assert info["episode"]["success"].tolist() == [1.0]
+    assert info["task"]["success"].tolist() == [1.0]
     # Next step: row 0 is absorbing (zero reward, terminated, not live); the others play on.
     obs, reward, terminated, truncated, info = env.step(actions)
     assert info["live"].tolist() == [False, True, True, True]

@@ -19,8 +19,8 @@ def test_vector_env_shapes_autoreset_and_final_obs() -> None:
         assert torch.equal(info["final_obs"], obs)
     obs, reward, terminated, truncated, info = env.step(actions)
     assert truncated.all() and not terminated.any()
-    assert len(info["episode"]["length"]) == 8
-    assert torch.all(info["episode"]["length"] == 3)
+    assert len(info["task"]["length"]) == 8
+    assert torch.all(info["task"]["length"] == 3)
     # Auto-reset: the returned observation starts a new episode, the final one is kept apart.
     assert not torch.equal(info["final_obs"], obs)
 

@@ -23,7 +23,7 @@ class PointEnv:
 
     obs = (x, y, goal_x, goal_y) in [-1, 1]^4; action = velocity in [-1, 1]^2 times ``speed`` per step;
     reward = -distance to the goal after the move; episodes are truncated after ``episode_length`` steps
-    and never terminate. ``info["episode"]["final_distance"]`` reports the distance at the end.
+    and never terminate. ``info["task"]["final_distance"]`` reports the distance at the end.
     """
 
     def __init__(self, num_envs: int = 16, episode_length: int = 20, speed: float = 0.2) -> None:
@@ -69,7 +69,7 @@ class PointEnv:
             "final_distance": distance[truncated],
         }
         self._reset_envs(truncated)
-        return self._obs(), reward, terminated, truncated, {"final_obs": final_obs, "episode": episode}
+        return self._obs(), reward, terminated, truncated, {"final_obs": final_obs, "task": episode}
 
 
 def _mean_final_distance(policy: Callable[[torch.Tensor], torch.Tensor], episodes: int = 4) -> float:
@@ -79,7 +79,7 @@ def _mean_final_distance(policy: Callable[[torch.Tensor], torch.Tensor], episode
     distances = []
     for _ in range(episodes * env.episode_length):
         obs, _, _, _, info = env.step(policy(obs))
-        distances.append(info["episode"]["final_distance"])
+        distances.append(info["task"]["final_distance"])
     return torch.cat(distances).mean().item()
 
 

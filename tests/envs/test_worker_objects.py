@@ -96,7 +96,7 @@ def test_evaluation_planners_and_compare_take_objects() -> None:
     config = env_config(task="proposed", frame_skip=16)
     slow = Counting(max_speed=1.0)
     assert make_planner("sampling", config, worker=slow).speed == 1.0
-    assert load_manager("sampling", config, slow).speed == 1.0
+    assert load_manager("sampling", config, worker=slow).speed == 1.0
     assert make_planner("sampling", config).speed == 2.2  # the config's own (paper) worker
     ours = evaluate(make_planner("direct", config), config, 6, seed=1, worker=Counting())
     paper = evaluate(make_planner("direct", config), config, 6, seed=1)

@@ -245,7 +245,7 @@ def test_export_command_and_its_errors(tmp_path: Path, capsys: pytest.CaptureFix
     assert "nowhere: not a run directory" in capsys.readouterr().err
     (tmp_path / "run" / "best_actor.pt").unlink()
     assert cli.main(["export", str(tmp_path / "run")]) == 1
-    assert "no usable checkpoint (best_actor.pt missing)" in capsys.readouterr().err
+    assert "no best checkpoint (best_actor.pt missing)" in capsys.readouterr().err
     worker_run = tmp_path / "worker"
     worker_run.mkdir()
     (worker_run / "config.yaml").write_text(dump_config(parse_config({"kind": "worker", "algo": "ppo"})))

@@ -229,6 +229,45 @@ def write_figures(
     return paths
 
 
+def write_curves(runs: Sequence[Planned], results: Path) -> list[Path]:
+    """Per task, the selection curves (success and collision rate against vector steps x envs, i.e.
+    transitions) of every finished or running FSCAPS run of both families: where a run learned, stalled or
+    collapsed, which its final and best policies alone do not show."""
+    import csv
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    paths = []
+    for task in dict.fromkeys(run.task for run in runs):
+        curves = [
+            r for r in runs if (r.task, r.setup) == (task, "fscaps") and (r.run_dir / "curve.csv").is_file()
+        ]
+        if not curves:
+            continue
+        fig = Figure(figsize=(9, 3.2), dpi=100)
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(1, 2)
+        for run in curves:
+            rows = list(csv.DictReader((run.run_dir / "curve.csv").open()))
+            x = [int(row["transitions"]) / 1e6 for row in rows]
+            style = "-" if run.family == "paper" else "--"
+            label = f"{FAMILY_TITLES[run.family]} s{run.config.seed}"
+            for ax, key in zip(axes, ("success_rate", "collision_rate"), strict=True):
+                ax.plot(x, [100 * float(row[key]) for row in rows], style, label=label)
+        for ax, title in zip(axes, ("selection success %", "selection collisions %"), strict=True):
+            ax.set_title(f"{task} FSCAPS: {title}", fontsize=9)
+            ax.set_xlabel("transitions (millions, log scale)", fontsize=8)
+            ax.set_xscale("log")
+            ax.tick_params(labelsize=7)
+        axes[0].legend(fontsize=7)
+        fig.tight_layout()
+        path = results / f"curves-{task}.png"
+        fig.savefig(path)
+        paths.append(path)
+    return paths
+
+
 def reproduce(
     families: Sequence[str] = tuple(FAMILIES),
     only: Sequence[str] = (),
@@ -255,7 +294,7 @@ def reproduce(
     rows, contact = table_rows(runs, episodes, eval_seed, out / "evals", config_dir, progress)
     results.mkdir(parents=True, exist_ok=True)
     (results / "paper-tables.csv").write_text(csv_text(rows))
-    figures = write_figures(runs, results, config_dir, eval_seed)
+    figures = write_figures(runs, results, config_dir, eval_seed) + write_curves(runs, results)
     text = _header(episodes, eval_seed, contact) + markdown(rows)
     text += "\n" + "\n".join(f"![{p.stem}]({p.name})" for p in figures) + "\n"
     path = results / "paper-tables.md"

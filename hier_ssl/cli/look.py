@@ -1,0 +1,145 @@
+"""``hier-ssl bench``, ``demo``, ``render`` and ``configs``: measure, draw and list; nothing is trained."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
+
+# -- bench ---------------------------------------------------------------------------------------------------
+
+
+def add_bench(subparsers: argparse._SubParsersAction) -> None:
+    bench = subparsers.add_parser("bench", help="throughput benchmarks, pinned to one core")
+    targets = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
+    world = targets.add_parser(
+        "world",
+        help="field-steps/s of the world with the paper worker, 1 robot + 1 random-walk obstacle per field",
+    )
+    world.add_argument("--json", action="store_true", help="one JSON object per line")
+    world.add_argument(
+        "--steps",
+        type=positive_int,
+        default=None,
+        help="control steps per timed run (default: 4000 / sqrt(N), at least 20)",
+    )
+    world.set_defaults(func=_bench_world)
+
+
+def _bench_world(args: argparse.Namespace) -> int:
+    from hier_ssl.bench import WORLD_SIZES, bench_world, default_steps, pin_to_one_core
+
+    cpu = pin_to_one_core()
+    if not args.json:
+        where = f"CPU {cpu}" if cpu is not None else "one thread (affinity not settable here)"
+        print(f"world bench on {where}: best of 5 runs per N, paper worker + random-walk obstacle")
+    for n in WORLD_SIZES:
+        result = bench_world(n, args.steps)
+        if args.json:
+            print(json.dumps(result.as_dict()), flush=True)
+        else:
+            steps = args.steps or default_steps(n)
+            print(
+                f"  N = {n:5d} fields x {result.robots_per_field} robots: "
+                f"{result.steps_per_s:12,.0f} field-steps/s  ({steps} steps per run)",
+                flush=True,
+            )
+    return 0
+
+
+# -- demo ----------------------------------------------------------------------------------------------------
+
+
+def add_demo(subparsers: argparse._SubParsersAction) -> None:
+    demo = subparsers.add_parser("demo", help="drive a robot to random targets past an obstacle, write a PNG")
+    demo.add_argument("--out", default="runs/demo.png", help="PNG to write (default: %(default)s)")
+    demo.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    demo.add_argument(
+        "--worker",
+        type=worker_spec,
+        default="paper",
+        help=f"{WORKER_HELP} (default: %(default)s)",
+    )
+    demo.add_argument(
+        "--targets", type=positive_int, default=4, help="targets to visit (default: %(default)s)"
+    )
+    demo.set_defaults(func=_demo)
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from hier_ssl.demo import run_demo
+
+    result = run_demo(args.out, seed=args.seed, worker=args.worker, targets=args.targets)
+    print(
+        f"wrote {result.path} ({args.worker} worker: {result.reached}/{result.targets} targets reached in "
+        f"{result.steps} steps, {result.contact_steps} steps in contact with the obstacle)"
+    )
+    return 0
+
+
+# -- render --------------------------------------------------------------------------------------------------
+
+
+def add_render(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.manager.planners import PLANNERS
+
+    render = subparsers.add_parser(
+        "render", help="one episode of a task or scenario under a manager: GIF or PNG"
+    )
+    render.add_argument("scenario", metavar="SCENARIO", help="a task or scenario name, or a YAML (configs/)")
+    render.add_argument(
+        "--manager",
+        default="sampling",
+        help=f"a planner {PLANNERS} or a run directory (default: %(default)s)",
+    )
+    render.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a task key (repeatable)"
+    )
+    render.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
+    render.add_argument(
+        "--out", default="runs/render.gif", help="a .gif (animated) or .png (default: %(default)s)"
+    )
+    render.set_defaults(func=_render)
+
+
+def _render(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from hier_ssl.compare import compare
+    from hier_ssl.config import ConfigError
+    from hier_ssl.envs import TASKS, task_config
+    from hier_ssl.report import episode_video, figure3, panel_title
+    from hier_ssl.world.field import get_field
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".gif", ".png"):
+        raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
+    # A paper task by name is evaluated as `eval --task` would (a planner deciding every 16 steps).
+    by_name = args.scenario in TASKS and not args.set
+    config = None if by_name else task_config(args.scenario, args.set)
+    task = args.scenario if by_name else None
+    (evaluation,) = compare([args.manager], config, task=task, episodes=1, seed=args.seed, record=[0])
+    panels = [(evaluation.name, evaluation.result["trajectories"][0])]
+    draw = episode_video if out.suffix.lower() == ".gif" else figure3
+    path = draw(panels, get_field(evaluation.env.field), out)
+    print(f"wrote {path}: {panel_title(*panels[0]).replace(chr(10), ': ')}")
+    return 0
+
+
+# -- configs -------------------------------------------------------------------------------------------------
+
+
+def add_configs(subparsers: argparse._SubParsersAction) -> None:
+    configs = subparsers.add_parser(
+        "configs", help="list the shipped configs, by the names train, eval and render accept"
+    )
+    configs.add_argument("--dir", action="store_true", help="print the directory holding them instead")
+    configs.set_defaults(func=_configs)
+
+
+def _configs(args: argparse.Namespace) -> int:
+    from hier_ssl.config import config_dir, config_names
+
+    print(config_dir() if args.dir else "\n".join(config_names()))
+    return 0

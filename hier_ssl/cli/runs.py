@@ -1,0 +1,155 @@
+"""``hier-ssl train``, ``reproduce`` and ``sweep``: training runs, one or many."""
+
+from __future__ import annotations
+
+import argparse
+
+from hier_ssl.cli.common import positive_int
+
+# -- train ---------------------------------------------------------------------------------------------------
+
+
+DEFAULT_CONFIG = "proposed/fscaps"
+
+
+def add_train(subparsers: argparse._SubParsersAction) -> None:
+    train = subparsers.add_parser("train", help="train a manager, then evaluate it and write eval.json")
+    train.add_argument(
+        "config",
+        nargs="?",
+        default=DEFAULT_CONFIG,
+        help="a YAML file, or a shipped config's name (hier-ssl configs) (default: %(default)s)",
+    )
+    train.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a config key"
+    )
+    train.add_argument("--seed", type=int, default=None, help="random seed (overrides the config's)")
+    train.add_argument("--out", default=None, help="run directory (default: runs/NAME-sSEED-TIME)")
+    train.add_argument("--resume", default=None, metavar="RUN_DIR", help="continue a killed run")
+    train.add_argument("--no-progress", action="store_true", help="no progress bar")
+    train.set_defaults(func=_train)
+
+
+def _train(args: argparse.Namespace) -> int:
+    import time
+    from pathlib import Path
+
+    from hier_ssl.config import ConfigError, apply_overrides, load_yaml
+    from hier_ssl.envs import parse_config
+    from hier_ssl.train import print_summary, resume_config, train
+
+    # Everything is validated before the run directory is created, so a bad config writes nothing.
+    if args.resume:
+        run_dir = Path(args.resume)
+        config = resume_config(run_dir)
+    else:
+        data = apply_overrides(load_yaml(args.config), args.set)
+        if args.seed is not None:
+            data["seed"] = args.seed
+        config = parse_config(data)
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        run_dir = Path(args.out) if args.out else Path("runs") / f"{config.name}-s{config.seed}-{stamp}"
+        if run_dir.exists() and any(run_dir.iterdir()):  # its curve and best actor would mix with ours
+            raise ConfigError(f"run directory {run_dir} is not empty: --resume {run_dir}, or another --out")
+    print(f"run directory: {run_dir}", flush=True)
+    summary = train(config, run_dir, resume=bool(args.resume), progress=not args.no_progress)
+    print_summary(summary)
+    print(f"wrote {run_dir / 'eval.json'}")
+    return 0
+
+
+# -- reproduce -----------------------------------------------------------------------------------------------
+
+
+def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.launch_options import add_launch_flags
+
+    rep = subparsers.add_parser(
+        "reproduce",
+        help="train the paper's 12 configurations in both families (resumable), evaluate them beside the "
+        "planners, write results/paper-tables.md and .csv",
+    )
+    rep.add_argument(
+        "--family",
+        action="append",
+        choices=("paper", "defaults"),
+        default=None,
+        help="configuration family: the public code's settings or ours (repeatable; default: both)",
+    )
+    rep.add_argument(
+        "--only", nargs="+", default=[], metavar="NAME", help="e.g. proposed/fscaps, obstacle (default: all)"
+    )
+    rep.add_argument(
+        "--seeds",
+        type=positive_int,
+        default=None,
+        help="training seeds per config (default: 3, and 1 for the paper family's non-FSCAPS rows)",
+    )
+    rep.add_argument("--out", default="runs/reproduce", metavar="DIR", help="runs (default: %(default)s)")
+    rep.add_argument("--results", default="results", metavar="DIR", help="tables (default: %(default)s)")
+    rep.add_argument(
+        "--episodes", type=positive_int, default=1000, help="evaluation episodes (default: 1000)"
+    )
+    rep.add_argument("--config-dir", default=None, metavar="DIR", help="(default: the shipped configs)")
+    rep.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every config"
+    )
+    rep.add_argument("--no-train", action="store_true", help="only evaluate the runs that have finished")
+    rep.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_launch_flags(rep)
+    rep.set_defaults(func=_reproduce)
+
+
+def _reproduce(args: argparse.Namespace) -> int:
+    from hier_ssl.launch_options import LaunchOptions
+    from hier_ssl.reproduce import FAMILIES, reproduce
+
+    report = reproduce(
+        families=args.family or tuple(FAMILIES),
+        only=args.only,
+        seeds=args.seeds,
+        out=args.out,
+        results=args.results,
+        episodes=args.episodes,
+        config_dir=args.config_dir,
+        overrides=args.set,
+        progress=not args.no_progress,
+        launch_options=LaunchOptions.from_args(args),
+        train=not args.no_train,
+    )
+    print(f"wrote {report}")
+    return 0
+
+
+# -- sweep ---------------------------------------------------------------------------------------------------
+
+
+def add_sweep(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.launch_options import add_launch_flags
+
+    sweep = subparsers.add_parser(
+        "sweep", help="train one config over a grid of key values and seeds, tabulate eval.json (resumable)"
+    )
+    sweep.add_argument("config", metavar="CONFIG", help="YAML config")
+    sweep.add_argument(
+        "--grid", action="append", default=[], metavar="KEY=V1,V2", help="values of a key (repeatable)"
+    )
+    sweep.add_argument("--seeds", type=positive_int, default=1, help="training seeds per point (default: 1)")
+    sweep.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a key of every run"
+    )
+    sweep.add_argument("--out", default=None, metavar="DIR", help="(default: runs/sweep/NAME)")
+    sweep.add_argument("--asha", action="store_true", help="with --ray: stop weak trials early (ASHA)")
+    sweep.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_launch_flags(sweep)
+    sweep.set_defaults(func=_sweep)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from hier_ssl.launch_options import LaunchOptions
+    from hier_ssl.sweep import parse_grid, sweep
+
+    options, progress = LaunchOptions.from_args(args), not args.no_progress
+    paths = sweep(args.config, parse_grid(args.grid), args.seeds, args.set, args.out, options, progress)
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0

@@ -63,6 +63,25 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="control steps per timed run (default: 4000 / sqrt(N), at least 20)",
     )
     world.set_defaults(func=_bench_world)
+    views = {
+        "env": "PettingZoo view, one field, frame skip 1 and 16: steps and decisions/s, build seconds",
+        "vector": "batched view at frame skip 16: proposed at N = 1024, formation at N = 256",
+    }
+    for name, text in views.items():
+        view = targets.add_parser(name, help=text)
+        view.add_argument("--json", action="store_true", help="one JSON object per line")
+        view.set_defaults(func=_bench_view)
+
+
+def _bench_view(args: argparse.Namespace) -> int:
+    from hier_ssl import bench
+
+    cpu = bench.pin_to_one_core()
+    if not args.json:
+        where = f"CPU {cpu}" if cpu is not None else "one thread"
+        print(f"{args.target} bench on {where}, best of several runs")
+    bench.print_results(bench.views(args.target), args.json)
+    return 0
 
 
 def _bench_world(args: argparse.Namespace) -> int:

@@ -24,7 +24,7 @@ import numpy as np
 
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.registry import make_scenario
-from hier_ssl.envs.rules import score_control_step
+from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
@@ -33,6 +33,8 @@ from hier_ssl.worker.observation import scale_command, worker_observation
 from hier_ssl.world.field import Field
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotSpec, RobotState, World
+
+_ONE = np.array(1.0)
 
 OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``HierarchicalCore.observe_obstacle``)
 
@@ -103,6 +105,10 @@ class HierarchicalCore:
             first += group.count
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
+        self.rules = Rules(scenario.reward_task, cfg)
+        # The observation's and the actions' scales as 0-d arrays (see ``Rules``).
+        self._scales = {name: np.array(value) for name, value in scenario.scales.items()}
+        self._sum_rewards = cfg.frame_skip_reward == "sum"
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
         r = m + k
         self._others = np.array([[j for j in range(r) if j != i] for i in range(m)], dtype=np.int64)
@@ -120,6 +126,7 @@ class HierarchicalCore:
         self.ep_return = np.zeros((n, m))
         self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
         self.ep_cpad = np.zeros((n, m))
+        self._held = None  # the rules' part that sub-goals and targets fix (``Rules.hold``)
 
     @property
     def done(self) -> np.ndarray:
@@ -171,6 +178,11 @@ class HierarchicalCore:
         for behaviour, robots in self.obstacles:
             count = robots.stop - robots.start
             behaviour.reset((fields[:, None] * count + np.arange(count)).ravel(), self.rng)
+        self._hold()
+
+    def _hold(self) -> None:
+        """Whatever the rules can compute once for the current sub-goals and targets (after every change)."""
+        self._held = self.rules.hold(self.target.reshape(-1, 5), self.subgoal.reshape(-1, 5))
 
     # -- observations --------------------------------------------------------------------------------------
 
@@ -180,14 +192,13 @@ class HierarchicalCore:
         s = self.world.state if fields is None else self.world.state.fields(fields)
         target = self.target if fields is None else self.target[fields]
         f, m = target.shape[:2]
-        b, scales = f * m, self.scenario.scales
-        own = s.robots(slice(0, m))
+        b, scales = f * m, self._scales
         rows = (
             target.reshape(b, 5),
-            own.pos.reshape(b, 2),
-            own.angle.reshape(b),
-            own.vel.reshape(b, 2),
-            own.ang_vel.reshape(b),
+            s.pos[:, :m].reshape(b, 2),
+            s.angle[:, :m].reshape(b),
+            s.vel[:, :m].reshape(b, 2),
+            s.ang_vel[:, :m].reshape(b),
         )
         limits = {"max_pos": scales["max_pos"], "max_v": scales["max_v"], "max_w": scales["max_w"]}
         if self.scenario.observation == "paper":  # one robot: the others are its obstacles
@@ -228,8 +239,8 @@ class HierarchicalCore:
         field or the target frame (``action_frame``); values outside [-1, 1] are clipped, sub-goals to the
         field. Returns how many values were clipped per robot (N, M), 0 where not live."""
         n, m = live.shape
-        scales = self.scenario.scales
-        clipped = np.where(live, np.count_nonzero(np.abs(action) > 1.0, axis=2), 0)
+        scales = self._scales
+        clipped = live * np.add.reduce(np.abs(action) > _ONE, axis=2)
         subgoal = decode_subgoal(
             action.reshape(n * m, self.act_dim),
             self.config.action_form,
@@ -240,10 +251,11 @@ class HierarchicalCore:
             frame=self.config.action_frame,
             target=self.target.reshape(n * m, 5),
         ).reshape(n, m, 5)
-        moved = cpad_increment(self.subgoal[..., 0:2].reshape(-1, 2), subgoal[..., 0:2].reshape(-1, 2))
-        self.ep_cpad += np.where(live & (self.decisions > 0), moved.reshape(n, m), 0.0)
-        self.subgoal[live] = subgoal[live]
+        moved = cpad_increment(self.subgoal[..., 0:2], subgoal[..., 0:2])
+        np.add(self.ep_cpad, moved, out=self.ep_cpad, where=live & (self.decisions > 0))
+        np.copyto(self.subgoal, subgoal, where=live[..., None])
         self.decisions += live
+        self._hold()
         return clipped
 
     def control_step(
@@ -256,49 +268,45 @@ class HierarchicalCore:
         the obstacles of fields without a live robot. ``worker_action`` (N, M, 3) and ``obstacle_actions``
         (N, K, 3), normalised to [-1, 1], replace the workers and obstacles when those are exposed as agents.
 
-        Returns reward (N, M), success (N, M), collision (N, M) (both only where live) and the reward terms.
+        Returns reward (N, M), success (N, M) and collision (N, M), both only where live.
         """
-        cfg, s = self.config, self.world.state
-        n, m, k = self.num_fields, self.num_agents, self.num_obstacles
-        command = np.zeros((n, m + k, 3))
+        s, n, m = self.world.state, self.num_fields, self.num_agents
+        field_live = np.logical_or.reduce(live, axis=1)
+        command = np.zeros((n, m + self.num_obstacles, 3))
         if worker_action is None:
-            command[:, :m] = self.worker(s.robots(slice(0, m)), self.subgoal)
+            own = self.worker(s.robots(slice(0, m)), self.subgoal)
         else:
-            command[:, :m] = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
+            own = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
+        np.copyto(command[:, :m], own, where=live[..., None])
+        moving = field_live[:, None, None]
         if obstacle_actions is None:
             for behaviour, robots in self.obstacles:
                 count = robots.stop - robots.start
                 pos, angle = s.pos[:, robots].reshape(n * count, 2), s.angle[:, robots].reshape(n * count)
-                command[:, robots] = behaviour(pos, angle, self.rng).reshape(n, count, 3)
+                np.copyto(
+                    command[:, robots], behaviour(pos, angle, self.rng).reshape(n, count, 3), where=moving
+                )
         else:
-            command[:, m:] = scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot)
-        command[:, :m][~live] = 0.0
-        field_live = live.any(axis=1)
-        command[~field_live] = 0.0
+            np.copyto(
+                command[:, m:], scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot), where=moving
+            )
         s = self.world.step(command)
         self.control_steps += 1
         self.steps += field_live
 
-        b, j = n * m, m + k - 1
-        own = s.robots(slice(0, m))
-        touching = self.world.robot_contacts[:, :m].any(axis=2).reshape(b)
-        reward, success, hit, terms = score_control_step(
-            self.scenario.reward_task,
-            cfg,
+        b, j = n * m, self._others.shape[1]
+        touching = np.logical_or.reduce(self.world.robot_contacts[:, :m], axis=2)
+        reward, success, hit = self.rules(
+            self._held,
             self.target.reshape(b, 5),
             self.subgoal.reshape(b, 5),
-            own.pos.reshape(b, 2),
-            own.angle.reshape(b),
-            own.vel.reshape(b, 2),
+            s.pos[:, :m].reshape(b, 2),
+            s.angle[:, :m].reshape(b),
+            s.vel[:, :m].reshape(b, 2),
             s.pos[:, self._others].reshape(b, j, 2),
-            touching,
+            touching.reshape(b),
         )
-        return (
-            reward.reshape(n, m),
-            success.reshape(n, m) & live,
-            hit.reshape(n, m) & live,
-            {name: term.reshape(n, m) for name, term in terms.items()},
-        )
+        return reward.reshape(n, m), success.reshape(n, m) & live, hit.reshape(n, m) & live
 
     def step(self, action: np.ndarray) -> StepResult:
         """One manager decision in every field: the live robots' sub-goals (``action`` (N, M, A) float64)
@@ -313,22 +321,28 @@ class HierarchicalCore:
         """
         cfg = self.config
         start = self.active.copy()
-        if not start.any():
+        if not np.count_nonzero(start):
             raise RuntimeError("step() with every episode finished: call reset() first")
         clipped = self.set_subgoal(action, start)
-        live = start.copy()
-        reward = np.zeros(live.shape)
-        success, collision, timeout = (np.zeros(live.shape, dtype=bool) for _ in range(3))
-        elapsed = np.zeros(live.shape, dtype=np.int64)
+        live, shape = start, start.shape
+        reward = np.zeros(shape)
+        success, collision, timeout = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
+        elapsed = np.zeros(shape, dtype=np.int64)
+        # For bools a > b is a & ~b, in one call.
         for _ in range(cfg.frame_skip):
-            r, succ, hit, _ = self.control_step(live)
-            reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
+            r, succ, hit = self.control_step(live)
+            if self._sum_rewards:
+                np.add(reward, r, out=reward, where=live)
+            else:
+                np.copyto(reward, r, where=live)
             elapsed += live
             success |= succ
-            collision |= hit & ~succ
-            timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
-            live &= ~(success | collision | timeout)
-            if not live.any():
+            collision |= hit > succ
+            live = live > (succ | hit)
+            over = (self.steps >= cfg.max_steps)[:, None]
+            timeout |= live & over
+            live = live > over
+            if not np.count_nonzero(live):
                 break
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
 
@@ -347,7 +361,9 @@ class HierarchicalCore:
         self.ep_return += reward
         self.ep_length += elapsed
         left = success | collision | timeout
-        field, agent = np.nonzero(left)
+        # Rows of the robots that left, row = field * M + robot; take() reads the arrays flat and copies.
+        rows = left.ravel().nonzero()[0]
+        field, agent = np.divmod(rows, self.num_agents)
         info: dict[str, Any] = {
             "control_steps": elapsed,
             "success": success,
@@ -358,22 +374,22 @@ class HierarchicalCore:
             "episode": {
                 "field": field,
                 "agent": agent,
-                "return": self.ep_return[field, agent].copy(),
-                "length": self.ep_length[field, agent].copy(),
-                "decisions": self.decisions[field, agent].copy(),
-                "success": success[field, agent].astype(np.float64),
-                "collision": collision[field, agent].astype(np.float64),
-                "cpad": self.ep_cpad[field, agent].copy(),
+                "return": self.ep_return.take(rows),
+                "length": self.ep_length.take(rows),
+                "decisions": self.decisions.take(rows),
+                "success": success.take(rows).astype(np.float64),
+                "collision": collision.take(rows).astype(np.float64),
+                "cpad": self.ep_cpad.take(rows),
             },
         }
-        self.active &= ~left
-        obs = self.observe()
-        info["final_obs"] = obs
-        finished = np.flatnonzero(self.done)
-        if self.autoreset and len(finished):
-            obs = obs.copy()
-            self.reset_fields(finished)
-            obs[finished] = self.observe(finished)
+        np.greater(self.active, left, out=self.active)
+        obs = info["final_obs"] = self.observe()
+        if self.autoreset and len(rows):
+            finished = np.flatnonzero(self.done)
+            if len(finished):
+                obs = obs.copy()
+                self.reset_fields(finished)
+                obs[finished] = self.observe(finished)
         return StepResult(obs, reward.astype(np.float32), success | collision, timeout, info)
 
 

@@ -31,7 +31,8 @@ from hier_ssl.manager.planners import make_planner
 from hier_ssl.worker import Worker, make_worker
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 from hier_ssl.worker.rewards import gotopoint_reward, pose_potential
-from hier_ssl.world.physics import World, to_robot_frame
+from hier_ssl.world.frames import to_robot_frame
+from hier_ssl.world.physics import World
 
 if TYPE_CHECKING:
     from hier_ssl.worker.learned import WorkerPolicy

@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike
 from hier_ssl.manager.observation import check_array
 
 ACTION_DIMS: dict[str, int] = {"pose4": 4, "pose6": 6}
+_ONE, _MINUS_ONE = np.array(1.0), np.array(-1.0)
 
 
 def action_dim(form: str) -> int:
@@ -81,19 +82,23 @@ def decode_subgoal(
     """
     action_dim(form)  # an unknown form is an error, not an unread column
     _check_scales(half_length, half_width, max_v)
-    action = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-    n = action.shape[0]
+    # Clipped into a new array, which the target frame then changes in place.
+    action = np.minimum(np.maximum(np.asarray(action, dtype=np.float64), _MINUS_ONE), _ONE)
     target = _check_frame(frame, target)
     if target is not None:
         action[:, 0:2] **= 3
-        action[:, -1] += 1.0  # cos is last in both forms
+        action[:, -1] += _ONE  # cos is last in both forms
     half = np.array([half_length, half_width])
-    xy, theta = action[:, 0:2] * half, np.arctan2(action[:, -2], action[:, -1])
-    vel = np.zeros((n, 2)) if zero_velocity or form == "pose4" else action[:, 2:4] * max_v
+    subgoal = np.zeros((action.shape[0], 5))
+    xy, theta = subgoal[:, 0:2], subgoal[:, 2]
+    np.multiply(action[:, 0:2], half, out=xy)
+    np.arctan2(action[:, -2], action[:, -1], out=theta)
+    if not (zero_velocity or form == "pose4"):
+        np.multiply(action[:, 2:4], max_v, out=subgoal[:, 3:5])
     if target is not None:
-        xy = np.clip(xy + target[:, 0:2], -half, half)
-        theta = np.angle(np.exp(1j * (theta + target[:, 2])))
-    return np.concatenate([xy, theta[:, None], vel], axis=1)
+        np.clip(xy + target[:, 0:2], -half, half, out=xy)
+        theta[:] = np.angle(np.exp(1j * (theta + target[:, 2])))
+    return subgoal
 
 
 def encode_subgoal(

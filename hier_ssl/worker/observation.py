@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hier_ssl.world.physics import RobotSpec, to_robot_frame, wrap_angle
+from hier_ssl.world.frames import to_robot_frame, wrap_angle
+from hier_ssl.world.physics import RobotSpec
 
 WORKER_OBS_DIM = 9
 

@@ -7,16 +7,9 @@ import pymunk
 import pytest
 
 from hier_ssl.worker.scripted import PaperGoToPoint
+from hier_ssl.world.frames import as_complex, heading, to_field_frame, to_robot_frame, wrap_angle
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import (
-    RobotSpec,
-    World,
-    as_complex,
-    heading,
-    to_field_frame,
-    to_robot_frame,
-    wrap_angle,
-)
+from hier_ssl.world.physics import RobotSpec, World
 
 SPEC = RobotSpec()
 DT = 0.025

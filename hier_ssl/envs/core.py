@@ -26,7 +26,8 @@ from hier_ssl.config import TaskConfig
 from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
-from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
+from hier_ssl.manager import cpad_increment, manager_observation
+from hier_ssl.manager.actions import SubgoalDecoder
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.worker import Worker, make_worker
 from hier_ssl.worker.observation import scale_command, worker_observation
@@ -106,6 +107,15 @@ class HierarchicalCore:
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
         self.rules = Rules(scenario.reward_task, cfg)
+        scales = scenario.scales
+        self._decode = SubgoalDecoder(
+            cfg.action_form,
+            scales["half_length"],
+            scales["half_width"],
+            scales["max_v"],
+            zero_velocity=scenario.zero_velocity,
+            frame=cfg.action_frame,
+        )
         # The observation's and the actions' scales as 0-d arrays (see ``Rules``).
         self._scales = {name: np.array(value) for name, value in scenario.scales.items()}
         self._sum_rewards = cfg.frame_skip_reward == "sum"
@@ -182,7 +192,7 @@ class HierarchicalCore:
 
     def _hold(self) -> None:
         """Whatever the rules can compute once for the current sub-goals and targets (after every change)."""
-        self._held = self.rules.hold(self.target.reshape(-1, 5), self.subgoal.reshape(-1, 5))
+        self._held = self.rules.hold(self.target, self.subgoal)
 
     # -- observations --------------------------------------------------------------------------------------
 
@@ -239,18 +249,9 @@ class HierarchicalCore:
         field or the target frame (``action_frame``); values outside [-1, 1] are clipped, sub-goals to the
         field. Returns how many values were clipped per robot (N, M), 0 where not live."""
         n, m = live.shape
-        scales = self._scales
         clipped = live * np.add.reduce(np.abs(action) > _ONE, axis=2)
-        subgoal = decode_subgoal(
-            action.reshape(n * m, self.act_dim),
-            self.config.action_form,
-            scales["half_length"],
-            scales["half_width"],
-            scales["max_v"],
-            zero_velocity=self.scenario.zero_velocity,
-            frame=self.config.action_frame,
-            target=self.target.reshape(n * m, 5),
-        ).reshape(n, m, 5)
+        subgoal = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
+        subgoal = subgoal.reshape(n, m, 5)
         moved = cpad_increment(self.subgoal[..., 0:2], subgoal[..., 0:2])
         np.add(self.ep_cpad, moved, out=self.ep_cpad, where=live & (self.decisions > 0))
         np.copyto(self.subgoal, subgoal, where=live[..., None])
@@ -294,19 +295,11 @@ class HierarchicalCore:
         self.control_steps += 1
         self.steps += field_live
 
-        b, j = n * m, self._others.shape[1]
         touching = np.logical_or.reduce(self.world.robot_contacts[:, :m], axis=2)
-        reward, success, hit = self.rules(
-            self._held,
-            self.target.reshape(b, 5),
-            self.subgoal.reshape(b, 5),
-            s.pos[:, :m].reshape(b, 2),
-            s.angle[:, :m].reshape(b),
-            s.vel[:, :m].reshape(b, 2),
-            s.pos[:, self._others].reshape(b, j, 2),
-            touching.reshape(b),
-        )
-        return reward.reshape(n, m), success.reshape(n, m) & live, hit.reshape(n, m) & live
+        own = (s.pos[:, :m], s.angle[:, :m], s.vel[:, :m])
+        others = s.pos[:, self._others]  # (N, M, R - 1, 2)
+        reward, success, hit = self.rules(self._held, self.target, self.subgoal, *own, others, touching)
+        return reward, success & live, hit & live
 
     def step(self, action: np.ndarray) -> StepResult:
         """One manager decision in every field: the live robots' sub-goals (``action`` (N, M, A) float64)

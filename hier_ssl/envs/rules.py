@@ -2,7 +2,7 @@
 
 ``Rules`` binds a task's success, collision and reward rules (the pure functions of ``hier_ssl.manager``)
 to one config's thresholds, reward modes and weights, checked once when the core is built; the core scores
-every scenario with it, on the (field, robot) pairs as rows. ``check_action`` is what the views run on
+every scenario with it, on (field, robot) arrays. ``check_action`` is what the views run on
 each agent's action, once, as it enters.
 """
 
@@ -23,8 +23,8 @@ from hier_ssl.manager.rewards import (
 from hier_ssl.manager.success import collided, pose_reached, robot_settled
 from hier_ssl.world.frames import all_finite
 
-# What a decision fixes for its control steps: whether each measured pose names its target (B,) bool, and
-# R_d + R_theta (B,).
+# What a decision fixes for its control steps: whether each measured pose names its target (...) bool, and
+# R_d + R_theta (...).
 Held = tuple[np.ndarray, np.ndarray]
 
 
@@ -63,8 +63,8 @@ class Rules:
         return reached, distance_reward(d, self.d_th) + angle_reward(delta, self.theta_th)
 
     def hold(self, target: np.ndarray, subgoal: np.ndarray) -> Held | None:
-        """The part of the rules that the sub-goals (B, 5) fix until the next decision, for targets (B, 5);
-        None for the Baseline task, which measures the robot every step."""
+        """The part of the rules that the sub-goals (..., 5) fix until the next decision, for targets
+        (..., 5); None for the Baseline task, which measures the robot every step."""
         if self.task == "baseline":
             return None
         return self._pose(*pose_errors(subgoal, target))
@@ -80,18 +80,18 @@ class Rules:
         others: np.ndarray,
         touching: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Reward, success and hit (B,) of B controlled robots (rows), given ``hold``'s result for these
-        sub-goals and targets (None: computed here).
+        """Reward, success and hit (...) of the controlled robots, given ``hold``'s result for these
+        sub-goals and targets (None: computed here). The leading axes (...) are the core's (N, M).
 
-        Shapes: target, subgoal (B, 5); pos, vel (B, 2); angle (B,); others (B, J, 2), the robots each one
-        can hit; touching (B,) bool, a contact the physics reported.
+        Shapes: target, subgoal (..., 5); pos, vel (..., 2); angle (...); others (..., J, 2), the robots
+        each one can hit; touching (...) bool, a contact the physics reported.
         """
         if held is None:
             held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
         reached, shaping = held
         success = reached & robot_settled(self.task, target, pos, vel, self.d_th, self.speed_th)
         # Without another robot in the field there is nothing to hit.
-        hit = collided(pos, others, self.collision_distance) | touching if others.shape[1] else touching
+        hit = collided(pos, others, self.collision_distance) | touching if others.shape[-2] else touching
         nearest = None
         if self.task == "obstacle":
             nearest = obstacle_distance(self.obstacle_from, subgoal, pos, others)

@@ -36,10 +36,14 @@ def _check_scales(half_length: float, half_width: float, max_v: float) -> None:
 ACTION_FRAMES = ("field", "target")
 
 
-def _check_frame(frame: str, target: ArrayLike | None) -> np.ndarray | None:
-    """The target poses (N, 5) that the "target" frame needs; None in the "field" frame."""
+def _check_frame_name(frame: str) -> None:
     if frame not in ACTION_FRAMES:
         raise ValueError(f"unknown action frame {frame!r}; expected one of {list(ACTION_FRAMES)}")
+
+
+def _check_frame(frame: str, target: ArrayLike | None) -> np.ndarray | None:
+    """The target poses (N, 5) that the "target" frame needs; None in the "field" frame."""
+    _check_frame_name(frame)
     if frame == "field":
         return None
     if target is None:
@@ -80,25 +84,47 @@ def decode_subgoal(
         (N, 5) float64 sub-goal x, y, theta, vx, vy. theta is in (-pi, pi]; sin = cos = 0
         decodes to theta = 0 in the field frame. Target-frame sub-goals are clipped to the field.
     """
-    action_dim(form)  # an unknown form is an error, not an unread column
-    _check_scales(half_length, half_width, max_v)
-    # Clipped into a new array, which the target frame then changes in place.
-    action = np.minimum(np.maximum(np.asarray(action, dtype=np.float64), _MINUS_ONE), _ONE)
-    target = _check_frame(frame, target)
-    if target is not None:
-        action[:, 0:2] **= 3
-        action[:, -1] += _ONE  # cos is last in both forms
-    half = np.array([half_length, half_width])
-    subgoal = np.zeros((action.shape[0], 5))
-    xy, theta = subgoal[:, 0:2], subgoal[:, 2]
-    np.multiply(action[:, 0:2], half, out=xy)
-    np.arctan2(action[:, -2], action[:, -1], out=theta)
-    if not (zero_velocity or form == "pose4"):
-        np.multiply(action[:, 2:4], max_v, out=subgoal[:, 3:5])
-    if target is not None:
-        np.clip(xy + target[:, 0:2], -half, half, out=xy)
-        theta[:] = np.angle(np.exp(1j * (theta + target[:, 2])))
-    return subgoal
+    return SubgoalDecoder(form, half_length, half_width, max_v, zero_velocity, frame)(action, target)
+
+
+class SubgoalDecoder:
+    """``decode_subgoal`` with its options checked once: ``decoder(action, target)`` for a core that
+    decodes every decision. ``target`` (N, 5) is read in the "target" frame only."""
+
+    def __init__(
+        self,
+        form: str,
+        half_length: float,
+        half_width: float,
+        max_v: float = 2.5,
+        zero_velocity: bool = False,
+        frame: str = "field",
+    ) -> None:
+        action_dim(form)  # an unknown form is an error, not an unread column
+        _check_scales(half_length, half_width, max_v)
+        _check_frame_name(frame)
+        self.frame = frame
+        self.half, self.max_v = np.array([half_length, half_width]), np.array(max_v)
+        self.velocity = not (zero_velocity or form == "pose4")
+
+    def __call__(self, action: ArrayLike, target: ArrayLike | None) -> np.ndarray:
+        """Sub-goals (N, 5) of actions (N, A)."""
+        target = _check_frame(self.frame, target)
+        # Clipped into a new array, which the target frame then changes in place.
+        action = np.minimum(np.maximum(np.asarray(action, dtype=np.float64), _MINUS_ONE), _ONE)
+        if target is not None:
+            action[:, 0:2] **= 3
+            action[:, -1] += _ONE  # cos is last in both forms
+        subgoal = np.zeros((action.shape[0], 5))
+        xy, theta = subgoal[:, 0:2], subgoal[:, 2]
+        np.multiply(action[:, 0:2], self.half, out=xy)
+        np.arctan2(action[:, -2], action[:, -1], out=theta)
+        if self.velocity:
+            np.multiply(action[:, 2:4], self.max_v, out=subgoal[:, 3:5])
+        if target is not None:
+            np.clip(xy + target[:, 0:2], -self.half, self.half, out=xy)
+            theta[:] = np.angle(np.exp(1j * (theta + target[:, 2])))
+        return subgoal
 
 
 def encode_subgoal(

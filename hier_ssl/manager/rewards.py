@@ -48,9 +48,9 @@ def vector_length(xy: np.ndarray) -> np.ndarray:
 
 
 def _errors(xy: np.ndarray, theta: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance (N,) from points ``xy`` (N, 2) to ``pose`` (N, >= 3), and absolute angle (N,) in [0, pi]
-    from headings ``theta`` (N,) to its heading."""
-    return vector_length(xy - pose[:, 0:2]), np.abs(wrap_angle(theta - pose[:, 2]))
+    """Distance (...) from points ``xy`` (..., 2) to ``pose`` (..., >= 3), and absolute angle (...) in
+    [0, pi] from headings ``theta`` (...) to its heading."""
+    return vector_length(xy - pose[..., 0:2]), np.abs(wrap_angle(theta - pose[..., 2]))
 
 
 def pose_errors(pose_a: np.ndarray, pose_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -58,12 +58,13 @@ def pose_errors(pose_a: np.ndarray, pose_b: np.ndarray) -> tuple[np.ndarray, np.
 
     Args:
         pose_a, pose_b: (N, 3) x, y, theta or (N, 5) x, y, theta, vx, vy; only x, y, theta
-            are read, so sub-goals and targets can be passed as they are.
+            are read, so sub-goals and targets can be passed as they are. Any leading axes may stand
+            for N, as in all the per-step functions here.
 
     Returns:
         distance (N,) in m and delta (N,) in [0, pi] rad.
     """
-    return _errors(pose_a[:, 0:2], pose_a[:, 2], pose_b)
+    return _errors(pose_a[..., 0:2], pose_a[..., 2], pose_b)
 
 
 def measured_errors(
@@ -85,7 +86,7 @@ def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndar
     Returns:
         (N,) m; +inf where K = 0, so thresholds and Gaussians of it read "no obstacle".
     """
-    return np.minimum.reduce(vector_length(obs_pos - point[:, None, :]), axis=1, initial=_INF)
+    return np.minimum.reduce(vector_length(obs_pos - point[..., None, :]), axis=-1, initial=_INF)
 
 
 def obstacle_distance(
@@ -93,7 +94,7 @@ def obstacle_distance(
 ) -> np.ndarray:
     """The distance (N,) R_obst reads: from the sub-goal (N, 5) or the robot (N, 2) to the nearest obstacle
     of obs_pos (N, K, 2)."""
-    point = subgoal[:, 0:2] if obstacle_from == "subgoal" else robot_pos
+    point = subgoal[..., 0:2] if obstacle_from == "subgoal" else robot_pos
     return nearest_obstacle_distance(point, obs_pos)
 
 
@@ -223,4 +224,4 @@ def task_reward(
     modes = {"success_mode": success_mode, "hit_mode": hit_mode}
     weights = {"success_weight": success_weight, "hit_weight": hit_weight}
     total, terms = combine_rewards(shaping, success, nearest, hit, **modes, **weights)
-    return total, {name: terms.get(name, np.zeros(len(d))) for name in REWARD_TERMS}
+    return total, {name: terms.get(name, np.zeros(d.shape)) for name in REWARD_TERMS}

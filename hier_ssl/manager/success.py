@@ -35,7 +35,7 @@ def robot_settled(
     settled = vector_length(robot_vel) < speed_th
     if task == "baseline":
         return settled
-    return settled & (vector_length(robot_pos - target[:, 0:2]) < d_th)
+    return settled & (vector_length(robot_pos - target[..., 0:2]) < d_th)
 
 
 def task_success(

@@ -119,11 +119,14 @@ class HierarchicalCore:
         # The observation's and the actions' scales as 0-d arrays (see ``Rules``).
         self._scales = {name: np.array(value) for name, value in scenario.scales.items()}
         self._sum_rewards = cfg.frame_skip_reward == "sum"
+        self._max_steps = np.array(cfg.max_steps)
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
         r = m + k
         self._others = np.array([[j for j in range(r) if j != i] for i in range(m)], dtype=np.int64)
         self._others = self._others.reshape(m, r - 1)
         self._teammate = self._others < m
+        # pos[self._others_of] (N, M, R - 1, 2): for one controlled robot a view (robots 1..), else a gather.
+        self._others_of = np.s_[:, None, 1:] if m == 1 else np.s_[:, self._others]
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
 
@@ -216,8 +219,8 @@ class HierarchicalCore:
         else:
             j = self._others.shape[1]
             teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
-            others_pos = s.pos[:, self._others].reshape(b, j, 2)
-            others_vel = s.vel[:, self._others].reshape(b, j, 2)
+            others_pos = s.pos[self._others_of].reshape(b, j, 2)
+            others_vel = s.vel[self._others_of].reshape(b, j, 2)
             obs = neighbour_observation(
                 *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits
             )
@@ -295,10 +298,11 @@ class HierarchicalCore:
         self.control_steps += 1
         self.steps += field_live
 
-        touching = np.logical_or.reduce(self.world.robot_contacts[:, :m], axis=2)
         own = (s.pos[:, :m], s.angle[:, :m], s.vel[:, :m])
-        others = s.pos[:, self._others]  # (N, M, R - 1, 2)
-        reward, success, hit = self.rules(self._held, self.target, self.subgoal, *own, others, touching)
+        touching = self.world.robot_touch[:, :m]
+        reward, success, hit = self.rules(
+            self._held, self.target, self.subgoal, *own, s.pos[self._others_of], touching
+        )
         return reward, success & live, hit & live
 
     def step(self, action: np.ndarray) -> StepResult:
@@ -318,9 +322,8 @@ class HierarchicalCore:
             raise RuntimeError("step() with every episode finished: call reset() first")
         clipped = self.set_subgoal(action, start)
         live, shape = start, start.shape
-        reward = np.zeros(shape)
-        success, collision, timeout = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
-        elapsed = np.zeros(shape, dtype=np.int64)
+        reward, elapsed = np.zeros(shape), np.zeros(shape, dtype=np.int64)
+        success, collision = np.zeros(shape, bool), np.zeros(shape, bool)
         # For bools a > b is a & ~b, in one call.
         for _ in range(cfg.frame_skip):
             r, succ, hit = self.control_step(live)
@@ -332,11 +335,11 @@ class HierarchicalCore:
             success |= succ
             collision |= hit > succ
             live = live > (succ | hit)
-            over = (self.steps >= cfg.max_steps)[:, None]
-            timeout |= live & over
-            live = live > over
+            live = live > (self.steps >= self._max_steps)[:, None]
             if not np.count_nonzero(live):
                 break
+        # A robot that left without success or collision ran out of time.
+        timeout = start > (live | success | collision)
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
 
     def finish(

@@ -52,11 +52,6 @@ def _heading_error(state: RobotState, subgoal: np.ndarray) -> np.ndarray:
     return wrap_angle(subgoal[..., 2] - state.angle)
 
 
-def _capped(vel: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Complex velocities ``vel`` (N, R) scaled down to speed ``limit`` where faster, direction kept."""
-    return vel / np.maximum(np.abs(vel) / limit, _K.one).astype(_COMPLEX)
-
-
 def _command(state: RobotState, vel: np.ndarray, spin: np.ndarray) -> np.ndarray:
     """Field-frame velocities ``vel`` (N, R) complex and spins (N, R) as robot-frame commands (N, R, 3)."""
     out = np.empty(spin.shape + (3,))
@@ -138,7 +133,9 @@ class PaperGoToPoint(_Scripted):
         change = np.maximum(np.minimum(change.view(np.float64), k.dv), k.minus_dv)
         v_new = v + change.view(_COMPLEX)
         v_new.real = np.minimum(v_new.real, reach)
-        vel = _capped(v_new * ex, k.max_speed)
+        # Field frame, scaled down to max_speed where faster, direction kept.
+        vel = v_new * ex
+        vel = vel / np.maximum(np.abs(vel) / k.max_speed, _K.one).astype(_COMPLEX)
 
         error = _heading_error(state, subgoal)
         spin = error * k.angle_gain

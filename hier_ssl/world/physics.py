@@ -140,6 +140,7 @@ class World:
 
         n, r = self.num_fields, self.num_robots
         self.robot_contacts = np.zeros((n, r, r), dtype=bool)
+        self.robot_touch = np.zeros((n, r), dtype=bool)  # robot_contacts.any(axis=2), kept by the callback
         self.wall_contacts = np.zeros((n, r), dtype=bool)
         self._contacts_set = False  # whether a callback has written a contact since the last clearing
         self.space.on_collision(_ROBOT, _ROBOT, pre_solve=self._on_robot_contact)
@@ -240,6 +241,7 @@ class World:
         a, b = arbiter.shapes
         (f, i), (_, j) = self._shape_owner[a], self._shape_owner[b]
         self.robot_contacts[f, i, j] = self.robot_contacts[f, j, i] = True
+        self.robot_touch[f, i] = self.robot_touch[f, j] = True
         self._contacts_set = True
 
     def _on_wall_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
@@ -318,6 +320,7 @@ class World:
         pairs[fields, :, 1] = packed
         self._write_state()
         self.robot_contacts[fields] = False
+        self.robot_touch[fields] = False
         self.wall_contacts[fields] = False
         self.state = self._read_state()
 
@@ -329,7 +332,8 @@ class World:
         ``command`` (N, R, 3) is each robot's (vx, vy, w) in its own frame, m/s and rad/s. The world caps
         speed and angular speed at the robot's limits; acceleration is capped by the joints' force. After
         the call ``state`` holds the new poses and ``robot_contacts`` (N, R, R) / ``wall_contacts`` (N, R)
-        tell which robots touched which robot or wall during any substep of this period.
+        tell which robots touched which robot or wall during any substep of this period, ``robot_touch``
+        (N, R) which touched any robot.
         """
         command = np.ascontiguousarray(command, dtype=np.float64)
         if command.shape != self._command_shape:
@@ -351,6 +355,7 @@ class World:
 
         if self._contacts_set:
             self.robot_contacts.fill(False)
+            self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
             self._contacts_set = False
         self._fast.step(self._sub_dt, self.substeps)

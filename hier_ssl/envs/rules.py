@@ -12,8 +12,9 @@ import numpy as np
 
 from hier_ssl.config import TaskSettings
 from hier_ssl.manager.rewards import (
+    RewardOptions,
     angle_reward,
-    check_reward_options,
+    check_task,
     combine_rewards,
     distance_reward,
     measured_errors,
@@ -48,15 +49,13 @@ class Rules:
     """
 
     def __init__(self, task: str, config: TaskSettings) -> None:
-        modes = {"success_mode": config.success_mode, "hit_mode": config.hit_mode}
-        weights = {"success_weight": config.success_weight, "hit_weight": config.hit_weight}
-        check_reward_options(task, *modes.values(), config.obstacle_from, *weights.values())
-        self.task, self.obstacle_from, self.options = task, config.obstacle_from, modes | weights
+        check_task(task)
+        self.task = task
+        modes = (config.success_mode, config.hit_mode)
+        self.options = RewardOptions(*modes, config.success_weight, config.hit_weight, config.obstacle_from)
         self.d_th, self.theta_th = np.array(config.d_th), np.array(np.deg2rad(config.theta_th_deg))
-        self.speed_th, self.collision_distance = (
-            np.array(config.speed_th),
-            np.array(config.collision_distance),
-        )
+        self.speed_th = np.array(config.speed_th)
+        self.collision_distance = np.array(config.collision_distance)
 
     def _pose(self, d: np.ndarray, delta: np.ndarray) -> Held:
         reached = pose_reached(d, delta, self.d_th, self.theta_th)
@@ -89,13 +88,16 @@ class Rules:
         if held is None:
             held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
         reached, shaping = held
-        success = reached & robot_settled(self.task, target, pos, vel, self.d_th, self.speed_th)
+        # Success needs the measured pose on the target first; the robot is looked at only then.
+        success = reached.copy()
+        if np.count_nonzero(reached):
+            success &= robot_settled(self.task, target, pos, vel, self.d_th, self.speed_th)
         # Without another robot in the field there is nothing to hit.
         hit = collided(pos, others, self.collision_distance) | touching if others.shape[-2] else touching
         nearest = None
         if self.task == "obstacle":
-            nearest = obstacle_distance(self.obstacle_from, subgoal, pos, others)
-        reward, _ = combine_rewards({"pose": shaping}, success, nearest, hit, **self.options)
+            nearest = obstacle_distance(self.options.obstacle_from, subgoal, pos, others)
+        reward, _ = combine_rewards({"pose": shaping}, success, self.options, nearest, hit)
         return reward, success, hit
 
 

@@ -11,6 +11,8 @@ angle is atan2(sin, cos). A sub-goal pose is (N, 5): x, y, theta, vx, vy in the 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -87,25 +89,26 @@ def decode_subgoal(
     return SubgoalDecoder(form, half_length, half_width, max_v, zero_velocity, frame)(action, target)
 
 
+@dataclass(frozen=True)
 class SubgoalDecoder:
     """``decode_subgoal`` with its options checked once: ``decoder(action, target)`` for a core that
     decodes every decision. ``target`` (N, 5) is read in the "target" frame only."""
 
-    def __init__(
-        self,
-        form: str,
-        half_length: float,
-        half_width: float,
-        max_v: float = 2.5,
-        zero_velocity: bool = False,
-        frame: str = "field",
-    ) -> None:
-        action_dim(form)  # an unknown form is an error, not an unread column
-        _check_scales(half_length, half_width, max_v)
-        _check_frame_name(frame)
-        self.frame = frame
-        self.half, self.max_v = np.array([half_length, half_width]), np.array(max_v)
-        self.velocity = not (zero_velocity or form == "pose4")
+    form: str
+    half_length: float
+    half_width: float
+    max_v: float = 2.5
+    zero_velocity: bool = False
+    frame: str = "field"
+
+    def __post_init__(self) -> None:
+        action_dim(self.form)  # an unknown form is an error, not an unread column
+        _check_scales(self.half_length, self.half_width, self.max_v)
+        _check_frame_name(self.frame)
+        # 0-d and (2,) arrays: a Python float operand costs numpy a conversion on every call.
+        object.__setattr__(self, "_half", np.array([self.half_length, self.half_width]))
+        object.__setattr__(self, "_max_v", np.array(self.max_v))
+        object.__setattr__(self, "_velocity", not (self.zero_velocity or self.form == "pose4"))
 
     def __call__(self, action: ArrayLike, target: ArrayLike | None) -> np.ndarray:
         """Sub-goals (N, 5) of actions (N, A)."""
@@ -117,12 +120,12 @@ class SubgoalDecoder:
             action[:, -1] += _ONE  # cos is last in both forms
         subgoal = np.zeros((action.shape[0], 5))
         xy, theta = subgoal[:, 0:2], subgoal[:, 2]
-        np.multiply(action[:, 0:2], self.half, out=xy)
+        np.multiply(action[:, 0:2], self._half, out=xy)
         np.arctan2(action[:, -2], action[:, -1], out=theta)
-        if self.velocity:
-            np.multiply(action[:, 2:4], self.max_v, out=subgoal[:, 3:5])
+        if self._velocity:
+            np.multiply(action[:, 2:4], self._max_v, out=subgoal[:, 3:5])
         if target is not None:
-            np.clip(xy + target[:, 0:2], -self.half, self.half, out=xy)
+            np.clip(xy + target[:, 0:2], -self._half, self._half, out=xy)
             theta[:] = np.angle(np.exp(1j * (theta + target[:, 2])))
         return subgoal
 

@@ -14,6 +14,7 @@ overhead, so they keep to few calls and 0-d constants (a Python float operand is
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -116,51 +117,57 @@ def obstacle_reward(o: ArrayLike) -> np.ndarray:
     return np.exp(np.square(o) * _MINUS_HALF) / _MINUS_SQRT_2PI
 
 
-def check_reward_options(
-    task: str, success_mode: str, hit_mode: str, obstacle_from: str, success_weight: float, hit_weight: float
-) -> None:
-    """A ValueError naming the option that ``combine_rewards`` does not know or accept."""
+@dataclass(frozen=True)
+class RewardOptions:
+    """How ``combine_rewards`` weighs and combines the terms (see ``task_reward``), checked when made."""
+
+    success_mode: str = "add"
+    hit_mode: str = "add"
+    success_weight: float = 1.0
+    hit_weight: float = 1.0
+    obstacle_from: str = "subgoal"
+
+    def __post_init__(self) -> None:
+        if self.success_mode not in SUCCESS_MODES:
+            raise ValueError(f"unknown success_mode {self.success_mode!r}; expected one of {SUCCESS_MODES}")
+        if self.hit_mode not in HIT_MODES:
+            raise ValueError(f"unknown hit_mode {self.hit_mode!r}; expected one of {HIT_MODES}")
+        if self.obstacle_from not in OBSTACLE_FROM:
+            raise ValueError(f"unknown obstacle_from {self.obstacle_from!r}; expected one of {OBSTACLE_FROM}")
+        for name, weight in (("success_weight", self.success_weight), ("hit_weight", self.hit_weight)):
+            if not math.isfinite(weight) or weight < 0:
+                raise ValueError(f"{name} must be finite and >= 0, got {weight}")
+
+
+def check_task(task: str) -> None:
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
-    if success_mode not in SUCCESS_MODES:
-        raise ValueError(f"unknown success_mode {success_mode!r}; expected one of {SUCCESS_MODES}")
-    if hit_mode not in HIT_MODES:
-        raise ValueError(f"unknown hit_mode {hit_mode!r}; expected one of {HIT_MODES}")
-    if obstacle_from not in OBSTACLE_FROM:
-        raise ValueError(f"unknown obstacle_from {obstacle_from!r}; expected one of {OBSTACLE_FROM}")
-    for name, weight in (("success_weight", success_weight), ("hit_weight", hit_weight)):
-        if not math.isfinite(weight) or weight < 0:
-            raise ValueError(f"{name} must be finite and >= 0, got {weight}")
 
 
 def combine_rewards(
     shaping: dict[str, np.ndarray],
     success: np.ndarray,
+    options: RewardOptions,
     nearest: np.ndarray | None = None,
     hit: np.ndarray | None = None,
-    *,
-    success_mode: str = "add",
-    hit_mode: str = "add",
-    success_weight: float = 1.0,
-    hit_weight: float = 1.0,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The reward (N,) of one control step and its terms, options trusted (``check_reward_options``).
+    """The reward (N,) of one control step and its terms.
 
     ``shaping``: the shaping terms (N,) by name, R_d and R_theta ("distance", "angle") or their sum; then
     R_t of success (N,) bool, and with ``nearest`` (N,) and ``hit`` (N,) bool (the Obstacle task) R_obst
-    and R_hit, each zeroed as the modes say. The total adds the terms in that order, so a sum of the
+    and R_hit, each zeroed as ``options`` say. The total adds the terms in that order, so a sum of the
     shaping terms made beforehand gives the same bits.
     """
     terms = dict(shaping)
-    if success_mode == "replace":
+    if options.success_mode == "replace":
         terms = {name: np.where(success, _ZERO, term) for name, term in terms.items()}
     # success is 0 or 1 and the weight >= 0: the product is R_t or +0, as a where would give.
-    terms["success"] = success * (success_weight * SUCCESS_REWARD)
+    terms["success"] = success * (options.success_weight * SUCCESS_REWARD)
     if nearest is not None:
         terms["obstacle"] = obstacle_reward(nearest)
-        if hit_mode == "replace":
+        if options.hit_mode == "replace":
             terms = {name: np.where(hit, _ZERO, term) for name, term in terms.items()}
-        terms["hit"] = np.where(hit, hit_weight * HIT_REWARD, _ZERO)
+        terms["hit"] = np.where(hit, options.hit_weight * HIT_REWARD, _ZERO)
     total, *rest = terms.values()
     for term in rest:
         total = total + term
@@ -212,7 +219,8 @@ def task_reward(
         total (N,) and a dict of the (N,) terms named in REWARD_TERMS, zero where a term does
         not apply, so that the terms always sum to the total and can be logged as they are.
     """
-    check_reward_options(task, success_mode, hit_mode, obstacle_from, success_weight, hit_weight)
+    check_task(task)
+    options = RewardOptions(success_mode, hit_mode, success_weight, hit_weight, obstacle_from)
     if task == "obstacle":
         if obs_pos is None or hit is None:
             raise ValueError("task 'obstacle' needs obs_pos and hit")
@@ -221,7 +229,5 @@ def task_reward(
     d, delta = measured_errors(task, target, subgoal, robot_pos, robot_angle)
     nearest = None if obs_pos is None else obstacle_distance(obstacle_from, subgoal, robot_pos, obs_pos)
     shaping = {"distance": distance_reward(d, d_th), "angle": angle_reward(delta, theta_th)}
-    modes = {"success_mode": success_mode, "hit_mode": hit_mode}
-    weights = {"success_weight": success_weight, "hit_weight": hit_weight}
-    total, terms = combine_rewards(shaping, success, nearest, hit, **modes, **weights)
+    total, terms = combine_rewards(shaping, success, options, nearest, hit)
     return total, {name: terms.get(name, np.zeros(d.shape)) for name in REWARD_TERMS}

@@ -11,7 +11,7 @@ import numpy as np
 from hier_ssl.manager.rewards import (
     ANGLE_THRESHOLD,
     DIST_THRESHOLD,
-    TASKS,
+    check_task,
     measured_errors,
     nearest_obstacle_distance,
     vector_length,
@@ -61,8 +61,7 @@ def task_success(
     Returns:
         (N,) bool.
     """
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
+    check_task(task)
     d, delta = measured_errors(task, target, subgoal, robot_pos, robot_angle)
     settled = robot_settled(task, target, robot_pos, robot_vel, d_th, speed_th)
     return pose_reached(d, delta, d_th, theta_th) & settled

@@ -48,6 +48,15 @@ def _worker_spec(text: str) -> str:
 # -- bench ------------------------------------------------------------------------------------------------
 
 
+CPU_TIME_HELP = "time with this thread's CPU time, not wall-clock time (steadier on a shared machine)"
+
+
+def _clock(args: argparse.Namespace) -> Callable[[], float]:
+    import time
+
+    return time.thread_time if args.cpu_time else time.perf_counter
+
+
 def _add_bench(subparsers: argparse._SubParsersAction) -> None:
     bench = subparsers.add_parser("bench", help="throughput benchmarks, pinned to one core")
     targets = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
@@ -56,6 +65,7 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="field-steps/s of the world with the paper worker, 1 robot + 1 random-walk obstacle per field",
     )
     world.add_argument("--json", action="store_true", help="one JSON object per line")
+    world.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
     world.add_argument(
         "--steps",
         type=_positive_int,
@@ -70,6 +80,7 @@ def _add_bench(subparsers: argparse._SubParsersAction) -> None:
     for name, text in views.items():
         view = targets.add_parser(name, help=text)
         view.add_argument("--json", action="store_true", help="one JSON object per line")
+        view.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
         view.set_defaults(func=_bench_view)
 
 
@@ -80,7 +91,7 @@ def _bench_view(args: argparse.Namespace) -> int:
     if not args.json:
         where = f"CPU {cpu}" if cpu is not None else "one thread"
         print(f"{args.target} bench on {where}, best of several runs")
-    bench.print_results(bench.views(args.target), args.json)
+    bench.print_results(bench.views(args.target, _clock(args)), args.json)
     return 0
 
 
@@ -92,7 +103,7 @@ def _bench_world(args: argparse.Namespace) -> int:
         where = f"CPU {cpu}" if cpu is not None else "one thread (affinity not settable here)"
         print(f"world bench on {where}: best of 5 runs per N, paper worker + random-walk obstacle")
     for n in WORLD_SIZES:
-        result = bench_world(n, args.steps)
+        result = bench_world(n, args.steps, clock=_clock(args))
         if args.json:
             print(json.dumps(result.as_dict()), flush=True)
         else:

@@ -42,7 +42,7 @@ def test_bench_world_json_lines_parse(
 def test_bench_world_text_output(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(bench, "WORLD_SIZES", (1, 4))
     monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
-    assert cli.main(["bench", "world", "--steps", "3"]) == 0
+    assert cli.main(["bench", "world", "--steps", "3", "--cpu-time"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 3 and "field-steps/s" in lines[1] and "N =     4" in lines[2]
 
@@ -66,11 +66,13 @@ def test_bench_env_and_vector_json_lines_parse(
     monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
     # Short runs; build_s is measured in a fresh interpreter as in the real command.
     env, vector = bench.bench_env, bench.bench_vector
-    monkeypatch.setattr(bench, "bench_env", lambda fs: env(fs, decisions=3, repeats=1))
-    monkeypatch.setattr(bench, "bench_vector", lambda task, n: vector(task, 2, decisions=2, repeats=1))
+    monkeypatch.setattr(bench, "bench_env", lambda fs, clock: env(fs, decisions=3, repeats=1, clock=clock))
+    monkeypatch.setattr(
+        bench, "bench_vector", lambda task, n, clock: vector(task, 2, decisions=2, repeats=1, clock=clock)
+    )
     monkeypatch.setattr(bench, "build_seconds", lambda task, frame_skip: 0.5)
     assert cli.main(["bench", "env", "--json"]) == 0
-    assert cli.main(["bench", "vector", "--json"]) == 0
+    assert cli.main(["bench", "vector", "--json", "--cpu-time"]) == 0
     records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert [(r["bench"], r["task"], r["frame_skip"]) for r in records] == [
         ("env", "proposed", 1),

@@ -267,7 +267,7 @@ class HierarchicalCore:
         live: np.ndarray,
         worker_action: np.ndarray | None = None,
         obstacle_actions: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One 25 ms step of every field; robots not ``live`` (N, M) hold still and score nothing, and so do
         the obstacles of fields without a live robot. ``worker_action`` (N, M, 3) and ``obstacle_actions``
         (N, K, 3), normalised to [-1, 1], replace the workers and obstacles when those are exposed as agents.

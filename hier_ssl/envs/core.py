@@ -30,10 +30,9 @@ from hier_ssl.manager import cpad_increment, manager_observation
 from hier_ssl.manager.actions import SubgoalDecoder
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.worker import Worker, make_worker
-from hier_ssl.worker.observation import scale_command, worker_observation
-from hier_ssl.world.field import Field
+from hier_ssl.worker.observation import controlled_worker_observation, scale_command
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import RobotSpec, RobotState, World
+from hier_ssl.world.physics import RobotState, World
 
 _ONE = np.array(1.0)
 
@@ -52,24 +51,6 @@ class StepResult:
     terminated: np.ndarray
     truncated: np.ndarray
     info: dict[str, Any]
-
-
-def controlled_worker_observation(
-    state: RobotState, subgoal: np.ndarray, robot: RobotSpec, field: Field
-) -> np.ndarray:
-    """The worker observations (N, M, 9) of robots 0..M-1 of every field towards ``subgoal`` (N, M, 5)."""
-    n, m = subgoal.shape[:2]
-    own = state.robots(slice(0, m))
-    obs = worker_observation(
-        own.pos.reshape(n * m, 2),
-        own.angle.reshape(n * m),
-        own.vel.reshape(n * m, 2),
-        own.ang_vel.reshape(n * m),
-        subgoal.reshape(n * m, 5),
-        robot,
-        field.max_pos,
-    )
-    return obs.reshape(n, m, -1)
 
 
 class HierarchicalCore:
@@ -107,17 +88,10 @@ class HierarchicalCore:
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
         self.rules = Rules(scenario.reward_task, cfg)
-        scales = scenario.scales
-        self._decode = SubgoalDecoder(
-            cfg.action_form,
-            scales["half_length"],
-            scales["half_width"],
-            scales["max_v"],
-            zero_velocity=scenario.zero_velocity,
-            frame=cfg.action_frame,
-        )
-        # The observation's and the actions' scales as 0-d arrays (see ``Rules``).
-        self._scales = {name: np.array(value) for name, value in scenario.scales.items()}
+        sizes = [scenario.scales[k] for k in ("half_length", "half_width", "max_v")]
+        self._decode = SubgoalDecoder(cfg.action_form, *sizes, scenario.zero_velocity, cfg.action_frame)
+        # The observation's scales as 0-d arrays (see ``Rules``).
+        self._limits = {k: np.array(scenario.scales[k]) for k in ("max_pos", "max_v", "max_w")}
         self._sum_rewards = cfg.frame_skip_reward == "sum"
         self._max_steps = np.array(cfg.max_steps)
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
@@ -205,7 +179,7 @@ class HierarchicalCore:
         s = self.world.state if fields is None else self.world.state.fields(fields)
         target = self.target if fields is None else self.target[fields]
         f, m = target.shape[:2]
-        b, scales = f * m, self._scales
+        b, limits = f * m, self._limits
         rows = (
             target.reshape(b, 5),
             s.pos[:, :m].reshape(b, 2),
@@ -213,7 +187,6 @@ class HierarchicalCore:
             s.vel[:, :m].reshape(b, 2),
             s.ang_vel[:, :m].reshape(b),
         )
-        limits = {"max_pos": scales["max_pos"], "max_v": scales["max_v"], "max_w": scales["max_w"]}
         if self.scenario.observation == "paper":  # one robot: the others are its obstacles
             obs = manager_observation(*rows, s.pos[:, m:], s.vel[:, m:], s.ang_vel[:, m:], **limits)
         else:
@@ -228,7 +201,7 @@ class HierarchicalCore:
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, M, 9) float32."""
-        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field)
+        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field.max_pos)
 
     def observe_obstacle(self, j: int) -> np.ndarray:
         """Obstacle ``j``'s view of itself (N, 7): position, sin/cos heading, velocity, angular velocity."""
@@ -278,7 +251,7 @@ class HierarchicalCore:
         field_live = np.logical_or.reduce(live, axis=1)
         command = np.zeros((n, m + self.num_obstacles, 3))
         if worker_action is None:
-            own = self.worker(s.robots(slice(0, m)), self.subgoal)
+            own = self.worker(self._controlled(s), self.subgoal)
         else:
             own = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
         np.copyto(command[:, :m], own, where=live[..., None])
@@ -298,12 +271,22 @@ class HierarchicalCore:
         self.control_steps += 1
         self.steps += field_live
 
-        own = (s.pos[:, :m], s.angle[:, :m], s.vel[:, :m])
-        touching = self.world.robot_touch[:, :m]
+        own, touching = self._controlled(s), self.world.robot_touch[:, :m]
         reward, success, hit = self.rules(
-            self._held, self.target, self.subgoal, *own, s.pos[self._others_of], touching
+            self._held,
+            self.target,
+            self.subgoal,
+            own.pos,
+            own.angle,
+            own.vel,
+            s.pos[self._others_of],
+            touching,
         )
         return reward, success & live, hit & live
+
+    def _controlled(self, s: RobotState) -> RobotState:
+        """Robots 0..M-1 of ``s``: ``s`` itself when every robot is controlled (no slicing to do)."""
+        return s if self.num_obstacles == 0 else s.robots(slice(0, self.num_agents))
 
     def step(self, action: np.ndarray) -> StepResult:
         """One manager decision in every field: the live robots' sub-goals (``action`` (N, M, A) float64)
@@ -393,5 +376,4 @@ __all__ = [
     "OBSTACLE_AGENT_OBS_DIM",
     "HierarchicalCore",
     "StepResult",
-    "controlled_worker_observation",
 ]

@@ -1,42 +1,71 @@
-"""Throughput benchmarks behind ``hier-ssl bench``.
+"""Throughput benchmarks behind ``hier-ssl bench``, each on one core, best of several short runs.
 
-``world``: N fields of the paper's field, each with one controlled robot and one random-walk obstacle
-(paper text: a new direction and a speed in [0, 1] m/s every step), the scripted paper worker driving the
-robot to random sub-goals, on one core. A field-step is one 25 ms control step of one field: worker,
-obstacle, physics and state read-back all included.
+A field-step is one 25 ms control step of one field: workers, obstacles, physics and state read-back
+included, and in the env views also rewards, success and collision checks, observations and resets.
+
+- ``world``: N fields of the paper's field, each with one controlled robot and one random-walk obstacle
+  (paper text: a new direction and a speed in [0, 1] m/s every step), the scripted paper worker driving the
+  robot to random sub-goals.
+- ``env``: the PettingZoo ParallelEnv of one field, random manager actions, at frame skip 1 and 16; also
+  the seconds that importing ``hier_ssl`` and building the env take in a fresh interpreter.
+- ``vector``: the batched view (auto-reset) at frame skip 16 with random actions, for the Proposed task at
+  N = 1024 and ``formation`` (6 controlled robots + 6 moving obstacles per field) at N = 256; the
+  policy's cost is not included.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
 import sys
 import time
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+# The timer of the runs: wall-clock time by default; this thread's CPU time (``time.thread_time``) counts
+# only the time the benchmark itself ran, steadier on a machine other processes share.
+Clock = Callable[[], float]
 WORLD_SIZES = (1, 64, 1024)
+ENV_FRAME_SKIPS = (1, 16)
+# (task or scenario, fields) of ``bench vector``.
+VECTOR_RUNS = (("proposed", 1024), ("formation", 256))
 # One new random sub-goal per field every 2 s, so robots keep accelerating, braking and turning.
 _SUBGOAL_PERIOD = 80
 
 
 @dataclass(frozen=True)
 class BenchResult:
-    """One measurement: ``steps_per_s`` field-steps per second of wall-clock time."""
+    """One measurement: ``steps_per_s`` field-steps per second of wall-clock time; ``extra`` what a
+    bench adds (task, frame skip, decisions per second, build seconds)."""
 
     bench: str
     n_fields: int
     robots_per_field: int
     steps_per_s: float
+    extra: dict[str, Any] = field(default_factory=dict)
 
-    def as_dict(self) -> dict[str, str | int | float]:
+    def as_dict(self) -> dict[str, Any]:
         return {
             "bench": self.bench,
             "n_fields": self.n_fields,
             "robots_per_field": self.robots_per_field,
             "steps_per_s": round(self.steps_per_s, 1),
+            **self.extra,
         }
+
+    def describe(self) -> str:
+        """One line of text for the terminal."""
+        extra = "".join(
+            f", {k} {v:,}" if isinstance(v, float) else f", {k} {v}" for k, v in self.extra.items()
+        )
+        return (
+            f"  {self.bench}: N = {self.n_fields:5d} fields x {self.robots_per_field} robots: "
+            f"{self.steps_per_s:12,.0f} field-steps/s{extra}"
+        )
 
 
 def pin_to_one_core() -> int | None:
@@ -62,11 +91,14 @@ def default_steps(n_fields: int) -> int:
     return max(20, round(4000 / n_fields**0.5))
 
 
-def bench_world(n_fields: int, steps: int | None = None, repeats: int = 5, seed: int = 0) -> BenchResult:
+def bench_world(
+    n_fields: int, steps: int | None = None, repeats: int = 5, seed: int = 0, clock: Clock = time.perf_counter
+) -> BenchResult:
     """Field-steps per second of ``n_fields`` fields (1 robot + 1 random-walk obstacle, paper worker).
 
-    ``steps`` control steps per timed run (``default_steps`` if None); the best of ``repeats`` runs is
-    reported, the usual guard against other processes taking the core for part of a run. Short runs make
+    ``steps`` control steps per timed run (``default_steps`` if None), timed by ``clock``; the best of
+    ``repeats`` runs is reported, the usual guard against other processes taking the core for part of a
+    run. Short runs make
     that guard work on a shared machine; on a loaded one every figure is still a lower bound.
     """
     from hier_ssl.worker.scripted import PaperGoToPoint
@@ -106,13 +138,143 @@ def bench_world(n_fields: int, steps: int | None = None, repeats: int = 5, seed:
     run(min(steps, 50))
     best = float("inf")
     for _ in range(repeats):
-        start = time.perf_counter()
+        start = clock()
         run(steps)
-        best = min(best, time.perf_counter() - start)
+        best = min(best, clock() - start)
     return BenchResult("world", n_fields, 2, n_fields * steps / best)
 
 
-def bench_worlds(sizes: Sequence[int] = WORLD_SIZES, steps: int | None = None) -> Iterator[BenchResult]:
+def bench_worlds(
+    sizes: Sequence[int] = WORLD_SIZES, steps: int | None = None, clock: Clock = time.perf_counter
+) -> Iterator[BenchResult]:
     """``bench_world`` for each N in ``sizes``, yielded as each finishes."""
     for n in sizes:
-        yield bench_world(n, steps)
+        yield bench_world(n, steps, clock=clock)
+
+
+def _best(run: Callable[[], tuple[float, ...]], repeats: int) -> tuple[float, ...]:
+    """The fastest of ``repeats`` runs, each returning (seconds, count, ...), by seconds per count."""
+    return min((run() for _ in range(repeats)), key=lambda r: r[0] / max(r[1], 1))
+
+
+def build_seconds(task: str, frame_skip: int, repeats: int = 3) -> float:
+    """Seconds that ``import hier_ssl`` and ``parallel_env(task=..., frame_skip=...)`` take in a fresh
+    interpreter (its own start-up not included), best of ``repeats``; the child inherits this process's
+    CPU affinity."""
+    code = (
+        "import time; start = time.perf_counter(); import hier_ssl; "
+        f"hier_ssl.parallel_env(task={task!r}, frame_skip={frame_skip}); print(time.perf_counter() - start)"
+    )
+    runs = (
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        for _ in range(repeats)
+    )
+    return min(float(run.stdout) for run in runs)
+
+
+def bench_env(
+    frame_skip: int,
+    task: str = "proposed",
+    decisions: int | None = None,
+    repeats: int = 7,
+    seed: int = 0,
+    clock: Clock = time.perf_counter,
+) -> BenchResult:
+    """The PettingZoo ParallelEnv of ``task`` at ``frame_skip``, uniform random actions drawn beforehand,
+    resetting when the episode ends (resets count in the time, not in the steps). ``decisions`` manager
+    steps per timed run (about 4000 control steps if None). ``steps_per_s``: control steps per second;
+    ``decisions_per_s``: ``step`` calls per second; ``build_s``: ``build_seconds``."""
+    import hier_ssl
+
+    decisions = max(50, 4000 // frame_skip) if decisions is None else decisions
+    env = hier_ssl.parallel_env(task=task, frame_skip=frame_skip)
+    core = env.core
+    for i, agent in enumerate(env.possible_agents):
+        env.action_space(agent).seed(seed + i)
+    pool = [{a: env.action_space(a).sample() for a in env.possible_agents} for _ in range(256)]
+    env.reset(seed=seed)
+
+    def run(count: int = decisions) -> tuple[float, int]:
+        first, start = core.control_steps, clock()
+        for i in range(count):
+            if not env.agents:
+                env.reset()
+            actions = pool[i % len(pool)]
+            env.step({a: actions[a] for a in env.agents})
+        return clock() - start, core.control_steps - first
+
+    run(min(decisions, 100))
+    wall, steps = _best(run, repeats)
+    extra = {
+        "task": task,
+        "frame_skip": frame_skip,
+        "decisions_per_s": round(decisions / wall, 1),
+        "build_s": round(build_seconds(task, frame_skip), 3),
+    }
+    return BenchResult("env", 1, core.num_agents + core.num_obstacles, steps / wall, extra)
+
+
+def bench_vector(
+    task: str,
+    n_fields: int,
+    frame_skip: int = 16,
+    decisions: int = 10,
+    repeats: int = 5,
+    seed: int = 0,
+    clock: Clock = time.perf_counter,
+) -> BenchResult:
+    """The batched torch view of ``task`` (a paper task or a scenario) over ``n_fields`` fields at
+    ``frame_skip``, uniform random actions drawn beforehand, auto-reset. ``decisions`` vector steps per
+    timed run. ``steps_per_s``: control steps per second of all fields; ``decisions_per_s``: rows x vector
+    steps per second; ``physics_share``: the part of the time spent in ``World.step``."""
+    import torch
+
+    from hier_ssl.envs import task_config
+    from hier_ssl.envs.vector import TorchVectorEnv
+
+    env = TorchVectorEnv(task_config(task, frame_skip=frame_skip), n_fields)
+    core, world = env.core, env.core.world
+    world_step, in_world = world.step, [0.0]
+
+    def timed_step(command: Any) -> Any:  # World.step, timed
+        start = clock()
+        state = world_step(command)
+        in_world[0] += clock() - start
+        return state
+
+    world.step = timed_step
+    generator = torch.Generator().manual_seed(seed)
+    pool = [torch.rand(env.num_envs, env.num_actions, generator=generator) * 2 - 1 for _ in range(8)]
+    env.reset(seed=seed)
+
+    def run(count: int = decisions) -> tuple[float, int, float]:
+        in_world[0], first, start = 0.0, core.control_steps, clock()
+        for i in range(count):
+            env.step(pool[i % len(pool)])
+        return clock() - start, core.control_steps - first, in_world[0]
+
+    run(2)
+    wall, steps, physics = _best(run, repeats)
+    extra = {
+        "task": task,
+        "frame_skip": frame_skip,
+        "decisions_per_s": round(env.num_envs * decisions / wall, 1),
+        "physics_share": round(physics / wall, 3),
+    }
+    return BenchResult(
+        "vector", n_fields, core.num_agents + core.num_obstacles, n_fields * steps / wall, extra
+    )
+
+
+def views(target: str, clock: Clock = time.perf_counter) -> Iterator[BenchResult]:
+    """The runs of ``hier-ssl bench env`` or ``hier-ssl bench vector``, yielded as each finishes."""
+    if target == "env":
+        yield from (bench_env(frame_skip, clock=clock) for frame_skip in ENV_FRAME_SKIPS)
+    else:
+        yield from (bench_vector(task, n, clock=clock) for task, n in VECTOR_RUNS)
+
+
+def print_results(results: Iterator[BenchResult], as_json: bool) -> None:
+    """Each result as it comes, as a JSON line or a line of text."""
+    for result in results:
+        print(json.dumps(result.as_dict()) if as_json else result.describe(), flush=True)

@@ -42,7 +42,7 @@ def test_bench_world_json_lines_parse(
 def test_bench_world_text_output(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(bench, "WORLD_SIZES", (1, 4))
     monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
-    assert cli.main(["bench", "world", "--steps", "3"]) == 0
+    assert cli.main(["bench", "world", "--steps", "3", "--cpu-time"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 3 and "field-steps/s" in lines[1] and "N =     4" in lines[2]
 
@@ -58,6 +58,41 @@ def test_errors_are_one_line_without_traceback(tmp_path: object, capsys: pytest.
         assert exit_info.value.code == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "error:" in err, argv
+
+
+def test_bench_env_and_vector_json_lines_parse(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
+    # Short runs; build_s is measured in a fresh interpreter as in the real command.
+    env, vector = bench.bench_env, bench.bench_vector
+    monkeypatch.setattr(bench, "bench_env", lambda fs, clock: env(fs, decisions=3, repeats=1, clock=clock))
+    monkeypatch.setattr(
+        bench, "bench_vector", lambda task, n, clock: vector(task, 2, decisions=2, repeats=1, clock=clock)
+    )
+    monkeypatch.setattr(bench, "build_seconds", lambda task, frame_skip: 0.5)
+    assert cli.main(["bench", "env", "--json"]) == 0
+    assert cli.main(["bench", "vector", "--json", "--cpu-time"]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(r["bench"], r["task"], r["frame_skip"]) for r in records] == [
+        ("env", "proposed", 1),
+        ("env", "proposed", 16),
+        ("vector", "proposed", 16),
+        ("vector", "formation", 16),
+    ]
+    common = {"bench", "n_fields", "robots_per_field", "steps_per_s", "task", "frame_skip", "decisions_per_s"}
+    for record in records:
+        assert set(record) == common | ({"build_s"} if record["bench"] == "env" else {"physics_share"})
+        assert record["steps_per_s"] > 0 and record["decisions_per_s"] > 0
+    assert [r["robots_per_field"] for r in records] == [1, 1, 1, 12]
+    # At frame skip 1 a decision is one control step.
+    assert records[0]["steps_per_s"] == records[0]["decisions_per_s"]
+    assert 0 < records[3]["physics_share"] < 1
+
+
+def test_build_seconds_times_a_fresh_interpreter() -> None:
+    seconds = bench.build_seconds("proposed", 1, repeats=1)
+    assert 0 < seconds < 60
 
 
 def test_bench_rejects_bad_sizes() -> None:

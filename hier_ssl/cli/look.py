@@ -4,10 +4,20 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 
 # -- bench ---------------------------------------------------------------------------------------------------
+
+
+CPU_TIME_HELP = "time with this thread's CPU time, not wall-clock time (steadier on a shared machine)"
+
+
+def _clock(args: argparse.Namespace) -> Callable[[], float]:
+    import time
+
+    return time.thread_time if args.cpu_time else time.perf_counter
 
 
 def add_bench(subparsers: argparse._SubParsersAction) -> None:
@@ -18,6 +28,7 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="field-steps/s of the world with the paper worker, 1 robot + 1 random-walk obstacle per field",
     )
     world.add_argument("--json", action="store_true", help="one JSON object per line")
+    world.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
     world.add_argument(
         "--steps",
         type=positive_int,
@@ -25,6 +36,26 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="control steps per timed run (default: 4000 / sqrt(N), at least 20)",
     )
     world.set_defaults(func=_bench_world)
+    views = {
+        "env": "PettingZoo view, one field, frame skip 1 and 16: steps and decisions/s, build seconds",
+        "vector": "batched view at frame skip 16: proposed at N = 1024, formation at N = 256",
+    }
+    for name, text in views.items():
+        view = targets.add_parser(name, help=text)
+        view.add_argument("--json", action="store_true", help="one JSON object per line")
+        view.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
+        view.set_defaults(func=_bench_view)
+
+
+def _bench_view(args: argparse.Namespace) -> int:
+    from hier_ssl import bench
+
+    cpu = bench.pin_to_one_core()
+    if not args.json:
+        where = f"CPU {cpu}" if cpu is not None else "one thread"
+        print(f"{args.target} bench on {where}, best of several runs")
+    bench.print_results(bench.views(args.target, _clock(args)), args.json)
+    return 0
 
 
 def _bench_world(args: argparse.Namespace) -> int:
@@ -35,7 +66,7 @@ def _bench_world(args: argparse.Namespace) -> int:
         where = f"CPU {cpu}" if cpu is not None else "one thread (affinity not settable here)"
         print(f"world bench on {where}: best of 5 runs per N, paper worker + random-walk obstacle")
     for n in WORLD_SIZES:
-        result = bench_world(n, args.steps)
+        result = bench_world(n, args.steps, clock=_clock(args))
         if args.json:
             print(json.dumps(result.as_dict()), flush=True)
         else:

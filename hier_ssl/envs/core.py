@@ -24,16 +24,18 @@ import numpy as np
 
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.registry import make_scenario
-from hier_ssl.envs.rules import score_control_step
+from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.envs.step_guard import abandon, hold
-from hier_ssl.manager import cpad_increment, decode_subgoal, manager_observation
+from hier_ssl.manager import cpad_increment, manager_observation
+from hier_ssl.manager.actions import SubgoalDecoder
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.worker import Worker, resolve_worker
-from hier_ssl.worker.observation import scale_command, worker_observation
-from hier_ssl.world.field import Field
+from hier_ssl.worker.observation import controlled_worker_observation, scale_command
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import RobotSpec, RobotState, World
+from hier_ssl.world.physics import RobotState, World
+
+_ONE = np.array(1.0)
 
 OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``HierarchicalCore.observe_obstacle``)
 
@@ -50,24 +52,6 @@ class StepResult:
     terminated: np.ndarray
     truncated: np.ndarray
     info: dict[str, Any]
-
-
-def controlled_worker_observation(
-    state: RobotState, subgoal: np.ndarray, robot: RobotSpec, field: Field
-) -> np.ndarray:
-    """The worker observations (N, M, 9) of robots 0..M-1 of every field towards ``subgoal`` (N, M, 5)."""
-    n, m = subgoal.shape[:2]
-    own = state.robots(slice(0, m))
-    obs = worker_observation(
-        own.pos.reshape(n * m, 2),
-        own.angle.reshape(n * m),
-        own.vel.reshape(n * m, 2),
-        own.ang_vel.reshape(n * m),
-        subgoal.reshape(n * m, 5),
-        robot,
-        field.max_pos,
-    )
-    return obs.reshape(n, m, -1)
 
 
 class HierarchicalCore:
@@ -105,11 +89,20 @@ class HierarchicalCore:
             first += group.count
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
+        self.rules = Rules(scenario.reward_task, cfg)
+        sizes = [scenario.scales[k] for k in ("half_length", "half_width", "max_v")]
+        self._decode = SubgoalDecoder(cfg.action_form, *sizes, scenario.zero_velocity, cfg.action_frame)
+        # The observation's scales as 0-d arrays (see ``Rules``).
+        self._limits = {k: np.array(scenario.scales[k]) for k in ("max_pos", "max_v", "max_w")}
+        self._sum_rewards = cfg.frame_skip_reward == "sum"
+        self._max_steps = np.array(cfg.max_steps)
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
         r = m + k
         self._others = np.array([[j for j in range(r) if j != i] for i in range(m)], dtype=np.int64)
         self._others = self._others.reshape(m, r - 1)
         self._teammate = self._others < m
+        # pos[self._others_of] (N, M, R - 1, 2): for one controlled robot a view (robots 1..), else a gather.
+        self._others_of = np.s_[:, None, 1:] if m == 1 else np.s_[:, self._others]
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
         self.interrupted = False  # an exception stopped a decision part-way: no step until reset()
@@ -123,6 +116,7 @@ class HierarchicalCore:
         self.ep_return = np.zeros((n, m))
         self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
         self.ep_cpad = np.zeros((n, m))
+        self._held = None  # the rules' part that sub-goals and targets fix (``Rules.hold``)
 
     @property
     def done(self) -> np.ndarray:
@@ -175,6 +169,11 @@ class HierarchicalCore:
         for behaviour, robots in self.obstacles:
             count = robots.stop - robots.start
             behaviour.reset((fields[:, None] * count + np.arange(count)).ravel(), self.rng)
+        self._hold()
+
+    def _hold(self) -> None:
+        """Whatever the rules can compute once for the current sub-goals and targets (after every change)."""
+        self._held = self.rules.hold(self.target, self.subgoal)
 
     # -- observations --------------------------------------------------------------------------------------
 
@@ -184,23 +183,21 @@ class HierarchicalCore:
         s = self.world.state if fields is None else self.world.state.fields(fields)
         target = self.target if fields is None else self.target[fields]
         f, m = target.shape[:2]
-        b, scales = f * m, self.scenario.scales
-        own = s.robots(slice(0, m))
+        b, limits = f * m, self._limits
         rows = (
             target.reshape(b, 5),
-            own.pos.reshape(b, 2),
-            own.angle.reshape(b),
-            own.vel.reshape(b, 2),
-            own.ang_vel.reshape(b),
+            s.pos[:, :m].reshape(b, 2),
+            s.angle[:, :m].reshape(b),
+            s.vel[:, :m].reshape(b, 2),
+            s.ang_vel[:, :m].reshape(b),
         )
-        limits = {"max_pos": scales["max_pos"], "max_v": scales["max_v"], "max_w": scales["max_w"]}
         if self.scenario.observation == "paper":  # one robot: the others are its obstacles
             obs = manager_observation(*rows, s.pos[:, m:], s.vel[:, m:], s.ang_vel[:, m:], **limits)
         else:
             j = self._others.shape[1]
             teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
-            others_pos = s.pos[:, self._others].reshape(b, j, 2)
-            others_vel = s.vel[:, self._others].reshape(b, j, 2)
+            others_pos = s.pos[self._others_of].reshape(b, j, 2)
+            others_vel = s.vel[self._others_of].reshape(b, j, 2)
             obs = neighbour_observation(
                 *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits
             )
@@ -208,7 +205,7 @@ class HierarchicalCore:
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, M, 9) float32."""
-        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field)
+        return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field.max_pos)
 
     def observe_obstacle(self, j: int) -> np.ndarray:
         """Obstacle ``j``'s view of itself (N, 7): position, sin/cos heading, velocity, angular velocity."""
@@ -232,22 +229,14 @@ class HierarchicalCore:
         field or the target frame (``action_frame``); values outside [-1, 1] are clipped, sub-goals to the
         field. Returns how many values were clipped per robot (N, M), 0 where not live."""
         n, m = live.shape
-        scales = self.scenario.scales
-        clipped = np.where(live, np.count_nonzero(np.abs(action) > 1.0, axis=2), 0)
-        subgoal = decode_subgoal(
-            action.reshape(n * m, self.act_dim),
-            self.config.action_form,
-            scales["half_length"],
-            scales["half_width"],
-            scales["max_v"],
-            zero_velocity=self.scenario.zero_velocity,
-            frame=self.config.action_frame,
-            target=self.target.reshape(n * m, 5),
-        ).reshape(n, m, 5)
-        moved = cpad_increment(self.subgoal[..., 0:2].reshape(-1, 2), subgoal[..., 0:2].reshape(-1, 2))
-        self.ep_cpad += np.where(live & (self.decisions > 0), moved.reshape(n, m), 0.0)
-        self.subgoal[live] = subgoal[live]
+        clipped = live * np.add.reduce(np.abs(action) > _ONE, axis=2)
+        subgoal = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
+        subgoal = subgoal.reshape(n, m, 5)
+        moved = cpad_increment(self.subgoal[..., 0:2], subgoal[..., 0:2])
+        np.add(self.ep_cpad, moved, out=self.ep_cpad, where=live & (self.decisions > 0))
+        np.copyto(self.subgoal, subgoal, where=live[..., None])
         self.decisions += live
+        self._hold()
         return clipped
 
     def control_step(
@@ -255,54 +244,53 @@ class HierarchicalCore:
         live: np.ndarray,
         worker_action: np.ndarray | None = None,
         obstacle_actions: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One 25 ms step of every field; robots not ``live`` (N, M) hold still and score nothing, and so do
         the obstacles of fields without a live robot. ``worker_action`` (N, M, 3) and ``obstacle_actions``
         (N, K, 3), normalised to [-1, 1], replace the workers and obstacles when those are exposed as agents.
 
-        Returns reward (N, M), success (N, M), collision (N, M) (both only where live) and the reward terms.
+        Returns reward (N, M), success (N, M) and collision (N, M), both only where live.
         """
-        cfg, s = self.config, self.world.state
-        n, m, k = self.num_fields, self.num_agents, self.num_obstacles
-        command = np.zeros((n, m + k, 3))
+        s, n, m = self.world.state, self.num_fields, self.num_agents
+        field_live = np.logical_or.reduce(live, axis=1)
+        command = np.zeros((n, m + self.num_obstacles, 3))
         if worker_action is None:
-            command[:, :m] = self.worker(s.robots(slice(0, m)), self.subgoal)
+            own = self.worker(self._controlled(s), self.subgoal)
         else:
-            command[:, :m] = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
+            own = scale_command(np.clip(worker_action, -1.0, 1.0), self.robot)
+        np.copyto(command[:, :m], own, where=live[..., None])
+        moving = field_live[:, None, None]
         if obstacle_actions is None:
             for behaviour, robots in self.obstacles:
                 count = robots.stop - robots.start
                 pos, angle = s.pos[:, robots].reshape(n * count, 2), s.angle[:, robots].reshape(n * count)
-                command[:, robots] = behaviour(pos, angle, self.rng).reshape(n, count, 3)
+                np.copyto(
+                    command[:, robots], behaviour(pos, angle, self.rng).reshape(n, count, 3), where=moving
+                )
         else:
-            command[:, m:] = scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot)
-        command[:, :m][~live] = 0.0
-        field_live = live.any(axis=1)
-        command[~field_live] = 0.0
+            np.copyto(
+                command[:, m:], scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot), where=moving
+            )
         s = self.world.step(command)
         self.control_steps += 1
         self.steps += field_live
 
-        b, j = n * m, m + k - 1
-        own = s.robots(slice(0, m))
-        touching = self.world.robot_contacts[:, :m].any(axis=2).reshape(b)
-        reward, success, hit, terms = score_control_step(
-            self.scenario.reward_task,
-            cfg,
-            self.target.reshape(b, 5),
-            self.subgoal.reshape(b, 5),
-            own.pos.reshape(b, 2),
-            own.angle.reshape(b),
-            own.vel.reshape(b, 2),
-            s.pos[:, self._others].reshape(b, j, 2),
+        own, touching = self._controlled(s), self.world.robot_touch[:, :m]
+        reward, success, hit = self.rules(
+            self._held,
+            self.target,
+            self.subgoal,
+            own.pos,
+            own.angle,
+            own.vel,
+            s.pos[self._others_of],
             touching,
         )
-        return (
-            reward.reshape(n, m),
-            success.reshape(n, m) & live,
-            hit.reshape(n, m) & live,
-            {name: term.reshape(n, m) for name, term in terms.items()},
-        )
+        return reward, success & live, hit & live
+
+    def _controlled(self, s: RobotState) -> RobotState:
+        """Robots 0..M-1 of ``s``: ``s`` itself when every robot is controlled (no slicing to do)."""
+        return s if self.num_obstacles == 0 else s.robots(slice(0, self.num_agents))
 
     def step(self, action: np.ndarray) -> StepResult:
         """One manager decision in every field: the live robots' sub-goals (``action`` (N, M, A) float64)
@@ -318,28 +306,33 @@ class HierarchicalCore:
         """
         cfg = self.config
         start = self.active.copy()
-        if not start.any():
+        if not np.count_nonzero(start):
             raise RuntimeError("step() with every episode finished: call reset() first")
         held = hold(self)
         clipped = self.set_subgoal(action, start)
-        live = start.copy()
-        reward = np.zeros(live.shape)
-        success, collision, timeout = (np.zeros(live.shape, dtype=bool) for _ in range(3))
-        elapsed = np.zeros(live.shape, dtype=np.int64)
+        live, shape = start, start.shape
+        reward, elapsed = np.zeros(shape), np.zeros(shape, dtype=np.int64)
+        success, collision = np.zeros(shape, bool), np.zeros(shape, bool)
         try:
+            # For bools a > b is a & ~b, in one call.
             for _ in range(cfg.frame_skip):
-                r, succ, hit, _ = self.control_step(live)
-                reward = np.where(live, reward + r if cfg.frame_skip_reward == "sum" else r, reward)
+                r, succ, hit = self.control_step(live)
+                if self._sum_rewards:
+                    np.add(reward, r, out=reward, where=live)
+                else:
+                    np.copyto(reward, r, where=live)
                 elapsed += live
                 success |= succ
-                collision |= hit & ~succ
-                timeout |= live & ~succ & ~hit & (self.steps >= cfg.max_steps)[:, None]
-                live &= ~(success | collision | timeout)
-                if not live.any():
+                collision |= hit > succ
+                live = live > (succ | hit)
+                live = live > (self.steps >= self._max_steps)[:, None]
+                if not np.count_nonzero(live):
                     break
         except Exception:  # from the worker: undone, or the core needs a reset (step_guard)
             abandon(self, held)
             raise
+        # A robot that left without success or collision ran out of time.
+        timeout = start > (live | success | collision)
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
 
     def finish(
@@ -357,7 +350,9 @@ class HierarchicalCore:
         self.ep_return += reward
         self.ep_length += elapsed
         left = success | collision | timeout
-        field, agent = np.nonzero(left)
+        # Rows of the robots that left, row = field * M + robot; take() reads the arrays flat and copies.
+        rows = left.ravel().nonzero()[0]
+        field, agent = np.divmod(rows, self.num_agents)
         info: dict[str, Any] = {
             "control_steps": elapsed,
             "success": success,
@@ -368,22 +363,22 @@ class HierarchicalCore:
             "task": {
                 "field": field,
                 "agent": agent,
-                "return": self.ep_return[field, agent].copy(),
-                "length": self.ep_length[field, agent].copy(),
-                "decisions": self.decisions[field, agent].copy(),
-                "success": success[field, agent].astype(np.float64),
-                "collision": collision[field, agent].astype(np.float64),
-                "cpad": self.ep_cpad[field, agent].copy(),
+                "return": self.ep_return.take(rows),
+                "length": self.ep_length.take(rows),
+                "decisions": self.decisions.take(rows),
+                "success": success.take(rows).astype(np.float64),
+                "collision": collision.take(rows).astype(np.float64),
+                "cpad": self.ep_cpad.take(rows),
             },
         }
-        self.active &= ~left
-        obs = self.observe()
-        info["final_obs"] = obs
-        finished = np.flatnonzero(self.done)
-        if self.autoreset and len(finished):
-            obs = obs.copy()
-            self.reset_fields(finished)
-            obs[finished] = self.observe(finished)
+        np.greater(self.active, left, out=self.active)
+        obs = info["final_obs"] = self.observe()
+        if self.autoreset and len(rows):
+            finished = np.flatnonzero(self.done)
+            if len(finished):
+                obs = obs.copy()
+                self.reset_fields(finished)
+                obs[finished] = self.observe(finished)
         return StepResult(obs, reward.astype(np.float32), success | collision, timeout, info)
 
 
@@ -391,5 +386,4 @@ __all__ = [
     "OBSTACLE_AGENT_OBS_DIM",
     "HierarchicalCore",
     "StepResult",
-    "controlled_worker_observation",
 ]

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig
-from hier_ssl.envs.core import HierarchicalCore, StepResult, controlled_worker_observation
+from hier_ssl.envs.core import HierarchicalCore, StepResult
 from hier_ssl.envs.play import play
 from hier_ssl.envs.rules import check_action
 from hier_ssl.envs.scenario import Layout, Scenario
@@ -29,9 +29,10 @@ from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
 from hier_ssl.manager.planners import make_planner
 from hier_ssl.worker import Worker, make_worker
-from hier_ssl.worker.observation import WORKER_OBS_DIM
+from hier_ssl.worker.observation import WORKER_OBS_DIM, controlled_worker_observation
 from hier_ssl.worker.rewards import gotopoint_reward, pose_potential
-from hier_ssl.world.physics import World, to_robot_frame
+from hier_ssl.world.frames import to_robot_frame
+from hier_ssl.world.physics import World
 
 if TYPE_CHECKING:
     from hier_ssl.worker.learned import WorkerPolicy
@@ -146,7 +147,7 @@ class GoToPointCore:
     def observe(self) -> np.ndarray:
         """Worker observations (N, 9) float32."""
         state, subgoal = self.world.state, self.subgoal[:, None]
-        return controlled_worker_observation(state, subgoal, self.robot, self.field)[:, 0]
+        return controlled_worker_observation(state, subgoal, self.robot, self.field.max_pos)[:, 0]
 
     def step_command(self, command: np.ndarray) -> StepResult:
         """``step`` with robot-frame commands (N, 3) in m/s and rad/s, as scripted workers give them."""

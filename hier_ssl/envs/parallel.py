@@ -50,6 +50,8 @@ class HierarchicalSSLEnv(ParallelEnv):
         self.workers = [f"worker_{i}" for i in range(m)] if cfg.expose_worker else []
         self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if cfg.expose_obstacles else []
         self.possible_agents = self.managers + self.workers + self.obstacle_agents
+        # The controlled robot each manager and worker agent stands for.
+        self._robot = {a: int(a.rsplit("_", 1)[1]) for a in self.managers + self.workers}
         self.per_control_step = cfg.expose_worker or cfg.expose_obstacles
         # One frame per step: a decision (frame_skip control steps), or one control step with exposed agents.
         period = cfg.dt * (1 if self.per_control_step else cfg.frame_skip)
@@ -66,7 +68,7 @@ class HierarchicalSSLEnv(ParallelEnv):
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
         self.state_space = box(-CLIP, CLIP, (state_dim(m, k),))
         self.agents: list[str] = []
-        self._trails: list[list[np.ndarray]] = []
+        self._trail: list[np.ndarray] = []  # the controlled robots' positions (M, 2) after each step
         self._window = None
 
     def observation_space(self, agent: str) -> spaces.Box:
@@ -98,25 +100,27 @@ class HierarchicalSSLEnv(ParallelEnv):
                 self._act_spaces[agent].seed(seed + i)
         obs = self.core.reset(seed)[0]
         self.agents = list(self.possible_agents)
-        self._trails = [[p.copy()] for p in self.core.world.state.pos[0, : self.core.num_agents]]
+        # The world replaces its state, never changes it: views of it stay as they were.
+        self._trail = [self.core.state.pos[0, : self.core.num_agents]]
         return self._observations(obs), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents:
             raise RuntimeError("step() after the episode ended: call reset() first")
-        unknown, missing = set(actions) - set(self.agents), set(self.agents) - set(actions)
-        if unknown:
-            raise ValueError(f"actions for agents that are not live: {sorted(unknown)}; live: {self.agents}")
-        if missing:
+        if actions.keys() != set(self.agents):
+            unknown, missing = set(actions) - set(self.agents), set(self.agents) - set(actions)
+            if unknown:
+                raise ValueError(
+                    f"actions for agents that are not live: {sorted(unknown)}; live: {self.agents}"
+                )
             raise ValueError(f"no action for live agents {sorted(missing)}")
         checked = {a: check_action(a, actions[a], self._act_spaces[a].shape) for a in self.agents}
         batch = np.zeros((1, self.core.num_agents, self.core.act_dim))
-        for i, agent in enumerate(self.managers):
+        for agent in self.managers:
             if agent in checked:
-                batch[0, i] = checked[agent]
+                batch[0, self._robot[agent]] = checked[agent]
         result = self._control_step(checked, batch) if self.per_control_step else self.core.step(batch)
-        for trail, pos in zip(self._trails, self.core.world.state.pos[0], strict=False):
-            trail.append(pos.copy())
+        self._trail.append(self.core.state.pos[0, : self.core.num_agents])
         out = self._outputs(result)
         self.agents = [a for a in self.agents if self._still_in(a)]
         if self.render_mode == "human":
@@ -125,9 +129,9 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def _still_in(self, agent: str) -> bool:
         active = self.core.active[0]
-        if agent in self.obstacle_agents:
-            return bool(active.any())
-        return bool(active[int(agent.rsplit("_", 1)[1])])
+        if agent in self._robot:
+            return bool(active[self._robot[agent]])
+        return bool(active.any())
 
     def _outputs(self, result: StepResult) -> tuple[dict, dict, dict, dict, dict]:
         """The five dicts of ``step`` for the agents live before it, from the core's result."""
@@ -142,7 +146,7 @@ class HierarchicalSSLEnv(ParallelEnv):
                 rewards[agent], terms[agent], truncs[agent] = 0.0, over and not truncated, over and truncated
                 infos[agent] = {}
                 continue
-            i = int(agent.rsplit("_", 1)[1])
+            i = self._robot[agent]
             terms[agent], truncs[agent] = bool(result.terminated[0, i]), bool(result.truncated[0, i])
             if agent in self.workers:
                 rewards[agent], infos[agent] = float(info["worker_reward"][0, i]), {}
@@ -175,7 +179,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         if self.obstacle_agents:
             obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None]
         try:
-            reward, success, hit, _ = core.control_step(live, worker, obstacles)
+            reward, success, hit = core.control_step(live, worker, obstacles)
         except Exception:  # the scripted worker's: the sub-goal set above goes back (step_guard)
             abandon(core, held)
             raise
@@ -198,12 +202,13 @@ class HierarchicalSSLEnv(ParallelEnv):
         from hier_ssl.world.render import render_fields
 
         m, k = self.core.num_agents, self.core.num_obstacles
+        trail = np.array(self._trail)
         frame = render_fields(
             self.core.field,
             self.core.state,
             targets=self.core.target,
             subgoals=self.core.subgoal,
-            trails=[np.array(trail) for trail in self._trails],
+            trails=[trail[:, i] for i in range(m)],
             team=[0] * m + [1] * k,
         )
         if self.render_mode == "human":

@@ -1,8 +1,9 @@
 """The rules every control step applies per controlled robot, and the check of an action where it enters.
 
-``score_control_step`` runs the pure functions of ``hier_ssl.manager`` (success, collision, reward) on the
-(field, robot) pairs as rows, with a task config's thresholds, reward modes and weights: the core scores
-every scenario with it. ``check_action`` is what the views run on each agent's action, once, as it enters.
+``Rules`` binds a task's success, collision and reward rules (the pure functions of ``hier_ssl.manager``)
+to one config's thresholds, reward modes and weights, checked once when the core is built; the core scores
+every scenario with it, on (field, robot) arrays. ``check_action`` is what the views run on
+each agent's action, once, as it enters.
 """
 
 from __future__ import annotations
@@ -10,7 +11,22 @@ from __future__ import annotations
 import numpy as np
 
 from hier_ssl.config import TaskSettings
-from hier_ssl.manager import collided, task_reward, task_success
+from hier_ssl.manager.rewards import (
+    RewardOptions,
+    angle_reward,
+    check_task,
+    combine_rewards,
+    distance_reward,
+    measured_errors,
+    obstacle_distance,
+    pose_errors,
+)
+from hier_ssl.manager.success import collided, pose_reached, robot_settled
+from hier_ssl.world.frames import all_finite
+
+# What a decision fixes for its control steps: whether each measured pose names its target (...) bool, and
+# R_d + R_theta (...).
+Held = tuple[np.ndarray, np.ndarray]
 
 
 def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
@@ -18,49 +34,71 @@ def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.nd
     action = np.asarray(action, dtype=np.float64)
     if action.shape != shape:
         raise ValueError(f"action of {name} has shape {action.shape}, expected {shape}")
-    if not np.isfinite(action).all():
+    if not all_finite(action):
         raise ValueError(f"action of {name} holds NaN or infinite values: {action.tolist()}")
     return action
 
 
-def score_control_step(
-    task: str,
-    config: TaskSettings,
-    target: np.ndarray,
-    subgoal: np.ndarray,
-    pos: np.ndarray,
-    angle: np.ndarray,
-    vel: np.ndarray,
-    others: np.ndarray,
-    touching: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Success, collision and reward of one control step of B controlled robots (rows), by the pure
-    functions of ``hier_ssl.manager`` with ``config``'s thresholds, reward modes and weights.
+class Rules:
+    """Success, collision and reward of one control step for ``task`` ("baseline", "proposed" or
+    "obstacle": the rules of ``hier_ssl.manager`` that score a robot) with ``config``'s settings.
 
-    Shapes: target, subgoal (B, 5); pos, vel (B, 2); angle (B,); others (B, J, 2), the robots each one can
-    hit; touching (B,) bool, a contact the physics reported. Returns reward, success, hit (B,) and the
-    reward terms.
+    The settings are checked here and held as 0-d arrays: a Python float operand costs numpy a conversion
+    on every call, and on the few rows of one field the calls are the cost. The action-centric tasks measure
+    the sub-goal, which a decision fixes for its control steps: ``hold`` computes that part once a decision.
     """
-    thresholds = {"d_th": config.d_th, "theta_th": np.deg2rad(config.theta_th_deg)}
-    success = task_success(task, target, subgoal, pos, angle, vel, speed_th=config.speed_th, **thresholds)
-    hit = collided(pos, others, config.collision_distance) | touching
-    extra = {"obs_pos": others, "hit": hit} if task == "obstacle" else {}
-    reward, terms = task_reward(
-        task,
-        target,
-        pos,
-        angle,
-        subgoal,
-        success,
-        success_mode=config.success_mode,
-        hit_mode=config.hit_mode,
-        success_weight=config.success_weight,
-        hit_weight=config.hit_weight,
-        obstacle_from=config.obstacle_from,
-        **extra,
-        **thresholds,
-    )
-    return reward, success, hit, terms
+
+    def __init__(self, task: str, config: TaskSettings) -> None:
+        check_task(task)
+        self.task = task
+        modes = (config.success_mode, config.hit_mode)
+        self.options = RewardOptions(*modes, config.success_weight, config.hit_weight, config.obstacle_from)
+        self.d_th, self.theta_th = np.array(config.d_th), np.array(np.deg2rad(config.theta_th_deg))
+        self.speed_th = np.array(config.speed_th)
+        self.collision_distance = np.array(config.collision_distance)
+
+    def _pose(self, d: np.ndarray, delta: np.ndarray) -> Held:
+        reached = pose_reached(d, delta, self.d_th, self.theta_th)
+        return reached, distance_reward(d, self.d_th) + angle_reward(delta, self.theta_th)
+
+    def hold(self, target: np.ndarray, subgoal: np.ndarray) -> Held | None:
+        """The part of the rules that the sub-goals (..., 5) fix until the next decision, for targets
+        (..., 5); None for the Baseline task, which measures the robot every step."""
+        if self.task == "baseline":
+            return None
+        return self._pose(*pose_errors(subgoal, target))
+
+    def __call__(
+        self,
+        held: Held | None,
+        target: np.ndarray,
+        subgoal: np.ndarray,
+        pos: np.ndarray,
+        angle: np.ndarray,
+        vel: np.ndarray,
+        others: np.ndarray,
+        touching: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reward, success and hit (...) of the controlled robots, given ``hold``'s result for these
+        sub-goals and targets (None: computed here). The leading axes (...) are the core's (N, M).
+
+        Shapes: target, subgoal (..., 5); pos, vel (..., 2); angle (...); others (..., J, 2), the robots
+        each one can hit; touching (...) bool, a contact the physics reported.
+        """
+        if held is None:
+            held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
+        reached, shaping = held
+        # Success needs the measured pose on the target first; the robot is looked at only then.
+        success = reached.copy()
+        if np.count_nonzero(reached):
+            success &= robot_settled(self.task, target, pos, vel, self.d_th, self.speed_th)
+        # Without another robot in the field there is nothing to hit.
+        hit = collided(pos, others, self.collision_distance) | touching if others.shape[-2] else touching
+        nearest = None
+        if self.task == "obstacle":
+            nearest = obstacle_distance(self.options.obstacle_from, subgoal, pos, others)
+        reward, _ = combine_rewards({"pose": shaping}, success, self.options, nearest, hit)
+        return reward, success, hit
 
 
-__all__ = ["check_action", "score_control_step"]
+__all__ = ["Held", "Rules", "check_action"]

@@ -11,12 +11,15 @@ angle is atan2(sin, cos). A sub-goal pose is (N, 5): x, y, theta, vx, vy in the 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hier_ssl.manager.observation import check_array
 
 ACTION_DIMS: dict[str, int] = {"pose4": 4, "pose6": 6}
+_ONE, _MINUS_ONE = np.array(1.0), np.array(-1.0)
 
 
 def action_dim(form: str) -> int:
@@ -35,10 +38,14 @@ def _check_scales(half_length: float, half_width: float, max_v: float) -> None:
 ACTION_FRAMES = ("field", "target")
 
 
-def _check_frame(frame: str, target: ArrayLike | None) -> np.ndarray | None:
-    """The target poses (N, 5) that the "target" frame needs; None in the "field" frame."""
+def _check_frame_name(frame: str) -> None:
     if frame not in ACTION_FRAMES:
         raise ValueError(f"unknown action frame {frame!r}; expected one of {list(ACTION_FRAMES)}")
+
+
+def _check_frame(frame: str, target: ArrayLike | None) -> np.ndarray | None:
+    """The target poses (N, 5) that the "target" frame needs; None in the "field" frame."""
+    _check_frame_name(frame)
     if frame == "field":
         return None
     if target is None:
@@ -79,21 +86,48 @@ def decode_subgoal(
         (N, 5) float64 sub-goal x, y, theta, vx, vy. theta is in (-pi, pi]; sin = cos = 0
         decodes to theta = 0 in the field frame. Target-frame sub-goals are clipped to the field.
     """
-    action_dim(form)  # an unknown form is an error, not an unread column
-    _check_scales(half_length, half_width, max_v)
-    action = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-    n = action.shape[0]
-    target = _check_frame(frame, target)
-    if target is not None:
-        action[:, 0:2] **= 3
-        action[:, -1] += 1.0  # cos is last in both forms
-    half = np.array([half_length, half_width])
-    xy, theta = action[:, 0:2] * half, np.arctan2(action[:, -2], action[:, -1])
-    vel = np.zeros((n, 2)) if zero_velocity or form == "pose4" else action[:, 2:4] * max_v
-    if target is not None:
-        xy = np.clip(xy + target[:, 0:2], -half, half)
-        theta = np.angle(np.exp(1j * (theta + target[:, 2])))
-    return np.concatenate([xy, theta[:, None], vel], axis=1)
+    return SubgoalDecoder(form, half_length, half_width, max_v, zero_velocity, frame)(action, target)
+
+
+@dataclass(frozen=True)
+class SubgoalDecoder:
+    """``decode_subgoal`` with its options checked once: ``decoder(action, target)`` for a core that
+    decodes every decision. ``target`` (N, 5) is read in the "target" frame only."""
+
+    form: str
+    half_length: float
+    half_width: float
+    max_v: float = 2.5
+    zero_velocity: bool = False
+    frame: str = "field"
+
+    def __post_init__(self) -> None:
+        action_dim(self.form)  # an unknown form is an error, not an unread column
+        _check_scales(self.half_length, self.half_width, self.max_v)
+        _check_frame_name(self.frame)
+        # 0-d and (2,) arrays: a Python float operand costs numpy a conversion on every call.
+        object.__setattr__(self, "_half", np.array([self.half_length, self.half_width]))
+        object.__setattr__(self, "_max_v", np.array(self.max_v))
+        object.__setattr__(self, "_velocity", not (self.zero_velocity or self.form == "pose4"))
+
+    def __call__(self, action: ArrayLike, target: ArrayLike | None) -> np.ndarray:
+        """Sub-goals (N, 5) of actions (N, A)."""
+        target = _check_frame(self.frame, target)
+        # Clipped into a new array, which the target frame then changes in place.
+        action = np.minimum(np.maximum(np.asarray(action, dtype=np.float64), _MINUS_ONE), _ONE)
+        if target is not None:
+            action[:, 0:2] **= 3
+            action[:, -1] += _ONE  # cos is last in both forms
+        subgoal = np.zeros((action.shape[0], 5))
+        xy, theta = subgoal[:, 0:2], subgoal[:, 2]
+        np.multiply(action[:, 0:2], self._half, out=xy)
+        np.arctan2(action[:, -2], action[:, -1], out=theta)
+        if self._velocity:
+            np.multiply(action[:, 2:4], self._max_v, out=subgoal[:, 3:5])
+        if target is not None:
+            np.clip(xy + target[:, 0:2], -self._half, self._half, out=xy)
+            theta[:] = np.angle(np.exp(1j * (theta + target[:, 2])))
+        return subgoal
 
 
 def encode_subgoal(

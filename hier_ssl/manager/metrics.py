@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hier_ssl.manager.observation import check_array
+from hier_ssl.manager.rewards import vector_length
 
 CPAD_VARIANTS = ("paper", "public_code")
 
@@ -48,12 +49,12 @@ def cpad_increment(prev_xy: np.ndarray, new_xy: np.ndarray) -> np.ndarray:
     square root at the episode's end.
 
     Args:
-        prev_xy, new_xy: (N, 2) the previous and the current (x, y) sub-goal, m.
+        prev_xy, new_xy: (..., 2) the previous and the current (x, y) sub-goal, m.
 
     Returns:
-        (N,) m.
+        (...) m.
     """
-    return np.linalg.norm(new_xy - prev_xy, axis=1)
+    return vector_length(new_xy - prev_xy)
 
 
 def summarize(values: ArrayLike) -> dict[str, float]:

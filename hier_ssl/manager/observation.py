@@ -110,23 +110,24 @@ def manager_observation(
         (N, 13 + 5K) float32, laid out as in the module docstring.
     """
     n, k = obs_pos.shape[:2]
-    theta = target[:, 2]
-    obstacles = np.concatenate(
-        [obs_pos / max_pos, obs_vel / max_v, obs_ang_vel[:, :, None] / max_w], axis=2
-    ).reshape(n, OBSTACLE_OBS_DIM * k)
-    obs = np.concatenate(
-        [
-            target[:, 0:2] / max_pos,
-            np.sin(theta)[:, None],
-            np.cos(theta)[:, None],
-            target[:, 3:5] / max_v,
-            pos / max_pos,
-            np.sin(angle)[:, None],
-            np.cos(angle)[:, None],
-            vel / max_v,
-            ang_vel[:, None] / max_w,
-            obstacles,
-        ],
-        axis=1,
+    obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k))
+    # Every block is computed into its columns: one call a block, no concatenation.
+    s = MANAGER_OBS_SLICES
+    obstacles = obs[:, MANAGER_OBS_BASE_DIM:].reshape(n, k, OBSTACLE_OBS_DIM)
+    scaled = (
+        (target[:, 0:2], max_pos, obs[:, s["target_pos"]]),
+        (target[:, 3:5], max_v, obs[:, s["target_vel"]]),
+        (pos, max_pos, obs[:, s["robot_pos"]]),
+        (vel, max_v, obs[:, s["robot_vel"]]),
+        (ang_vel, max_w, obs[:, 12]),
+        (obs_pos, max_pos, obstacles[..., 0:2]),
+        (obs_vel, max_v, obstacles[..., 2:4]),
+        (obs_ang_vel, max_w, obstacles[..., 4]),
     )
-    return np.clip(obs, -clip, clip).astype(np.float32)
+    for value, scale, out in scaled:
+        np.divide(value, scale, out=out)
+    for heading, sincos in ((target[:, 2], s["target_sincos"]), (angle, s["robot_sincos"])):
+        np.sin(heading, out=obs[:, sincos.start])
+        np.cos(heading, out=obs[:, sincos.start + 1])
+    np.maximum(obs, -clip, out=obs)
+    return np.minimum(obs, clip, out=obs).astype(np.float32)

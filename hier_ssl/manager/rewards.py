@@ -6,14 +6,20 @@ manager's sub-goal (Proposed, Obstacle: "action-centric").
 
 The paper prints R_t = 1000 "if dist > D_th and delta > theta_th", an evident sign slip:
 R_t is paid on the success step, whose predicate lives in `hier_ssl.manager.success`.
+
+These run every control step for every robot; on the few rows of one field their cost is numpy's per-call
+overhead, so they keep to few calls and 0-d constants (a Python float operand is converted on every call).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from hier_ssl.world.frames import wrap_angle
 
 DIST_THRESHOLD = 0.05  # D_th, m
 ANGLE_THRESHOLD = math.radians(5.0)  # theta_th, rad
@@ -30,10 +36,22 @@ HIT_MODES = ("add", "replace")
 OBSTACLE_FROM = ("subgoal", "robot")
 REWARD_TERMS = ("distance", "angle", "success", "obstacle", "hit")
 
+_DIST_BONUS, _ANGLE_BONUS = np.array(DIST_BONUS), np.array(ANGLE_BONUS)
+_MINUS_PI, _MINUS_HALF = np.array(-np.pi), np.array(-0.5)
+_MINUS_SQRT_2PI, _ZERO, _INF = np.array(-math.sqrt(2.0 * math.pi)), np.array(0.0), np.array(np.inf)
 
-def wrap_angle(angle: ArrayLike) -> np.ndarray:
-    """Angles (any shape, rad) wrapped into [-pi, pi)."""
-    return np.mod(np.asarray(angle, dtype=np.float64) + np.pi, 2.0 * np.pi) - np.pi
+
+def vector_length(xy: np.ndarray) -> np.ndarray:
+    """Lengths (...) of 2-D vectors (..., 2): sqrt(x^2 + y^2), bit for bit what ``np.linalg.norm(xy,
+    axis=-1)`` computes, at a third of its cost on a few rows."""
+    square = xy * xy
+    return np.sqrt(square[..., 0] + square[..., 1])
+
+
+def _errors(xy: np.ndarray, theta: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (...) from points ``xy`` (..., 2) to ``pose`` (..., >= 3), and absolute angle (...) in
+    [0, pi] from headings ``theta`` (...) to its heading."""
+    return vector_length(xy - pose[..., 0:2]), np.abs(wrap_angle(theta - pose[..., 2]))
 
 
 def pose_errors(pose_a: np.ndarray, pose_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -41,14 +59,23 @@ def pose_errors(pose_a: np.ndarray, pose_b: np.ndarray) -> tuple[np.ndarray, np.
 
     Args:
         pose_a, pose_b: (N, 3) x, y, theta or (N, 5) x, y, theta, vx, vy; only x, y, theta
-            are read, so sub-goals and targets can be passed as they are.
+            are read, so sub-goals and targets can be passed as they are. Any leading axes may stand
+            for N, as in all the per-step functions here.
 
     Returns:
         distance (N,) in m and delta (N,) in [0, pi] rad.
     """
-    distance = np.linalg.norm(pose_a[:, 0:2] - pose_b[:, 0:2], axis=1)
-    delta = np.abs(wrap_angle(pose_a[:, 2] - pose_b[:, 2]))
-    return distance, delta
+    return _errors(pose_a[..., 0:2], pose_a[..., 2], pose_b)
+
+
+def measured_errors(
+    task: str, target: np.ndarray, subgoal: np.ndarray, robot_pos: np.ndarray, robot_angle: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """d and delta (N,) of the pose ``task``'s reward and success measure against the target (N, 5): the
+    robot's, robot_pos (N, 2) and robot_angle (N,), for "baseline"; the sub-goal's (N, 5) otherwise."""
+    if task == "baseline":
+        return _errors(robot_pos, robot_angle, target)
+    return pose_errors(subgoal, target)
 
 
 def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndarray:
@@ -60,26 +87,91 @@ def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndar
     Returns:
         (N,) m; +inf where K = 0, so thresholds and Gaussians of it read "no obstacle".
     """
-    distances = np.linalg.norm(obs_pos - point[:, None, :], axis=2)
-    return np.min(distances, axis=1, initial=np.inf)
+    return np.minimum.reduce(vector_length(obs_pos - point[..., None, :]), axis=-1, initial=_INF)
+
+
+def obstacle_distance(
+    obstacle_from: str, subgoal: np.ndarray, robot_pos: np.ndarray, obs_pos: np.ndarray
+) -> np.ndarray:
+    """The distance (N,) R_obst reads: from the sub-goal (N, 5) or the robot (N, 2) to the nearest obstacle
+    of obs_pos (N, K, 2)."""
+    point = subgoal[..., 0:2] if obstacle_from == "subgoal" else robot_pos
+    return nearest_obstacle_distance(point, obs_pos)
 
 
 def distance_reward(d: ArrayLike, d_th: float = DIST_THRESHOLD) -> np.ndarray:
     """R_d: -d where d > d_th, else +10. d: any shape, m."""
     d = np.asarray(d, dtype=np.float64)
-    return np.where(d > d_th, -d, DIST_BONUS)
+    return np.where(d > d_th, -d, _DIST_BONUS)
 
 
 def angle_reward(delta: ArrayLike, theta_th: float = ANGLE_THRESHOLD) -> np.ndarray:
     """R_theta: -delta / pi where delta > theta_th, else +1. delta: any shape, rad in [0, pi]."""
     delta = np.asarray(delta, dtype=np.float64)
-    return np.where(delta > theta_th, -delta / np.pi, ANGLE_BONUS)
+    return np.where(delta > theta_th, delta / _MINUS_PI, _ANGLE_BONUS)
 
 
 def obstacle_reward(o: ArrayLike) -> np.ndarray:
     """R_obst = -N(o; 0, 1) = -exp(-o^2 / 2) / sqrt(2 pi). o: any shape, m (may be +inf)."""
     o = np.asarray(o, dtype=np.float64)
-    return -np.exp(-0.5 * o**2) / math.sqrt(2.0 * math.pi)
+    return np.exp(np.square(o) * _MINUS_HALF) / _MINUS_SQRT_2PI
+
+
+@dataclass(frozen=True)
+class RewardOptions:
+    """How ``combine_rewards`` weighs and combines the terms (see ``task_reward``), checked when made."""
+
+    success_mode: str = "add"
+    hit_mode: str = "add"
+    success_weight: float = 1.0
+    hit_weight: float = 1.0
+    obstacle_from: str = "subgoal"
+
+    def __post_init__(self) -> None:
+        if self.success_mode not in SUCCESS_MODES:
+            raise ValueError(f"unknown success_mode {self.success_mode!r}; expected one of {SUCCESS_MODES}")
+        if self.hit_mode not in HIT_MODES:
+            raise ValueError(f"unknown hit_mode {self.hit_mode!r}; expected one of {HIT_MODES}")
+        if self.obstacle_from not in OBSTACLE_FROM:
+            raise ValueError(f"unknown obstacle_from {self.obstacle_from!r}; expected one of {OBSTACLE_FROM}")
+        for name, weight in (("success_weight", self.success_weight), ("hit_weight", self.hit_weight)):
+            if not math.isfinite(weight) or weight < 0:
+                raise ValueError(f"{name} must be finite and >= 0, got {weight}")
+
+
+def check_task(task: str) -> None:
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
+
+
+def combine_rewards(
+    shaping: dict[str, np.ndarray],
+    success: np.ndarray,
+    options: RewardOptions,
+    nearest: np.ndarray | None = None,
+    hit: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The reward (N,) of one control step and its terms.
+
+    ``shaping``: the shaping terms (N,) by name, R_d and R_theta ("distance", "angle") or their sum; then
+    R_t of success (N,) bool, and with ``nearest`` (N,) and ``hit`` (N,) bool (the Obstacle task) R_obst
+    and R_hit, each zeroed as ``options`` say. The total adds the terms in that order, so a sum of the
+    shaping terms made beforehand gives the same bits.
+    """
+    terms = dict(shaping)
+    if options.success_mode == "replace":
+        terms = {name: np.where(success, _ZERO, term) for name, term in terms.items()}
+    # success is 0 or 1 and the weight >= 0: the product is R_t or +0, as a where would give.
+    terms["success"] = success * (options.success_weight * SUCCESS_REWARD)
+    if nearest is not None:
+        terms["obstacle"] = obstacle_reward(nearest)
+        if options.hit_mode == "replace":
+            terms = {name: np.where(hit, _ZERO, term) for name, term in terms.items()}
+        terms["hit"] = np.where(hit, options.hit_weight * HIT_REWARD, _ZERO)
+    total, *rest = terms.values()
+    for term in rest:
+        total = total + term
+    return total, terms
 
 
 def task_reward(
@@ -127,42 +219,15 @@ def task_reward(
         total (N,) and a dict of the (N,) terms named in REWARD_TERMS, zero where a term does
         not apply, so that the terms always sum to the total and can be logged as they are.
     """
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
-    if success_mode not in SUCCESS_MODES:
-        raise ValueError(f"unknown success_mode {success_mode!r}; expected one of {SUCCESS_MODES}")
-    if hit_mode not in HIT_MODES:
-        raise ValueError(f"unknown hit_mode {hit_mode!r}; expected one of {HIT_MODES}")
-    if obstacle_from not in OBSTACLE_FROM:
-        raise ValueError(f"unknown obstacle_from {obstacle_from!r}; expected one of {OBSTACLE_FROM}")
-    for name, weight in (("success_weight", success_weight), ("hit_weight", hit_weight)):
-        if not math.isfinite(weight) or weight < 0:
-            raise ValueError(f"{name} must be finite and >= 0, got {weight}")
-    n = target.shape[0]
+    check_task(task)
+    options = RewardOptions(success_mode, hit_mode, success_weight, hit_weight, obstacle_from)
     if task == "obstacle":
         if obs_pos is None or hit is None:
             raise ValueError("task 'obstacle' needs obs_pos and hit")
     elif obs_pos is not None or hit is not None:
         raise ValueError(f"obs_pos and hit are only used by task 'obstacle', not {task!r}")
-
-    measured = np.column_stack([robot_pos, robot_angle]) if task == "baseline" else subgoal
-    d, delta = pose_errors(measured, target)
-    terms = {
-        "distance": distance_reward(d, d_th),
-        "angle": angle_reward(delta, theta_th),
-        "success": np.where(success, success_weight * SUCCESS_REWARD, 0.0),
-        "obstacle": np.zeros(n),
-        "hit": np.zeros(n),
-    }
-    if success_mode == "replace":
-        for name in ("distance", "angle"):
-            terms[name] = np.where(success, 0.0, terms[name])
-    if task == "obstacle":
-        point = subgoal[:, 0:2] if obstacle_from == "subgoal" else robot_pos
-        terms["obstacle"] = obstacle_reward(nearest_obstacle_distance(point, obs_pos))
-        terms["hit"] = np.where(hit, hit_weight * HIT_REWARD, 0.0)
-        if hit_mode == "replace":
-            for name in ("distance", "angle", "success", "obstacle"):
-                terms[name] = np.where(hit, 0.0, terms[name])
-    total = np.sum([terms[name] for name in REWARD_TERMS], axis=0)
-    return total, terms
+    d, delta = measured_errors(task, target, subgoal, robot_pos, robot_angle)
+    nearest = None if obs_pos is None else obstacle_distance(obstacle_from, subgoal, robot_pos, obs_pos)
+    shaping = {"distance": distance_reward(d, d_th), "angle": angle_reward(delta, theta_th)}
+    total, terms = combine_rewards(shaping, success, options, nearest, hit)
+    return total, {name: terms.get(name, np.zeros(d.shape)) for name in REWARD_TERMS}

@@ -11,13 +11,60 @@ import numpy as np
 from hier_ssl.manager.rewards import (
     ANGLE_THRESHOLD,
     DIST_THRESHOLD,
-    TASKS,
+    check_task,
+    measured_errors,
     nearest_obstacle_distance,
-    pose_errors,
+    vector_length,
 )
 
 SPEED_THRESHOLD = 0.05  # m/s: the robot counts as stopped below this
 COLLISION_DISTANCE = 0.2  # m, centre to centre: two robot radii of 0.09 m plus a margin
+
+
+def pose_reached(d: np.ndarray, delta: np.ndarray, d_th: float, theta_th: float) -> np.ndarray:
+    """The measured pose is within d_th of the target and theta_th of its heading: d, delta (N,) -> (N,)
+    bool."""
+    return (d < d_th) & (delta < theta_th)
+
+
+def robot_settled(
+    task: str, target: np.ndarray, robot_pos: np.ndarray, robot_vel: np.ndarray, d_th: float, speed_th: float
+) -> np.ndarray:
+    """The robot is slower than speed_th and, in the action-centric tasks, within d_th of the target (its
+    heading is not checked: SPEC, public code). target (N, 5); robot_pos, robot_vel (N, 2) -> (N,) bool."""
+    settled = vector_length(robot_vel) < speed_th
+    if task == "baseline":
+        return settled
+    return settled & (vector_length(robot_pos - target[..., 0:2]) < d_th)
+
+
+def task_success(
+    task: str,
+    target: np.ndarray,
+    subgoal: np.ndarray | None,
+    robot_pos: np.ndarray,
+    robot_angle: np.ndarray | None,
+    robot_vel: np.ndarray,
+    *,
+    d_th: float = DIST_THRESHOLD,
+    theta_th: float = ANGLE_THRESHOLD,
+    speed_th: float = SPEED_THRESHOLD,
+) -> np.ndarray:
+    """Success of `task`: "baseline", the robot within d_th and theta_th of the target and slower than
+    speed_th; "proposed" or "obstacle", the sub-goal within d_th and theta_th of the target and the robot
+    within d_th of it and slower than speed_th (its heading is not checked).
+
+    Args:
+        target: (N, 5). subgoal: (N, 5), not read by "baseline". robot_pos: (N, 2). robot_angle: (N,),
+            read by "baseline" only. robot_vel: (N, 2).
+
+    Returns:
+        (N,) bool.
+    """
+    check_task(task)
+    d, delta = measured_errors(task, target, subgoal, robot_pos, robot_angle)
+    settled = robot_settled(task, target, robot_pos, robot_vel, d_th, speed_th)
+    return pose_reached(d, delta, d_th, theta_th) & settled
 
 
 def baseline_success(
@@ -25,75 +72,19 @@ def baseline_success(
     robot_pos: np.ndarray,
     robot_angle: np.ndarray,
     robot_vel: np.ndarray,
-    *,
-    d_th: float = DIST_THRESHOLD,
-    theta_th: float = ANGLE_THRESHOLD,
-    speed_th: float = SPEED_THRESHOLD,
+    **thresholds: float,
 ) -> np.ndarray:
-    """The robot is within d_th and theta_th of the target and slower than speed_th.
-
-    Args:
-        target: (N, 5) pose. robot_pos: (N, 2) m. robot_angle: (N,) rad. robot_vel: (N, 2) m/s.
-
-    Returns:
-        (N,) bool.
-    """
-    d, delta = pose_errors(np.column_stack([robot_pos, robot_angle]), target)
-    speed = np.linalg.norm(robot_vel, axis=1)
-    return (d < d_th) & (delta < theta_th) & (speed < speed_th)
+    """``task_success`` of the Baseline task: target (N, 5), robot_pos (N, 2), robot_angle (N,),
+    robot_vel (N, 2) -> (N,) bool."""
+    return task_success("baseline", target, None, robot_pos, robot_angle, robot_vel, **thresholds)
 
 
 def proposed_success(
-    target: np.ndarray,
-    subgoal: np.ndarray,
-    robot_pos: np.ndarray,
-    robot_vel: np.ndarray,
-    *,
-    d_th: float = DIST_THRESHOLD,
-    theta_th: float = ANGLE_THRESHOLD,
-    speed_th: float = SPEED_THRESHOLD,
+    target: np.ndarray, subgoal: np.ndarray, robot_pos: np.ndarray, robot_vel: np.ndarray, **thresholds: float
 ) -> np.ndarray:
-    """The sub-goal is within d_th and theta_th of the target, and the robot within d_th of it
-    and slower than speed_th. The robot's heading is not checked (SPEC, public code).
-
-    Args:
-        target, subgoal: (N, 5) poses. robot_pos: (N, 2) m. robot_vel: (N, 2) m/s.
-
-    Returns:
-        (N,) bool.
-    """
-    d, delta = pose_errors(subgoal, target)
-    robot_d = np.linalg.norm(robot_pos - target[:, 0:2], axis=1)
-    speed = np.linalg.norm(robot_vel, axis=1)
-    return (d < d_th) & (delta < theta_th) & (robot_d < d_th) & (speed < speed_th)
-
-
-def task_success(
-    task: str,
-    target: np.ndarray,
-    subgoal: np.ndarray,
-    robot_pos: np.ndarray,
-    robot_angle: np.ndarray,
-    robot_vel: np.ndarray,
-    *,
-    d_th: float = DIST_THRESHOLD,
-    theta_th: float = ANGLE_THRESHOLD,
-    speed_th: float = SPEED_THRESHOLD,
-) -> np.ndarray:
-    """Success of `task` ("baseline", "proposed" or "obstacle", which succeeds as "proposed").
-
-    Args:
-        target, subgoal: (N, 5). robot_pos: (N, 2). robot_angle: (N,). robot_vel: (N, 2).
-
-    Returns:
-        (N,) bool.
-    """
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
-    thresholds = {"d_th": d_th, "theta_th": theta_th, "speed_th": speed_th}
-    if task == "baseline":
-        return baseline_success(target, robot_pos, robot_angle, robot_vel, **thresholds)
-    return proposed_success(target, subgoal, robot_pos, robot_vel, **thresholds)
+    """``task_success`` of the Proposed task: target, subgoal (N, 5), robot_pos, robot_vel (N, 2) -> (N,)
+    bool."""
+    return task_success("proposed", target, subgoal, robot_pos, None, robot_vel, **thresholds)
 
 
 def collided(robot_pos: np.ndarray, obs_pos: np.ndarray, distance: float = COLLISION_DISTANCE) -> np.ndarray:

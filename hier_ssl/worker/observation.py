@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hier_ssl.world.physics import RobotSpec, to_robot_frame, wrap_angle
+from hier_ssl.world.frames import to_robot_frame, wrap_angle
+from hier_ssl.world.physics import RobotSpec, RobotState
 
 WORKER_OBS_DIM = 9
 
@@ -38,6 +39,24 @@ def worker_observation(
         axis=1,
     )
     return np.clip(obs, -1.2, 1.2).astype(np.float32)
+
+
+def controlled_worker_observation(
+    state: RobotState, subgoal: np.ndarray, robot: RobotSpec, max_pos: float
+) -> np.ndarray:
+    """The worker observations (N, M, 9) of robots 0..M-1 of every field towards ``subgoal`` (N, M, 5)."""
+    n, m = subgoal.shape[:2]
+    own = state.robots(slice(0, m))
+    obs = worker_observation(
+        own.pos.reshape(n * m, 2),
+        own.angle.reshape(n * m),
+        own.vel.reshape(n * m, 2),
+        own.ang_vel.reshape(n * m),
+        subgoal.reshape(n * m, 5),
+        robot,
+        max_pos,
+    )
+    return obs.reshape(n, m, -1)
 
 
 def scale_command(action: np.ndarray, robot: RobotSpec) -> np.ndarray:

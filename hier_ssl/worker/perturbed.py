@@ -34,7 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from hier_ssl.world.physics import RobotSpec, RobotState, to_field_frame, to_robot_frame
+from hier_ssl.world.frames import to_field_frame, to_robot_frame
+from hier_ssl.world.physics import RobotSpec, RobotState
 
 
 @dataclass(frozen=True)

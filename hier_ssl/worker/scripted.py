@@ -16,7 +16,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from hier_ssl.world.physics import RobotState, as_complex, heading
+from hier_ssl.world.frames import as_complex, wrap_angle
+from hier_ssl.world.physics import RobotState
 
 _COMPLEX = np.dtype(np.complex128)
 
@@ -25,7 +26,7 @@ def _constants(**values: complex) -> SimpleNamespace:
     return SimpleNamespace(**{name: np.array(value) for name, value in values.items()})
 
 
-_K = _constants(zero=0.0, one=1.0, nudge=1e-12 + 0j, pi=np.pi, two_pi=2 * np.pi)
+_K = _constants(zero=0.0, one=1.0, nudge=1e-12 + 0j)
 
 
 def _goal_axes(
@@ -37,7 +38,7 @@ def _goal_axes(
     and the sub-goal's velocities in the (along, across) frame of that line, as complex (N, R): real part
     along ``ex``, imaginary part 90 deg to its left.
     """
-    delta = as_complex(subgoal[..., 0:2] - state.pos)
+    delta = (subgoal[..., 0:2] - state.pos).view(_COMPLEX)[..., 0]
     dist = np.abs(delta)
     # sign(z) is z / |z|. The 1e-12 m nudge along x makes the axis the field's x axis at the sub-goal
     # itself instead of 0, and turns it by at most 1e-12 / dist rad elsewhere.
@@ -48,24 +49,43 @@ def _goal_axes(
 
 def _heading_error(state: RobotState, subgoal: np.ndarray) -> np.ndarray:
     """Sub-goal heading minus robot heading, wrapped to [-pi, pi). Shape (N, R)."""
-    return (subgoal[..., 2] - state.angle + _K.pi) % _K.two_pi - _K.pi
-
-
-def _capped(vel: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Complex velocities ``vel`` (N, R) scaled down to speed ``limit`` where faster, direction kept."""
-    return vel / np.maximum(np.abs(vel) / limit, _K.one).astype(_COMPLEX)
+    return wrap_angle(subgoal[..., 2] - state.angle)
 
 
 def _command(state: RobotState, vel: np.ndarray, spin: np.ndarray) -> np.ndarray:
     """Field-frame velocities ``vel`` (N, R) complex and spins (N, R) as robot-frame commands (N, R, 3)."""
     out = np.empty(spin.shape + (3,))
-    np.divide(vel, heading(state.angle), out=out[..., 0:2].view(_COMPLEX)[..., 0])
+    np.divide(vel, state.heading, out=out[..., 0:2].view(_COMPLEX)[..., 0])
     out[..., 2] = spin
     return out
 
 
+class _Scripted:
+    """What both scripted workers share: no memory, constants (``_gains``) held as 0-d arrays, and the
+    sub-goal seen along the line to it (``_goal_axes``), from which ``_steer`` makes the commands."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_k", _constants(**self._gains()))
+
+    def _gains(self) -> dict[str, float]:
+        raise NotImplementedError
+
+    def _steer(
+        self, k: SimpleNamespace, state: RobotState, subgoal: np.ndarray, *axes: np.ndarray
+    ) -> np.ndarray:
+        raise NotImplementedError
+
+    def reset(self, fields: np.ndarray) -> None:
+        """Stateless: nothing to forget."""
+
+    def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
+        """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
+        subgoal = np.asarray(subgoal, dtype=np.float64)
+        return self._steer(self._k, state, subgoal, *_goal_axes(state, subgoal))
+
+
 @dataclass(frozen=True)
-class PaperGoToPoint:
+class PaperGoToPoint(_Scripted):
     """The paper's scripted controller (SPEC.md "Scripted goToPoint controller of the public code").
 
     Per step, along the axis to the sub-goal and across it: if the robot moves away from the sub-goal or is
@@ -82,26 +102,21 @@ class PaperGoToPoint:
     angle_gain: float = 2.0
     angle_deadband: float = float(np.deg2rad(2.5))
 
-    def __post_init__(self) -> None:
-        k = _constants(
-            dt=self.dt,
-            dv=self.dv,
-            minus_dv=-self.dv,
-            two_brake_accel=2 * self.brake_accel,
-            max_speed=self.max_speed,
-            angle_gain=self.angle_gain,
-            angle_deadband=self.angle_deadband,
-        )
-        object.__setattr__(self, "_k", k)
+    def _gains(self) -> dict[str, float]:
+        return {
+            "dt": self.dt,
+            "dv": self.dv,
+            "minus_dv": -self.dv,
+            "two_brake_accel": 2 * self.brake_accel,
+            "max_speed": self.max_speed,
+            "angle_gain": self.angle_gain,
+            "angle_deadband": self.angle_deadband,
+        }
 
-    def reset(self, fields: np.ndarray) -> None:
-        """Stateless: nothing to forget."""
-
-    def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
-        """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
-        k = self._k
-        subgoal = np.asarray(subgoal, dtype=np.float64)
-        dist, ex, v, goal_v = _goal_axes(state, subgoal)
+    def _steer(
+        self, k: SimpleNamespace, state: RobotState, subgoal: np.ndarray, *axes: np.ndarray
+    ) -> np.ndarray:
+        dist, ex, v, goal_v = axes
         v_along, goal_along = v.real, goal_v.real
 
         # Both axes move towards the sub-goal's velocity, except that along the line the robot heads for the
@@ -118,7 +133,9 @@ class PaperGoToPoint:
         change = np.maximum(np.minimum(change.view(np.float64), k.dv), k.minus_dv)
         v_new = v + change.view(_COMPLEX)
         v_new.real = np.minimum(v_new.real, reach)
-        vel = _capped(v_new * ex, k.max_speed)
+        # Field frame, scaled down to max_speed where faster, direction kept.
+        vel = v_new * ex
+        vel = vel / np.maximum(np.abs(vel) / k.max_speed, _K.one).astype(_COMPLEX)
 
         error = _heading_error(state, subgoal)
         spin = error * k.angle_gain
@@ -127,7 +144,7 @@ class PaperGoToPoint:
 
 
 @dataclass(frozen=True)
-class BangBangGoToPoint:
+class BangBangGoToPoint(_Scripted):
     """Time-optimal (bang-bang, trapezoidal) goToPoint, as SSL teams run it.
 
     The robot's acceleration budget ``max_accel`` is shared between the two axes: the axis across the line
@@ -145,31 +162,25 @@ class BangBangGoToPoint:
     max_ang_accel: float = 60.0
     margin: float = 0.9
 
-    def __post_init__(self) -> None:
-        step = self.max_accel * self.dt
-        spin_step = self.max_ang_accel * self.dt
-        k = _constants(
-            dt=self.dt,
-            step=step,
-            minus_step=-step,
-            step_sq=step**2,
-            two_brake=2 * self.margin * self.max_accel,
-            max_speed=self.max_speed,
-            two_ang_brake=2 * self.margin * self.max_ang_accel,
-            max_ang_speed=self.max_ang_speed,
-            spin_step=spin_step,
-            minus_spin_step=-spin_step,
-        )
-        object.__setattr__(self, "_k", k)
+    def _gains(self) -> dict[str, float]:
+        step, spin_step = self.max_accel * self.dt, self.max_ang_accel * self.dt
+        return {
+            "dt": self.dt,
+            "step": step,
+            "minus_step": -step,
+            "step_sq": step**2,
+            "two_brake": 2 * self.margin * self.max_accel,
+            "max_speed": self.max_speed,
+            "two_ang_brake": 2 * self.margin * self.max_ang_accel,
+            "max_ang_speed": self.max_ang_speed,
+            "spin_step": spin_step,
+            "minus_spin_step": -spin_step,
+        }
 
-    def reset(self, fields: np.ndarray) -> None:
-        """Stateless: nothing to forget."""
-
-    def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
-        """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
-        k = self._k
-        subgoal = np.asarray(subgoal, dtype=np.float64)
-        dist, ex, v, goal_v = _goal_axes(state, subgoal)
+    def _steer(
+        self, k: SimpleNamespace, state: RobotState, subgoal: np.ndarray, *axes: np.ndarray
+    ) -> np.ndarray:
+        dist, ex, v, goal_v = axes
         goal_along = goal_v.real
 
         # Across first: as much of this step's velocity change as it needs, the rest is left for along.

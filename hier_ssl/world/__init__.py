@@ -7,8 +7,9 @@ Everything crosses this boundary as arrays with a leading (fields, robots) pair 
 from __future__ import annotations
 
 from hier_ssl.world.field import FIELDS, Field, get_field
+from hier_ssl.world.frames import to_field_frame, to_robot_frame, wrap_angle
 from hier_ssl.world.obstacles import OBSTACLES, PublicCodeRandom, RandomWalk, Stationary, make_obstacle
-from hier_ssl.world.physics import RobotSpec, RobotState, World, to_field_frame, to_robot_frame, wrap_angle
+from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 __all__ = [
     "FIELDS",

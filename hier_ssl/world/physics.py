@@ -9,19 +9,20 @@ of walls and each other (overwriting a dynamic body's velocity every step lets i
 All state crosses this boundary as arrays with a leading (fields, robots) pair of axes, read and written
 with ``pymunk.batch``'s iterators in one call each; there is no per-body Python on the hot path. At one
 field a step costs numpy's and pymunk's per-call overheads rather than arithmetic, which is what the
-layout of the hot path (``_FastSpace``, ``World._prepare``) is about.
+layout of the hot path (``FastSpace``, ``World._prepare``) is about.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pymunk
 import pymunk.batch as pb
 
 from hier_ssl.world.field import Field, get_field
+from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, heading, wrap_angle
+from hier_ssl.world.space import FastSpace
 
 _ROBOT, _WALL = 1, 2
 # Wall segments are centred this far outside the wall line, so their surface lies on it.
@@ -31,7 +32,6 @@ _STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | _VELOCITY
 # At one field numpy's per-call overhead is the whole cost of an operation, and it doubles when an operand
 # is a Python scalar, of another dtype, strided or broadcast from a non-0-d array: the hot path keeps to
 # contiguous arrays of one shape and dtype, and 0-d constants.
-_FLOAT, _COMPLEX = np.dtype(np.float64), np.dtype(np.complex128)
 
 
 @dataclass(frozen=True)
@@ -56,139 +56,35 @@ class RobotState:
     """Poses and velocities of every robot, field frame.
 
     Shapes: pos (N, R, 2) m, angle (N, R) rad in [-pi, pi), vel (N, R, 2) m/s, ang_vel (N, R) rad/s.
+    A state is replaced, never changed: ``heading`` is computed once (the world passes the one it made).
     """
 
     pos: np.ndarray
     angle: np.ndarray
     vel: np.ndarray
     ang_vel: np.ndarray
+    _heading: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def heading(self) -> np.ndarray:
+        """exp(i angle) (N, R) complex (``hier_ssl.world.frames.heading``)."""
+        if self._heading is None:
+            self._heading = heading(self.angle)
+        return self._heading
 
     def robots(self, index: slice | np.ndarray | list[int]) -> RobotState:
         """The same fields, a subset of robots (a view for slices)."""
+        h = None if self._heading is None else self._heading[:, index]
         return RobotState(
-            self.pos[:, index], self.angle[:, index], self.vel[:, index], self.ang_vel[:, index]
+            self.pos[:, index], self.angle[:, index], self.vel[:, index], self.ang_vel[:, index], h
         )
 
     def fields(self, index: np.ndarray) -> RobotState:
-        return RobotState(self.pos[index], self.angle[index], self.vel[index], self.ang_vel[index])
+        h = None if self._heading is None else self._heading[index]
+        return RobotState(self.pos[index], self.angle[index], self.vel[index], self.ang_vel[index], h)
 
     def copy(self) -> RobotState:
         return RobotState(self.pos.copy(), self.angle.copy(), self.vel.copy(), self.ang_vel.copy())
-
-
-def wrap_angle(angle: np.ndarray) -> np.ndarray:
-    """Angles mapped to [-pi, pi)."""
-    return (angle + np.pi) % (2 * np.pi) - np.pi
-
-
-def as_complex(xy: np.ndarray) -> np.ndarray:
-    """2-D vectors (..., 2) as complex numbers x + iy (...): a view when ``xy`` is float64 with a contiguous
-    last axis (no copy, writes go through), a new array otherwise.
-
-    Rotations become one complex multiply, where the (x, y) form needs cos/sin and a stack.
-    """
-    if type(xy) is np.ndarray and xy.dtype is _FLOAT and xy.ndim and xy.shape[-1] == 2:
-        try:
-            return xy.view(_COMPLEX)[..., 0]
-        except ValueError:  # last axis not contiguous
-            pass
-    xy = np.ascontiguousarray(xy, dtype=_FLOAT)
-    if xy.shape[-1] != 2:
-        raise ValueError(f"expected 2-D vectors (..., 2), got shape {xy.shape}")
-    return xy.view(_COMPLEX)[..., 0]
-
-
-def heading(angle: np.ndarray) -> np.ndarray:
-    """exp(i angle) (...) complex: the unit vector of each heading, and the rotation from the robot's frame
-    to the field frame."""
-    # An exponent with its real part 0 from the start saves a multiply by 1j (and its dtype conversion).
-    exponent = np.zeros(np.shape(angle), dtype=_COMPLEX)
-    exponent.imag = angle
-    return np.exp(exponent)
-
-
-def to_robot_frame(vec: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rotate field-frame vectors (..., 2) into the frames of robots at ``angle`` (...)."""
-    return (as_complex(vec) / heading(angle))[..., None].view(_FLOAT)
-
-
-def to_field_frame(vec: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rotate robot-frame vectors (..., 2) into the field frame."""
-    return (as_complex(vec) * heading(angle))[..., None].view(_FLOAT)
-
-
-class _FastSpace:
-    """The per-step pymunk calls of a World, for a space whose bodies, shapes and handlers never change.
-
-    ``pymunk.batch`` builds its cffi call data, and the caller a numpy view of the result, on every call,
-    and ``Space.step`` runs bookkeeping for objects added or removed during a step; at one field each costs
-    as much as the work itself. Here the call data and views are made once and the steps call Chipmunk
-    directly. Reads land in the read buffer's own memory, which pymunk sizes on the first read and never
-    grows again while the body count stays the same (checked after every read); writes come from numpy
-    memory, which pymunk only reads.
-    """
-
-    def __init__(self, space: pymunk.Space, read_fields: pb.BodyFields, width: int) -> None:
-        self._space = space._space
-        # The Python-side body registry: a write with more bodies than rows would read past the rows.
-        self._bodies, self._num_bodies = space._bodies, len(space._bodies)
-        self._buffer = pb.Buffer()
-        pb.get_space_bodies(space, read_fields, self._buffer)
-        self._array = self._buffer._float_arr
-        self._size, self._capacity = self._array.num, self._array.max
-        # A view of pymunk's memory, refreshed in place by every read.
-        self.rows = np.frombuffer(self._buffer.float_buf(), dtype=np.float64).reshape(-1, width)
-        self._get = _call_data(read_fields, self._buffer, "pmSpaceBodyGetIteratorFuncBatched")
-        self._each_body, self._step = pb.lib.cpSpaceEachBody, pb.lib.cpSpaceStep
-        check = self.rows.copy()
-        self.read()
-        if not np.array_equal(check, self.rows):
-            raise RuntimeError(f"pymunk {pymunk.version}: direct batch read disagrees with pymunk.batch")
-
-    def read(self) -> np.ndarray:
-        """Every body's fields, one row each, in pymunk's order. Shape: (rows, width), valid until the next
-        read."""
-        self._array.num = 0
-        self._each_body(self._space, *self._get)
-        if self._array.num != self._size or self._array.max != self._capacity:
-            raise RuntimeError("bodies were added to or removed from the World's pymunk space")
-        return self.rows
-
-    def writer(self, fields: pb.BodyFields, rows: np.ndarray) -> _BodyWriter:
-        """A call that writes ``rows`` (rows, width) float64, C-contiguous, into every body's ``fields``."""
-        return _BodyWriter(self, fields, rows)
-
-    def step(self, dt: float, count: int) -> None:
-        for _ in range(count):
-            self._step(self._space, dt)
-
-
-def _call_data(fields: pb.BodyFields, buffer: pb.Buffer, function: str) -> tuple[object, object]:
-    """The (iterator, data) pair pymunk.batch passes to cpSpaceEachBody."""
-    data = pb.ffi.new("pmBatchedData *")
-    data.fields = fields.value
-    data.floatArray = buffer._float_arr
-    data.intArray = buffer._int_arr
-    return pb.ffi.addressof(pb.lib, function), data
-
-
-class _BodyWriter:
-    def __init__(self, fast: _FastSpace, fields: pb.BodyFields, rows: np.ndarray) -> None:
-        if rows.dtype != np.float64 or not rows.flags.c_contiguous or rows.shape[:1] != fast.rows.shape[:1]:
-            raise ValueError("body rows to write must be C-contiguous float64, one row per body")
-        self._fast, self._space, self.rows = fast, fast._space, rows
-        # The Buffer must outlive every write: it holds the numpy memory pymunk reads from.
-        self._buffer = pb.Buffer()
-        self._buffer.set_float_buf(rows)
-        self._array = self._buffer._float_arr
-        self._set = _call_data(fields, self._buffer, "pmSpaceBodySetIteratorFuncBatched")
-
-    def __call__(self) -> None:
-        fast = self._fast
-        if len(fast._bodies) != fast._num_bodies:
-            raise RuntimeError("bodies were added to or removed from the World's pymunk space")
-        self._array.num = 0
-        fast._each_body(self._space, *self._set)
 
 
 class World:
@@ -244,6 +140,7 @@ class World:
 
         n, r = self.num_fields, self.num_robots
         self.robot_contacts = np.zeros((n, r, r), dtype=bool)
+        self.robot_touch = np.zeros((n, r), dtype=bool)  # robot_contacts.any(axis=2), kept by the callback
         self.wall_contacts = np.zeros((n, r), dtype=bool)
         self._contacts_set = False  # whether a callback has written a contact since the last clearing
         self.space.on_collision(_ROBOT, _ROBOT, pre_solve=self._on_robot_contact)
@@ -318,7 +215,7 @@ class World:
         arrays once per read, and constants are full-shape or 0-d arrays.
         """
         n, r, spec = self.num_fields, self.num_robots, self.robot
-        self._fast = _FastSpace(self.space, _STATE, 6)
+        self._fast = FastSpace(self.space, _STATE, 6)
         robots = self._pairs(self._fast.rows)[:, :, 0]
         self._raw_pos, self._raw_angle = robots[..., 0:2], robots[..., 2]
         self._raw_vel, self._raw_spin = robots[..., 3:5], robots[..., 5]
@@ -337,7 +234,6 @@ class World:
         self._max_speed = np.array(spec.max_speed)
         self._max_spin, self._min_spin = np.array(spec.max_ang_speed), np.array(-spec.max_ang_speed)
         self._one, self._zero, self._dt = np.array(1.0), np.array(0.0), np.array(self.dt)
-        self._pi, self._two_pi = np.array(np.pi), np.array(2 * np.pi)
 
     # -- contacts -----------------------------------------------------------------------------------------
 
@@ -345,6 +241,7 @@ class World:
         a, b = arbiter.shapes
         (f, i), (_, j) = self._shape_owner[a], self._shape_owner[b]
         self.robot_contacts[f, i, j] = self.robot_contacts[f, j, i] = True
+        self.robot_touch[f, i] = self.robot_touch[f, j] = True
         self._contacts_set = True
 
     def _on_wall_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
@@ -357,14 +254,14 @@ class World:
 
     def _read_state(self) -> RobotState:
         self._fast.read()
+        angle = wrap_angle(self._raw_angle)
+        # exp(i angle) as ``heading`` makes it, for the next step's robot-to-field rotation and the workers:
+        # the real part of the exponent stays 0.
+        self._i_angle.imag = angle
+        # A copy and an in-place subtraction: faster than one subtraction from the strided rows.
         pos = self._raw_pos.copy()
         pos -= self._field_offsets
-        angle = (self._raw_angle + self._pi) % self._two_pi - self._pi
-        # exp(i angle), for the next step's robot-to-field rotation (see ``heading``); the real part of the
-        # exponent stays 0.
-        self._i_angle.imag = angle
-        self._heading = np.exp(self._i_angle)
-        return RobotState(pos=pos, angle=angle, vel=self._raw_vel.copy(), ang_vel=self._raw_spin.copy())
+        return RobotState(pos, angle, self._raw_vel.copy(), self._raw_spin.copy(), np.exp(self._i_angle))
 
     def set_state(
         self,
@@ -425,6 +322,7 @@ class World:
         pairs[fields, :, 1] = packed
         self._write_state()
         self.robot_contacts[fields] = False
+        self.robot_touch[fields] = False
         self.wall_contacts[fields] = False
         self.state = self._read_state()
 
@@ -436,22 +334,21 @@ class World:
         ``command`` (N, R, 3) is each robot's (vx, vy, w) in its own frame, m/s and rad/s. The world caps
         speed and angular speed at the robot's limits; acceleration is capped by the joints' force. After
         the call ``state`` holds the new poses and ``robot_contacts`` (N, R, R) / ``wall_contacts`` (N, R)
-        tell which robots touched which robot or wall during any substep of this period.
+        tell which robots touched which robot or wall during any substep of this period, ``robot_touch``
+        (N, R) which touched any robot.
         """
         command = np.ascontiguousarray(command, dtype=np.float64)
         if command.shape != self._command_shape:
             raise ValueError(f"command has shape {command.shape}, expected {self._command_shape}")
-        # The sum of squares is one call, and finite when every entry is; only when it is not (a NaN or an
-        # infinity, or an overflow of absurd finite values) does the exact test run.
-        flat = command.ravel()
-        if not math.isfinite(np.dot(flat, flat)) and not np.isfinite(flat).all():
+        if not all_finite(command):
             f, i = np.argwhere(~np.isfinite(command).all(axis=-1))[0]
             raise ValueError(f"command holds NaN or infinite values (field {f}, robot {i})")
         state = self.state
 
         # Control bodies: the command turned into the field frame and capped at the speed limits.
-        target = command[..., 0:2].view(_COMPLEX)[..., 0] * self._heading
+        target = command[..., 0:2].view(_COMPLEX)[..., 0] * state.heading
         over = np.maximum(np.abs(target) / self._max_speed, self._one)
+        # (Results are assigned into the strided buffer views: a ufunc writing to them directly is slower.)
         self._control_vel[...] = target / over.astype(_COMPLEX)
         self._control_spin[...] = np.maximum(np.minimum(command[..., 2], self._max_spin), self._min_spin)
         # Robots keep their velocity, less what would carry them into a wall within this period.
@@ -461,6 +358,7 @@ class World:
 
         if self._contacts_set:
             self.robot_contacts.fill(False)
+            self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
             self._contacts_set = False
         self._fast.step(self._sub_dt, self.substeps)
@@ -468,10 +366,10 @@ class World:
         return self.state
 
     def _speculative_wall_stop(self, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
-        """Robot velocities (N, R, 2) with the part that would carry a robot into a wall within this period
-        removed: an inelastic wall impact resolved before it happens. pymunk detects contacts only after
-        moving bodies, so without this a robot at 2.5 m/s would sink v * dt into a wall before the contact
-        pushes back.
+        """Robot velocities (N, R, 2) less the part that would carry a robot into a wall within this
+        period: an inelastic wall impact resolved before it happens. pymunk detects contacts only
+        after moving bodies, so without this a robot at 2.5 m/s would sink v * dt into a wall before the
+        contact pushes back.
         """
         room_hi = np.maximum(self._wall_hi - pos, self._zero) / self._dt
         # -limit - pos is exactly -(limit + pos): the lower bound is the upper one mirrored, bit for bit.

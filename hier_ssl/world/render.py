@@ -65,78 +65,20 @@ def render_fields(
     if teams.shape != (num_robots,):
         raise ValueError(f"team has shape {teams.shape}, expected ({num_robots},)")
     radius = (robot or RobotSpec()).radius
-    colors = [TEAM_COLORS[t % len(TEAM_COLORS)] for t in teams]
-    controlled = np.flatnonzero(teams == 0)
-    several = len(controlled) > 1
-    if several:
-        for j, i in enumerate(controlled):
-            colors[i] = ROBOT_COLORS[j % len(ROBOT_COLORS)]
-
-    def owned(default: str, rows: int, owner: Sequence[int] | None = None) -> list[str]:
-        """Colours of ``rows`` target or sub-goal rows: the owning robot's with several robots."""
-        if not several:
-            return [default] * rows
-        owner = range(rows) if owner is None else owner
-        if len(owner) != rows or not all(0 <= j < len(controlled) for j in owner):
-            raise ValueError(
-                f"subgoal_robot: {list(owner)} does not name one of {len(controlled)} robots per row"
-            )
-        return [ROBOT_COLORS[j % len(ROBOT_COLORS)] for j in owner]
-
-    dpi = 100
-    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=WALL)
-    canvas = FigureCanvasAgg(fig)
-    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-    ax.set_axis_off()
-    # The walled area plus a margin, centred, at one scale in x and y whatever the image's aspect.
-    hx, hy = field.wall_half_extent
-    metres_per_px = max(2 * (hx + 0.05) / width, 2 * (hy + 0.05) / height)
-    ax.set_xlim(-width * metres_per_px / 2, width * metres_per_px / 2)
-    ax.set_ylim(-height * metres_per_px / 2, height * metres_per_px / 2)
-    # Line widths in points for a width in metres.
-    line_pt = _LINE_WIDTH_M / metres_per_px * 72 / dpi
-
+    colors, controlled = _robot_colors(teams)
+    canvas, ax, line_pt = _canvas(field, width, height)
     _draw_field(ax, field, line_pt)
     if trails is not None:
-        owners = range(len(trails)) if trail_robot is None else trail_robot
-        if len(owners) != len(trails) or not all(0 <= i < num_robots for i in owners):
-            raise ValueError(
-                f"trail_robot: {list(owners)} does not name one of {num_robots} robots per trail"
-            )
-        for trail, i in zip(trails, owners, strict=True):
-            color = colors[i]
-            trail = np.asarray(trail, dtype=float).reshape(-1, 2)
-            ax.plot(
-                trail[:, 0],
-                trail[:, 1],
-                color=color,
-                lw=1.2 * line_pt,
-                alpha=0.85,
-                zorder=3,
-                solid_capstyle="round",
-            )
+        _draw_trails(ax, trails, trail_robot, colors, line_pt)
     if subgoals is not None:
         points = _per_field(subgoals, field_index, "subgoals")
-        dot_colors = owned(SUBGOAL, len(points), subgoal_robot)
+        dot_colors = _owned(SUBGOAL, len(points), len(controlled), subgoal_robot)
         ax.scatter(
             points[:, 0], points[:, 1], s=(2.2 * line_pt) ** 2, c=dot_colors, edgecolors="none", zorder=5
         )
     if targets is not None:
         points = _per_field(targets, field_index, "targets")
-        ring_colors = owned(TARGET, len(points))
-        ax.scatter(
-            points[:, 0],
-            points[:, 1],
-            s=(9 * line_pt) ** 2,
-            facecolors="none",
-            edgecolors=ring_colors,
-            linewidths=1.2 * line_pt,
-            zorder=4,
-        )
-        ax.scatter(points[:, 0], points[:, 1], s=(1.6 * line_pt) ** 2, c=ring_colors, zorder=4)
-        if points.shape[1] >= 3:
-            ax.add_collection(_ticks(points[:, 0:2], points[:, 2], 2 * radius, ring_colors, 1.2 * line_pt))
-
+        _draw_targets(ax, points, _owned(TARGET, len(points), len(controlled)), radius, line_pt)
     pos, angle = state.pos[field_index], state.angle[field_index]
     discs = PatchCollection(
         [Circle(tuple(p), radius) for p in pos],
@@ -147,12 +89,71 @@ def render_fields(
     )
     ax.add_collection(discs)
     ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
-
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if image.shape != (height, width, 3):
         raise RuntimeError(f"matplotlib drew {image.shape}, expected {(height, width, 3)}")
     return image
+
+
+def _robot_colors(teams: np.ndarray) -> tuple[list[str], np.ndarray]:
+    """Each robot's colour: its team's, or with several controlled robots (team 0) a colour of its own
+    for each of them. Also the indices of the controlled robots."""
+    colors = [TEAM_COLORS[t % len(TEAM_COLORS)] for t in teams]
+    controlled = np.flatnonzero(teams == 0)
+    if len(controlled) > 1:
+        for j, i in enumerate(controlled):
+            colors[i] = ROBOT_COLORS[j % len(ROBOT_COLORS)]
+    return colors, controlled
+
+
+def _owned(default: str, rows: int, controlled: int, owner: Sequence[int] | None = None) -> list[str]:
+    """Colours of ``rows`` target or sub-goal rows: the owning robot's, of ``controlled`` robots, where
+    there are several."""
+    if controlled <= 1:
+        return [default] * rows
+    owner = range(rows) if owner is None else owner
+    if len(owner) != rows or not all(0 <= j < controlled for j in owner):
+        raise ValueError(f"subgoal_robot: {list(owner)} does not name one of {controlled} robots per row")
+    return [ROBOT_COLORS[j % len(ROBOT_COLORS)] for j in owner]
+
+
+def _canvas(field: Field, width: int, height: int) -> tuple[FigureCanvasAgg, object, float]:
+    """An Agg canvas of width x height pixels showing the walled area plus a margin, centred, at one scale
+    in x and y whatever the image's aspect; its axes, and the width in points of a field line."""
+    dpi = 100
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, facecolor=WALL)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.set_axis_off()
+    hx, hy = field.wall_half_extent
+    metres_per_px = max(2 * (hx + 0.05) / width, 2 * (hy + 0.05) / height)
+    ax.set_xlim(-width * metres_per_px / 2, width * metres_per_px / 2)
+    ax.set_ylim(-height * metres_per_px / 2, height * metres_per_px / 2)
+    return canvas, ax, _LINE_WIDTH_M / metres_per_px * 72 / dpi
+
+
+def _draw_trails(
+    ax: object, trails: Sequence[np.ndarray], owners: Sequence[int] | None, colors: list[str], line_pt: float
+) -> None:
+    """Polylines (T, 2), the i-th in the colour of robot ``owners[i]`` (default: robot i)."""
+    owners = range(len(trails)) if owners is None else owners
+    if len(owners) != len(trails) or not all(0 <= i < len(colors) for i in owners):
+        raise ValueError(f"trail_robot: {list(owners)} does not name one of {len(colors)} robots per trail")
+    for trail, i in zip(trails, owners, strict=True):
+        trail = np.asarray(trail, dtype=float).reshape(-1, 2)
+        style = {"lw": 1.2 * line_pt, "alpha": 0.85, "zorder": 3, "solid_capstyle": "round"}
+        ax.plot(trail[:, 0], trail[:, 1], color=colors[i], **style)
+
+
+def _draw_targets(ax: object, points: np.ndarray, colors: list[str], radius: float, line_pt: float) -> None:
+    """Targets (M, K >= 2) as rings with a centre dot, and a heading tick where K >= 3."""
+    x, y = points[:, 0], points[:, 1]
+    ring = {"facecolors": "none", "edgecolors": colors, "linewidths": 1.2 * line_pt, "zorder": 4}
+    ax.scatter(x, y, s=(9 * line_pt) ** 2, **ring)
+    ax.scatter(x, y, s=(1.6 * line_pt) ** 2, c=colors, zorder=4)
+    if points.shape[1] >= 3:
+        ax.add_collection(_ticks(points[:, 0:2], points[:, 2], 2 * radius, colors, 1.2 * line_pt))
 
 
 def _per_field(points: np.ndarray, field_index: int, name: str) -> np.ndarray:

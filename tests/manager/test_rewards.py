@@ -9,11 +9,14 @@ from hier_ssl.manager.rewards import (
     HIT_REWARD,
     REWARD_TERMS,
     SUCCESS_REWARD,
+    RewardOptions,
     angle_reward,
+    combine_rewards,
     distance_reward,
     obstacle_reward,
     pose_errors,
     task_reward,
+    vector_length,
     wrap_angle,
 )
 
@@ -168,3 +171,25 @@ def test_obstacle_term_measured_from_the_robot_as_the_public_code() -> None:
     np.testing.assert_allclose(from_robot["obstacle"], [-np.exp(-1.0) / np.sqrt(2 * np.pi)])
     with pytest.raises(ValueError, match="obstacle_from"):
         task_reward("obstacle", **scene, obstacle_from="target")
+
+
+def test_vector_length_is_numpys_norm_bit_for_bit() -> None:
+    xy = np.random.default_rng(3).normal(0, 10, (7, 5, 2)) ** 3
+    np.testing.assert_array_equal(vector_length(xy), np.linalg.norm(xy, axis=-1))
+
+
+@pytest.mark.parametrize(
+    "modes", [("add", "add"), ("replace", "add"), ("add", "replace"), ("replace", "replace")]
+)
+def test_a_summed_shaping_term_gives_the_same_total_bit_for_bit(modes: tuple[str, str]) -> None:
+    rng = np.random.default_rng(4)
+    n = 256
+    d, delta = rng.uniform(0, 0.1, n), rng.uniform(0, 0.2, n)
+    success, hit, nearest = rng.random(n) < 0.3, rng.random(n) < 0.3, rng.uniform(0, 2, n)
+    options = RewardOptions(*modes, success_weight=7.0, hit_weight=0.5)
+    parts = {"distance": distance_reward(d), "angle": angle_reward(delta)}
+    summed = {"pose": parts["distance"] + parts["angle"]}
+    for extra in ((), (nearest, hit)):
+        total, terms = combine_rewards(parts, success, options, *extra)
+        np.testing.assert_array_equal(combine_rewards(summed, success, options, *extra)[0], total)
+        np.testing.assert_allclose(sum(terms.values()), total)

@@ -7,7 +7,8 @@ import pytest
 
 from hier_ssl.worker import make_worker
 from hier_ssl.worker.scripted import BangBangGoToPoint, PaperGoToPoint
-from hier_ssl.world.physics import RobotSpec, RobotState, World, to_field_frame
+from hier_ssl.world.frames import to_field_frame
+from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 SPEC = RobotSpec()
 D_TH, THETA_TH, V_TH = 0.05, math.radians(5), 0.05  # SPEC.md "Thresholds"

@@ -3,8 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hier_ssl.world.frames import to_field_frame
 from hier_ssl.world.obstacles import PublicCodeRandom, RandomWalk, Stationary, make_obstacle
-from hier_ssl.world.physics import to_field_frame
 
 N = 512
 

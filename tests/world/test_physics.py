@@ -7,16 +7,9 @@ import pymunk
 import pytest
 
 from hier_ssl.worker.scripted import PaperGoToPoint
+from hier_ssl.world.frames import as_complex, heading, to_field_frame, to_robot_frame, wrap_angle
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import (
-    RobotSpec,
-    World,
-    as_complex,
-    heading,
-    to_field_frame,
-    to_robot_frame,
-    wrap_angle,
-)
+from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 SPEC = RobotSpec()
 DT = 0.025
@@ -134,13 +127,15 @@ def test_robot_contacts_are_reported_both_ways_and_cleared_when_apart() -> None:
     for _ in range(40):
         world.step(towards)
         touched |= bool(world.robot_contacts[0, 0, 1])
+        np.testing.assert_array_equal(world.robot_touch, world.robot_contacts.any(axis=2))
     assert touched
     assert world.robot_contacts[0, 0, 1] and world.robot_contacts[0, 1, 0]  # still pressing together
     assert not world.robot_contacts[0, 0, 0] and not world.robot_contacts[1].any()
+    assert world.robot_touch.tolist() == [[True, True], [False, False]]
     assert not world.wall_contacts.any()
     for _ in range(20):
         world.step(-towards)
-    assert not world.robot_contacts.any()
+    assert not world.robot_contacts.any() and not world.robot_touch.any()
 
 
 def test_wall_contacts_are_reported_and_cleared_when_apart() -> None:
@@ -289,3 +284,17 @@ def test_division_presets_build_and_step() -> None:
         world = World(2, 2, field=name)
         assert math.isclose(_limit(world)[0], world.field.half_length + world.field.boundary - SPEC.radius)
         world.step(np.ones((2, 2, 3)))
+
+
+def test_the_state_carries_the_heading_the_world_computed_bit_for_bit() -> None:
+    world = _world(2, 3)
+    rng = np.random.default_rng(5)
+    _place(world, rng.uniform(-1, 1, (2, 3, 2)), rng.uniform(-3, 3, (2, 3)))
+    world.step(rng.uniform(-1, 1, (2, 3, 3)))
+    state = world.state
+    np.testing.assert_array_equal(state.heading, heading(state.angle))
+    np.testing.assert_array_equal(state.robots(slice(1, 3)).heading, heading(state.angle[:, 1:3]))
+    np.testing.assert_array_equal(state.fields(np.array([1])).heading, heading(state.angle[[1]]))
+    # A state made by hand computes it on first use.
+    made = RobotState(state.pos, state.angle, state.vel, state.ang_vel)
+    np.testing.assert_array_equal(made.heading, state.heading)

@@ -51,20 +51,34 @@ def main() -> None:
     torch.manual_seed(args.seed)
 
     cfg = PPOConfig(
-        num_steps_per_env=args.steps, learning_rate=args.lr, num_learning_epochs=args.epochs,
-        num_mini_batches=args.minibatches, gamma=args.gamma, lam=args.lam, entropy_coef=args.entropy,
-        hidden=tuple(args.hidden), init_noise_std=args.noise_std,
+        num_steps_per_env=args.steps,
+        learning_rate=args.lr,
+        num_learning_epochs=args.epochs,
+        num_mini_batches=args.minibatches,
+        gamma=args.gamma,
+        lam=args.lam,
+        entropy_coef=args.entropy,
+        hidden=tuple(args.hidden),
+        init_noise_std=args.noise_std,
     )
     env = hier_ssl.vector_env(task="proposed", frame_skip=16, num_envs=args.num_envs)
     env.reset(seed=args.seed)
     runner = make_ppo_runner(
-        env, cfg, log_dir=None, activation=args.activation,
-        schedule=args.schedule, desired_kl=args.desired_kl, clip_value_loss=not args.no_clip_value_loss,
+        env,
+        cfg,
+        log_dir=None,
+        activation=args.activation,
+        schedule=args.schedule,
+        desired_kl=args.desired_kl,
+        clip_value_loss=not args.no_clip_value_loss,
     )
     policy = ppo_policy(runner)
     print("settings", json.dumps({**vars(args), "ppo": cfg.model_dump(mode="json")}), flush=True)
-    print(f"{'iter':>5} {'train_s':>8} {'wall_s':>8} {'decisions':>10} {'success':>7} {'len_med':>7} "
-          f"{'cpad_med':>8} {'std':>6} {'lr':>8}", flush=True)
+    print(
+        f"{'iter':>5} {'train_s':>8} {'wall_s':>8} {'decisions':>10} {'success':>7} {'len_med':>7} "
+        f"{'cpad_med':>8} {'std':>6} {'lr':>8}",
+        flush=True,
+    )
 
     # Train in chunks; only runner.learn counts as training time, evaluations are timed apart.
     start, train_s, iters = time.perf_counter(), 0.0, 0
@@ -77,17 +91,22 @@ def main() -> None:
         result = evaluate(policy, env.config, args.episodes, seed=123)
         wall = time.perf_counter() - start
         std = runner.alg.get_policy().distribution.std_param.mean().item()
-        print(f"{iters:5d} {train_s:8.1f} {wall:8.1f} {iters * args.steps * args.num_envs:10d} "
-              f"{result['success_rate']:7.3f} {result['episode_length']['median']:7.0f} "
-              f"{result['cpad']['median']:8.3f} {std:6.3f} {runner.alg.learning_rate:8.1e}", flush=True)
+        print(
+            f"{iters:5d} {train_s:8.1f} {wall:8.1f} {iters * args.steps * args.num_envs:10d} "
+            f"{result['success_rate']:7.3f} {result['episode_length']['median']:7.0f} "
+            f"{result['cpad']['median']:8.3f} {std:6.3f} {runner.alg.learning_rate:8.1e}",
+            flush=True,
+        )
         if result["success_rate"] >= args.target and reached is None:
             reached = (train_s, wall, iters)
             break
         if wall > args.max_minutes * 60:
             break
     if reached:
-        print(f"reached {args.target:.0%} success after {reached[2]} iterations: "
-              f"{reached[0]:.1f} s training, {reached[1]:.1f} s wall including evaluations")
+        print(
+            f"reached {args.target:.0%} success after {reached[2]} iterations: "
+            f"{reached[0]:.1f} s training, {reached[1]:.1f} s wall including evaluations"
+        )
     else:
         print(f"did not reach {args.target:.0%} within {args.max_minutes} min")
 

@@ -31,11 +31,13 @@ Teacher = Callable[[np.ndarray], np.ndarray]
 
 
 def make_teacher(name: str, env: object) -> Teacher:
-    """The planner ``name`` for the task of ``env`` (a vector env with a ``config``, the task config)."""
+    """The planner ``name`` for the task of ``env`` (a vector env with a ``config``, the task config),
+    reading the limits of the worker the env's core runs (``env.core.worker``) where it has one, else of
+    the worker the config names."""
     config = getattr(env, "config", None)
     if config is None:
         raise ValueError(f"teacher: {name!r} needs an env with the task config it plans for")
-    return make_planner(name, config)
+    return make_planner(name, config, getattr(getattr(env, "core", None), "worker", None))
 
 
 def teacher_labels(teacher: Teacher, obs: torch.Tensor) -> torch.Tensor:

@@ -11,6 +11,7 @@ from hier_ssl.envs import TorchVectorEnv, env_config, scenario_config
 from hier_ssl.manager.planners import make_planner
 from hier_ssl.policies import SAC, SACConfig, SACRunner
 from hier_ssl.policies.teacher import imitation_loss, teacher_labels, teacher_weight
+from hier_ssl.worker import PaperGoToPoint
 
 OBS_DIM, ACT_DIM = 4, 2
 TINY = {"hidden": (32, 32), "batch_size": 32, "buffer_size": 4096, "learning_starts": 0}
@@ -115,6 +116,15 @@ def test_runner_stores_the_planners_labels_and_warms_up_with_them(tmp_path: Path
     np.testing.assert_allclose(replay.actions[:n].numpy(), want, atol=1e-6)
 
 
+def test_the_teacher_plans_with_the_envs_own_worker(tmp_path: Path) -> None:
+    task = env_config(task="obstacle", observation="encounters", neighbours=1, action_frame="target")
+    cfg = SACConfig(hidden=(8, 8), teacher="sampling", teacher_weight=1.0)
+    slow = TorchVectorEnv(task, num_fields=1, worker=PaperGoToPoint(dt=task.dt, max_speed=1.0))
+    assert SACRunner(slow, cfg, tmp_path / "slow", progress=False).teacher.speed == 1.0
+    # Without an object the env runs the worker its config names (the paper's, 2.2 m/s).
+    assert SACRunner(TorchVectorEnv(task, 1), cfg, tmp_path / "own", progress=False).teacher.speed == 2.2
+
+
 def test_runner_labels_the_live_rows_of_a_scenario(tmp_path: Path) -> None:
     env = TorchVectorEnv(scenario_config("crossing", num_agents=3, action_frame="target"), num_fields=2)
     cfg = SACConfig(hidden=(8, 8), learning_starts=10**6, teacher="sampling", teacher_warmup=True)
@@ -142,7 +152,7 @@ class PointEnv:
         self.state[:, :2] = (self.state[:, :2] + 0.2 * actions).clamp(-1, 1)
         reward = -torch.linalg.vector_norm(self.state[:, :2] - self.state[:, 2:], dim=1)
         no = torch.zeros(self.num_envs, dtype=torch.bool)
-        return self.state.clone(), reward, no, no, {"final_obs": self.state.clone(), "episode": {}}
+        return self.state.clone(), reward, no, no, {"final_obs": self.state.clone(), "task": {}}
 
 
 def _heads_for_the_goal(obs: np.ndarray) -> np.ndarray:

@@ -3,8 +3,9 @@
 Exports RUN_DIR's manager as TorchScript and ONNX into a temporary folder, then times single-state calls
 (after 200 warm-up calls): TorchScript through ``torch.jit.load`` under ``torch.inference_mode``,
 ONNX through an onnxruntime session with one intra-op thread, and, for reference, the Python path that
-``hier_ssl.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``). Prints one line per
-path: file size, and the median and 90th percentile time per call.
+``hier_ssl.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``) and the scripted
+``sampling`` planner on the same observation (the manager a learned one has to beat, also at batch 1).
+Prints one line per path: file size, and the median and 90th percentile time per call.
 
 Run: python benchmarks/export_latency.py RUN_DIR [--calls 5000]
 """
@@ -21,6 +22,7 @@ import torch
 
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
+from hier_ssl.manager.planners import make_planner
 from hier_ssl.policies.actor import load_actor
 from hier_ssl.policies.export import export_manager
 from hier_ssl.world.field import get_field
@@ -66,18 +68,27 @@ def main() -> None:
 
         env, fld = config.env, get_field(config.env.field)
 
-        def python() -> None:
+        def observe() -> np.ndarray:
             s = state.astype(np.float64)
             own, others = (s[:, 0:5], s[:, 5:7], s[:, 7], s[:, 8:10], s[:, 10]), s[:, 11:].reshape(1, k, 5)
-            if env.observation == "neighbours":
+            if env.observation != "paper":
                 teammate = np.zeros((1, k), dtype=bool)
-                obs = neighbour_observation(
-                    *own, others[:, :, 0:2], others[:, :, 2:4], teammate, env.neighbours, max_pos=fld.max_pos
-                )
-            else:
-                obs = manager_observation(
-                    *own, others[:, :, 0:2], others[:, :, 2:4], others[:, :, 4], max_pos=fld.max_pos
-                )
+                extra = {"encounters": env.observation == "encounters"}
+                return neighbour_observation(
+                    *own, others[:, :, 0:2], others[:, :, 2:4], teammate, env.neighbours, max_pos=fld.max_pos,
+                    **extra,
+                )  # fmt: skip
+            return manager_observation(
+                *own, others[:, :, 0:2], others[:, :, 2:4], others[:, :, 4], max_pos=fld.max_pos
+            )
+
+        planner = make_planner("sampling", env)
+
+        def sampling() -> None:
+            planner(observe())
+
+        def python() -> None:
+            s, obs = state.astype(np.float64), observe()
             with torch.inference_mode():
                 action = actor(torch.from_numpy(obs)).numpy()
             zero = env.task != "baseline"
@@ -91,8 +102,9 @@ def main() -> None:
             ("torchscript", torchscript, script.stat().st_size),
             ("onnxruntime", onnx_call, onnx.stat().st_size),
             ("python (numpy obs + torch actor + decode)", python, None),
+            ("sampling planner (numpy obs + plan)", sampling, None),
         ):
-            median, p90 = _time(call, args.calls)
+            median, p90 = _time(call, args.calls if call is not sampling else max(1, args.calls // 10))
             where = f"{size:,} bytes, " if size else ""
             print(f"  {name:42s} {where}median {median:7.1f} us, p90 {p90:7.1f} us per state")
 

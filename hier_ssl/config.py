@@ -54,8 +54,9 @@ class TaskSettings(Strict):
     # R_obst's distance to the nearest obstacle: from the sub-goal (paper text) or the robot (public code).
     obstacle_from: Literal["subgoal", "robot"] = "subgoal"
     # "paper": 13 values + 5 per obstacle in field coordinates (SPEC); "neighbours": 13 + 6 per slot for
-    # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``).
-    observation: Literal["paper", "neighbours"] = "paper"
+    # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``);
+    # "encounters": "neighbours" + 6 closest-approach values per slot (``hier_ssl.manager.encounter``).
+    observation: Literal["paper", "neighbours", "encounters"] = "paper"
     neighbours: int = Field(6, ge=0)
     # A spec of hier_ssl.worker.make_worker: "paper", "bangbang", a worker run directory, "+key=value"s.
     worker: str = "paper"
@@ -108,7 +109,7 @@ class ScenarioConfig(TaskSettings):
     scenario class's ``defaults``, then the values below; ``options`` are the scenario's own settings (its
     ``Options`` model). The task settings mean what they mean in ``EnvConfig``; the task is always
     action-centric ("obstacle" rules, or "proposed" when a field holds a single robot) and the observation
-    always "neighbours"."""
+    "neighbours" or "encounters"."""
 
     scenario: str
     field: str = "division_b"
@@ -117,7 +118,7 @@ class ScenarioConfig(TaskSettings):
     obstacles: BehaviourConfig = Field(default_factory=BehaviourConfig)
     options: dict[str, Any] = Field(default_factory=dict)
     frame_skip: int = Field(16, ge=1)
-    observation: Literal["neighbours"] = "neighbours"
+    observation: Literal["neighbours", "encounters"] = "neighbours"
 
     @property
     def scenario_name(self) -> str:
@@ -178,6 +179,30 @@ class SACConfig(BaseModel):
     reward_scale: float = Field(
         1.0, gt=0, description="multiplies rewards in the critic target; the env rewards stay as they are"
     )
+    # Learning from a scripted planner (hier_ssl.policies.teacher); the planner only teaches, the policy
+    # stays a network.
+    teacher: Literal["sampling", "direct"] | None = Field(
+        None, description="planner whose action for each stored observation is kept as a label"
+    )
+    teacher_weight: float = Field(
+        0.0,
+        ge=0,
+        description="weight of the imitation term ||tanh(mean(s)) - a_teacher(s)||^2 in the actor loss, in "
+        "units of the batch's mean |Q| (TD3+BC's normalisation)",
+    )
+    teacher_steps: int = Field(
+        0, ge=0, description="updates over which teacher_weight falls linearly to 0; 0 keeps it constant"
+    )
+    teacher_filter: bool = Field(
+        False, description="imitate only where the critic rates the teacher's action above the actor's"
+    )
+    teacher_warmup: bool = Field(
+        False, description="the warm-up's actions are the teacher's plus Gaussian noise, not uniform"
+    )
+    teacher_noise: float = Field(0.1, ge=0, description="std of the noise on the teacher's warm-up actions")
+    teacher_pretrain: int = Field(
+        0, ge=0, description="supervised actor steps on the teacher's labels when the warm-up ends"
+    )
 
     @field_validator("hidden")
     @classmethod
@@ -190,6 +215,17 @@ class SACConfig(BaseModel):
     def _caps_fixes_alpha(self) -> SACConfig:
         if self.caps and self.autotune_alpha:
             raise ValueError("autotune_alpha=True conflicts with caps=True: CAPS runs with a fixed alpha")
+        return self
+
+    @model_validator(mode="after")
+    def _teacher_used(self) -> SACConfig:
+        uses = {"teacher_weight": self.teacher_weight > 0, "teacher_warmup": self.teacher_warmup}
+        uses["teacher_pretrain"] = self.teacher_pretrain > 0
+        if self.teacher is None and any(uses.values()):
+            key = next(k for k, used in uses.items() if used)
+            raise ValueError(f"{key}: needs a teacher (sac.teacher: sampling)")
+        if self.teacher is not None and not any(uses.values()):
+            raise ValueError("teacher: set teacher_weight, teacher_warmup or teacher_pretrain to use it")
         return self
 
     @property

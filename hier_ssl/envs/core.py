@@ -198,8 +198,9 @@ class HierarchicalCore:
             teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
             others_pos = s.pos[self._others_of].reshape(b, j, 2)
             others_vel = s.vel[self._others_of].reshape(b, j, 2)
+            extra = {"encounters": self.scenario.observation == "encounters"}
             obs = neighbour_observation(
-                *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits
+                *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits, **extra
             )
         return obs.reshape(f, m, self.obs_dim)
 

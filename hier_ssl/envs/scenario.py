@@ -87,14 +87,15 @@ class Scenario:
 
     @property
     def observation(self) -> str:
-        """The managers' observation layout: "paper" (one robot, its obstacles) or "neighbours"."""
+        """The managers' observation layout: "paper" (one robot, its obstacles), "neighbours" or
+        "encounters"."""
         return self.config.observation
 
     @property
     def obs_dim(self) -> int:
         """Length of each controlled robot's manager observation."""
-        if self.observation == "neighbours":
-            return neighbour_obs_dim(self.config.neighbours)
+        if self.observation != "paper":
+            return neighbour_obs_dim(self.config.neighbours, self.observation == "encounters")
         return manager_obs_dim(self.num_obstacles)
 
     @property

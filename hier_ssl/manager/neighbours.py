@@ -12,6 +12,9 @@ slot (all six values 0) when fewer than K other robots exist. The width depends 
 robots a scenario has, so one policy serves every robot count. Positions and velocities are clipped to
 [-clip, clip] like the rest of the observation. Read it through ``NEIGHBOUR_OBS_SLICES`` and
 ``neighbour_obs_slice``. The paper's 1-obstacle layout stays in ``hier_ssl.manager.observation``.
+
+The "encounters" layout is this one with 6 more values per slot appended after the K slots (closest
+approaches and the neighbour in the robot -> target frame, ``hier_ssl.manager.encounter``): 13 + 12K.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hier_ssl.manager.encounter import ENCOUNTER_DIM, encounter_columns
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
     MANAGER_OBS_SLICES,
@@ -40,9 +44,9 @@ NEIGHBOUR_OBS_SLICES: dict[str, slice] = {
 }
 
 
-def neighbour_obs_dim(k: int) -> int:
-    """Length of the observation with ``k`` neighbour slots."""
-    return slots_dim(k, NEIGHBOUR_OBS_DIM, "number of neighbour slots")
+def neighbour_obs_dim(k: int, encounters: bool = False) -> int:
+    """Length of the observation with ``k`` neighbour slots (with their encounter columns)."""
+    return slots_dim(k, NEIGHBOUR_OBS_DIM + ENCOUNTER_DIM * encounters, "number of neighbour slots")
 
 
 def neighbour_obs_slice(k: int) -> slice:
@@ -85,6 +89,7 @@ def neighbour_observation(
     max_v: float = 2.5,
     max_w: float = 10.0,
     clip: float = 1.2,
+    encounters: bool = False,
 ) -> np.ndarray:
     """Observations of B robots, each seeing its ``k`` nearest other robots.
 
@@ -93,9 +98,10 @@ def neighbour_observation(
         others_pos, others_vel: (B, J, 2) every other robot of the robot's field (teammates and
             obstacles), field frame. teammate: (B, J) bool, which of them are controlled robots.
         k: neighbour slots; max_pos, max_v, max_w, clip: as in ``manager_observation``.
+        encounters: append the "encounters" columns (module docstring).
 
     Returns:
-        (B, 13 + 6k) float32, laid out as in the module docstring.
+        (B, 13 + 6k) float32, or (B, 13 + 12k) with ``encounters``, laid out as in the module docstring.
     """
     base = manager_observation(
         target,
@@ -114,13 +120,28 @@ def neighbour_observation(
     b = base.shape[0]
     index, present = nearest(pos, others_pos, k)
     rows = np.arange(b)[:, None]
-    rel_pos = (others_pos[rows, index] - pos[:, None]) / max_pos
-    rel_vel = (others_vel[rows, index] - vel[:, None]) / max_v
+    rel_pos = others_pos[rows, index] - pos[:, None]
+    rel_vel = others_vel[rows, index] - vel[:, None]
     flags = np.stack([teammate[rows, index], present], axis=2)
-    blocks = np.concatenate([np.clip(rel_pos, -clip, clip), np.clip(rel_vel, -clip, clip), flags], axis=2)
+    scaled = [np.clip(rel_pos / max_pos, -clip, clip), np.clip(rel_vel / max_v, -clip, clip)]
+    blocks = [np.concatenate([*scaled, flags], axis=2)]
+    if encounters:
+        to_target = (target[:, 0:2] - pos)[:, None]
+        columns = encounter_columns(rel_pos, rel_vel, vel[:, None], to_target, max_pos=max_pos, clip=clip)
+        blocks.append(np.stack(columns, axis=2))
     # Padding slots are all zeros, whatever robot their placeholder index points at.
-    blocks *= present[..., None]
-    return np.concatenate([base, blocks.reshape(b, NEIGHBOUR_OBS_DIM * k).astype(np.float32)], axis=1)
+    flat = [(block * present[..., None]).reshape(b, -1).astype(np.float32) for block in blocks]
+    return np.concatenate([base, *flat], axis=1)
+
+
+def drop_encounters(obs: np.ndarray) -> np.ndarray:
+    """The "neighbours" part (B, 13 + 6k) of "encounters" observations (B, 13 + 12k)."""
+    k, rest = divmod(obs.shape[1] - MANAGER_OBS_BASE_DIM, NEIGHBOUR_OBS_DIM + ENCOUNTER_DIM)
+    if obs.shape[1] < MANAGER_OBS_BASE_DIM or rest:
+        raise ValueError(
+            f"obs must have 13 + {NEIGHBOUR_OBS_DIM + ENCOUNTER_DIM}k columns, got {obs.shape[1]}"
+        )
+    return obs[:, : MANAGER_OBS_BASE_DIM + NEIGHBOUR_OBS_DIM * k]
 
 
 def as_obstacle_observation(obs: ArrayLike) -> np.ndarray:

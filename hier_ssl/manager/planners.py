@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hier_ssl.manager.actions import action_dim, encode_subgoal
-from hier_ssl.manager.neighbours import as_obstacle_observation
+from hier_ssl.manager.neighbours import as_obstacle_observation, drop_encounters
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
     MANAGER_OBS_SLICES,
@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from hier_ssl.config import TaskSettings
 
 PLANNERS = ("direct", "sampling")
-OBSERVATIONS = ("paper", "neighbours")
+OBSERVATIONS = ("paper", "neighbours", "encounters")
 
 
 @dataclass(frozen=True)
@@ -62,11 +62,14 @@ def read_scene(obs: np.ndarray, max_pos: float, max_v: float, observation: str =
     """Undo the observation's normalisation (positions / max_pos, velocities / max_v).
 
     ``obs`` (N, 13 + 5K) in the "paper" layout, or (N, 13 + 6K) in the "neighbours" one (every neighbour
-    an obstacle); K is read from its width. Values clipped by the observation stay clipped.
+    an obstacle), or (N, 13 + 12K) in the "encounters" one (its extra columns unread); K is read from its
+    width. Values clipped by the observation stay clipped.
     """
     if observation not in OBSERVATIONS:
         raise ValueError(f"unknown observation layout {observation!r}; expected one of {list(OBSERVATIONS)}")
-    if observation == "neighbours":
+    if observation == "encounters":
+        obs = drop_encounters(check_array("obs", obs, (None, None)))
+    if observation != "paper":
         obs = as_obstacle_observation(obs)
     obs = check_array("obs", obs, (None, None))
     n, width = obs.shape

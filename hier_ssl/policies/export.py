@@ -2,8 +2,9 @@
 
 The exported graph takes the raw field-frame state of one controlled robot and returns its sub-goal
 pose; the manager observation (``hier_ssl.manager.observation``, or the relative layout of
-``hier_ssl.manager.neighbours``), the actor's deterministic (mean) action and the action decoding in the
-run's frame (``hier_ssl.manager.actions``) are all inside it::
+``hier_ssl.manager.neighbours``, with the closest-approach columns of ``hier_ssl.manager.encounter`` in
+the "encounters" layout, computed by the same function), the actor's deterministic (mean) action and the
+action decoding in the run's frame (``hier_ssl.manager.actions``) are all inside it::
 
     state (B, 11 + 5J) float32 (11 + 6J with teammates), metres, radians, m/s, rad/s, field frame:
         0-4    target x, y, theta, vx, vy
@@ -34,6 +35,7 @@ from torch import nn
 
 from hier_ssl.config import TrainConfig
 from hier_ssl.envs import Scenario, make_scenario
+from hier_ssl.manager.encounter import ENCOUNTER_DIM, encounter_columns
 from hier_ssl.policies.actor import load_actor
 
 FORMATS = {"torchscript": ".pt", "onnx": ".onnx"}
@@ -48,8 +50,8 @@ class ExportedManager(nn.Module):
 
     ``neighbours`` None builds the paper's observation; an int builds the "neighbours" layout with that many
     slots (``hier_ssl.manager.neighbours``: the other robots nearest first, relative to the robot, with
-    their teammate flag). ``target_frame`` decodes actions as offsets from the target
-    (``hier_ssl.manager.actions``).
+    their teammate flag), followed by the "encounters" columns with ``encounters``. ``target_frame``
+    decodes actions as offsets from the target (``hier_ssl.manager.actions``).
     """
 
     def __init__(
@@ -66,6 +68,7 @@ class ExportedManager(nn.Module):
         neighbours: int | None = None,
         target_frame: bool = False,
         teammate_column: bool = False,
+        encounters: bool = False,
     ) -> None:
         super().__init__()
         self.actor = actor
@@ -77,15 +80,18 @@ class ExportedManager(nn.Module):
         self.half_length, self.half_width = half_length, half_width
         self.max_pos, self.max_v, self.max_w = max_pos, max_v, max_w
         self.clip = OBS_CLIP
-        self.neighbours, self.target_frame = neighbours, target_frame
+        self.neighbours, self.target_frame, self.encounters = neighbours, target_frame, encounters
+        self.encounter_dim = ENCOUNTER_DIM  # TorchScript reads attributes, not module constants
         per_obstacle = torch.tensor([max_pos, max_pos, max_v, max_v, max_w], dtype=torch.float64)
         self.register_buffer("obstacle_scale", per_obstacle.repeat(num_others))
 
     def _neighbour_slots(self, x: torch.Tensor, k: int) -> list[torch.Tensor]:
         """The ``k`` neighbour slots of the "neighbours" layout: relative x, y / max_pos, relative vx, vy /
-        max_v (each clipped), teammate, present 1; all-zero padding past the other robots there are."""
+        max_v (each clipped), teammate, present 1; all-zero padding past the other robots there are. With
+        ``encounters``, then the encounter columns of the k slots (zeros for padding)."""
         b, real = x.shape[0], min(k, self.num_others)
         slots: list[torch.Tensor] = []
+        extra: list[torch.Tensor] = []
         if real > 0:
             others = x[:, 11:].reshape(b, self.num_others, self.width)
             rel_pos, rel_vel = others[:, :, 0:2] - x[:, None, 5:7], others[:, :, 2:4] - x[:, None, 8:10]
@@ -107,9 +113,21 @@ class ExportedManager(nn.Module):
                 dim=2,
             )
             slots.append(block.reshape(b, 6 * real))
+            if self.encounters:
+                columns = encounter_columns(
+                    torch.gather(rel_pos, 1, pick),
+                    torch.gather(rel_vel, 1, pick),
+                    x[:, None, 8:10],
+                    x[:, None, 0:2] - x[:, None, 5:7],
+                    max_pos=self.max_pos,
+                    clip=self.clip,
+                )
+                extra.append(torch.stack(columns, dim=2).reshape(b, self.encounter_dim * real))
         if k > real:
             slots.append(torch.zeros(b, 6 * (k - real), dtype=x.dtype, device=x.device))
-        return slots
+            if self.encounters:
+                extra.append(torch.zeros(b, self.encounter_dim * (k - real), dtype=x.dtype, device=x.device))
+        return slots + extra
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         x = state.to(torch.float64)
@@ -209,9 +227,10 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
         max_pos=scales["max_pos"],
         max_v=scales["max_v"],
         max_w=scales["max_w"],
-        neighbours=env.neighbours if env.observation == "neighbours" else None,
+        neighbours=env.neighbours if env.observation != "paper" else None,
         target_frame=env.action_frame == "target",
         teammate_column=task.num_agents > 1,
+        encounters=env.observation == "encounters",
     )
     return module.eval(), config
 

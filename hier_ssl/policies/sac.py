@@ -3,7 +3,7 @@
 Follows CleanRL's ``sac_continuous_action.py`` (whose defaults the paper's public code uses) with two
 changes for speed: both critics live in one batched module (``TwinQ``), and the Polyak update and Adam
 run on foreach kernels. CAPS (Mysore et al. 2021) adds a temporal and a spatial smoothness term to the
-actor loss.
+actor loss; with a teacher (``hier_ssl.policies.teacher``) an imitation term of a planner's actions joins.
 
 Where this SAC and the paper's public code differ (SPEC "Public-code details"), a key of ``SACConfig``
 chooses; the default is ours, the public code's value is given in brackets:
@@ -31,6 +31,7 @@ import torch
 from hier_ssl.config import SACConfig
 from hier_ssl.policies.networks import SquashedGaussianActor, TwinQ
 from hier_ssl.policies.replay import Batch, ReplayBuffer
+from hier_ssl.policies.teacher import imitation_loss, teacher_weight
 
 # The public code clamps the perturbed state s_bar of sampled CAPS to this box; observations are scaled to
 # about [-1, 1] (SPEC "Manager observation").
@@ -124,7 +125,8 @@ class SAC:
             torch.optim.Adam([self.log_alpha], lr=cfg.alpha_lr, fused=True) if cfg.learns_alpha else None
         )
 
-        self.replay = ReplayBuffer(cfg.buffer_size, num_obs, num_actions, self.device)
+        teacher = cfg.teacher is not None
+        self.replay = ReplayBuffer(cfg.buffer_size, num_obs, num_actions, self.device, teacher=teacher)
         self.num_updates = 0
 
     @torch.no_grad()
@@ -141,17 +143,20 @@ class SAC:
         rewards: torch.Tensor,
         next_obs: torch.Tensor,
         terminated: torch.Tensor,
+        teacher_actions: torch.Tensor | None = None,
     ) -> None:
         """Store one vector step. Shapes: obs, next_obs (N, num_obs); actions (N, num_actions); rewards,
-        terminated (N,). ``next_obs`` must be the true last observation of finished episodes."""
-        self.replay.add(obs, actions, rewards, next_obs, terminated)
+        terminated (N,); teacher_actions (N, num_actions), the teacher's labels for obs, required with a
+        teacher. ``next_obs`` must be the true last observation of finished episodes."""
+        self.replay.add(obs, actions, rewards, next_obs, terminated, teacher_actions)
 
     def update(self) -> dict[str, float]:
         """One critic update, the actor (and alpha) updates when due, and the Polyak step.
 
         Returns qf_loss, qf_values (mean Q of the batch) and alpha; on updates that step the actor also
-        actor_loss, alpha_loss (when alpha is learned) and caps_temporal, caps_spatial (with CAPS), each
-        from the last actor step of the update.
+        actor_loss, alpha_loss (when alpha is learned), caps_temporal, caps_spatial (with CAPS) and
+        imitation, imitated (the share of rows imitated) while the teacher's weight is above 0, each from
+        the last actor step of the update.
         """
         cfg = self.config
         data = self.replay.sample(cfg.batch_size, self.generator)
@@ -161,12 +166,12 @@ class SAC:
         # Actor: delayed like TD3; catch_up then takes policy_frequency steps to keep the count (CleanRL).
         if self.num_updates % cfg.policy_frequency == 0:
             for _ in range(cfg.policy_frequency if cfg.actor_schedule == "catch_up" else 1):
-                actor_loss, log_pi, caps = self.actor_loss(data, next_state_actions, alpha)
+                actor_loss, log_pi, terms = self.actor_loss(data, next_state_actions, alpha)
                 self.actor_optimizer.zero_grad(set_to_none=True)
                 # `inputs` restricts backward to the actor: the critic's weight gradients are never computed.
                 actor_loss.backward(inputs=self._actor_params)
                 self.actor_optimizer.step()
-                logged |= {"actor_loss": actor_loss.detach(), **{k: v.detach() for k, v in caps.items()}}
+                logged |= {"actor_loss": actor_loss.detach(), **{k: v.detach() for k, v in terms.items()}}
 
                 if self.alpha_optimizer is not None:
                     alpha_loss = (-self.log_alpha.exp() * (log_pi.detach() + self.target_entropy)).mean()
@@ -205,11 +210,12 @@ class SAC:
     def actor_loss(
         self, data: Batch, next_state_actions: torch.Tensor, alpha: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
-        """SAC's actor loss on ``data``, plus the CAPS terms with ``caps``.
+        """SAC's actor loss on ``data``, plus the CAPS terms with ``caps`` and the imitation term while the
+        teacher's weight is above 0.
 
         ``next_state_actions`` (B, num_actions) are the critic target's a'(s'), used by sampled CAPS.
-        Returns the loss (scalar), log pi(a|s) of the sampled actions (B,) and the CAPS terms by name
-        (empty without CAPS).
+        Returns the loss (scalar), log pi(a|s) of the sampled actions (B,) and the added terms by name
+        (caps_temporal, caps_spatial; imitation and imitated, the share of rows imitated).
         """
         cfg = self.config
         sampled_caps = cfg.caps and cfg.caps_actions == "sampled"
@@ -221,8 +227,9 @@ class SAC:
             pi, log_pi = self.actor(data.obs, self.generator)
         min_qf_pi = self.qf(data.obs, pi).min(dim=0).values
         actor_loss = (alpha * log_pi - min_qf_pi).mean()
+        terms = self._imitation(data, min_qf_pi)
         if not cfg.caps:
-            return actor_loss, log_pi, {}
+            return actor_loss + terms.get("imitation", 0.0), log_pi, terms
         if sampled_caps:
             caps_temporal, caps_spatial = caps_terms(
                 pi, next_state_actions, pi_bar, cfg.caps_lambda_t, cfg.caps_lambda_s
@@ -237,8 +244,37 @@ class SAC:
                 cfg.caps_sigma,
                 self.generator,
             )
-        actor_loss = actor_loss + caps_temporal + caps_spatial
-        return actor_loss, log_pi, {"caps_temporal": caps_temporal, "caps_spatial": caps_spatial}
+        actor_loss = actor_loss + caps_temporal + caps_spatial + terms.get("imitation", 0.0)
+        return actor_loss, log_pi, {"caps_temporal": caps_temporal, "caps_spatial": caps_spatial, **terms}
+
+    def _imitation(self, data: Batch, min_qf_pi: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The imitation term of ``hier_ssl.policies.teacher`` on ``data`` and the share of rows it
+        imitates, or nothing when the teacher's weight has fallen to 0. ``min_qf_pi`` (B,) sets its scale."""
+        weight = teacher_weight(self.config, self.num_updates)
+        if weight <= 0.0:
+            return {}
+        mean_action = self.actor.deterministic(data.obs)
+        keep = None
+        if self.config.teacher_filter:
+            with torch.no_grad():
+                q_teacher = self.qf(data.obs, data.teacher_actions).min(dim=0).values
+                keep = q_teacher > self.qf(data.obs, mean_action).min(dim=0).values
+        q_scale = min_qf_pi.detach().abs().mean()
+        loss = imitation_loss(mean_action, data.teacher_actions, q_scale, weight, keep)
+        imitated = keep.float().mean() if keep is not None else torch.ones((), device=loss.device)
+        return {"imitation": loss, "imitated": imitated}
+
+    def imitate(self, steps: int) -> float:
+        """``steps`` supervised actor steps towards the stored teacher actions (mean squared error of the
+        mean action, replay batches of ``batch_size``); the critic is left alone. Returns the last loss."""
+        loss = torch.zeros(())
+        for _ in range(steps):
+            data = self.replay.sample(self.config.batch_size, self.generator)
+            loss = (self.actor.deterministic(data.obs) - data.teacher_actions).square().sum(dim=-1).mean()
+            self.actor_optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            self.actor_optimizer.step()
+        return float(loss.detach())
 
     def state_dict(self) -> dict[str, object]:
         """Everything needed to resume learning except the replay buffer (``self.replay.state_dict()``)."""

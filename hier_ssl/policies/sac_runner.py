@@ -15,6 +15,7 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from hier_ssl.policies.sac import SAC, SACConfig
+from hier_ssl.policies.teacher import Teacher, make_teacher, teacher_labels, teacher_weight
 
 MODEL_FILE = "model.pt"
 REPLAY_FILE = "replay.pt"
@@ -104,7 +105,11 @@ class SACRunner:
     their episode included, though not stored): actions are uniform random through the vector step that
     reaches it, and the first update follows that step. The paper's public code warms up for 5,000
     vector steps x 16 envs, ``learning_starts: 80000``. A warm-up longer than the run only collects; a
-    resumed run continues the warm-up from its saved step counter. The run directory receives
+    resumed run continues the warm-up from its saved step counter. With ``sac.teacher`` the runner asks
+    that planner for its action on every observation it stores while the teacher is in use (warm-up,
+    imitation weight above 0), acts with it during the warm-up with ``teacher_warmup``, and pretrains the
+    actor on it before the first update with ``teacher_pretrain`` (``hier_ssl.policies.teacher``); the
+    env must then carry its task config (``env.config``). The run directory receives
     TensorBoard events, ``model.pt`` (plain state dicts, loadable with ``torch.load(weights_only=True)``)
     and ``replay.pt``.
 
@@ -125,6 +130,8 @@ class SACRunner:
         eval_callback: called with the runner; a returned mapping is logged under ``eval/``. Its time is
             not counted in ``train_time_s``.
         progress: show a tqdm progress bar.
+        teacher: the numpy policy that teaches, in place of the planner ``config.teacher`` names (which
+            must then be set).
     """
 
     def __init__(
@@ -140,6 +147,7 @@ class SACRunner:
         eval_interval: int | None = None,
         eval_callback: EvalCallback | None = None,
         progress: bool = True,
+        teacher: Teacher | None = None,
     ) -> None:
         for name, value in (("log_interval", log_interval), ("save_interval", save_interval)):
             if value < 1:
@@ -154,6 +162,11 @@ class SACRunner:
         if self.device.type == "cuda" and not torch.cuda.is_available():
             raise ValueError(f"device {str(self.device)!r}: torch sees no CUDA device on this machine")
         self.sac = SAC(env.num_obs, env.num_actions, config, device=self.device, seed=seed)
+        if teacher is not None and config.teacher is None:
+            raise ValueError("teacher: given to the runner, but the config's sac.teacher is not set")
+        if teacher is None and config.teacher is not None:
+            teacher = make_teacher(config.teacher, env)
+        self.teacher = teacher
         self.run_dir = Path(run_dir)
         self.log_interval = log_interval
         self.save_interval = save_interval
@@ -188,17 +201,16 @@ class SACRunner:
         try:
             while self.step < total_steps:
                 step_start = time.perf_counter()
-                # Act: uniform random during warm-up, then the stochastic policy.
-                if self.num_transitions < cfg.learning_starts:
-                    actions = self._random_actions()
-                else:
-                    actions = self.sac.act(self._obs)
+                # Act: uniform random (or the teacher's) during warm-up, then the stochastic policy.
+                labels = self._labels()
+                actions = self._act(labels)
                 # Step and store; the true last observation is the next_obs of finished episodes.
                 next_obs, rewards, terminated, _truncated, info = self.env.step(actions.to(self.env.device))
                 next_obs, rewards, final_obs, terminated, live = to_learner(
                     self.device, next_obs, rewards, info["final_obs"], terminated, info.get("live")
                 )
                 rows = (self._obs, actions, rewards, final_obs, terminated)
+                rows += (labels,) if labels is not None else ()
                 if live is not None:  # rows of robots that have left their episode are not transitions
                     rows = tuple(x[live] for x in rows)
                 self.sac.process_env_step(*rows)
@@ -209,6 +221,8 @@ class SACRunner:
                         episode_stats[key].append(values.detach())
                 # Learn: updates_per_step gradient updates per vector step, once warm-up data is in.
                 if self.num_transitions >= cfg.learning_starts:
+                    if self.sac.num_updates == 0 and cfg.teacher_pretrain and self._update_debt == 0.0:
+                        update_stats["pretrain_loss"].append(self.sac.imitate(cfg.teacher_pretrain))
                     self._update_debt += cfg.updates_per_step
                     while self._update_debt >= 1.0:
                         for key, value in self.sac.update().items():
@@ -229,6 +243,27 @@ class SACRunner:
         finally:
             bar.close()
             self._writer.flush()
+
+    def _labels(self) -> torch.Tensor | None:
+        """The teacher's actions (num_envs, num_actions) for the current observations, while they are used
+        (warm-up, imitation weight above 0); zeros once they no longer are; None without a teacher."""
+        if self.teacher is None:
+            return None
+        cfg = self.sac.config
+        if self.num_transitions < cfg.learning_starts or teacher_weight(cfg, self.sac.num_updates) > 0.0:
+            return teacher_labels(self.teacher, self._obs)
+        return torch.zeros((self.env.num_envs, self.env.num_actions), device=self.device)
+
+    def _act(self, labels: torch.Tensor | None) -> torch.Tensor:
+        """Actions (num_envs, num_actions): during warm-up uniform, or the teacher's ``labels`` plus
+        Gaussian noise (``teacher_warmup``); afterwards samples of the policy."""
+        cfg = self.sac.config
+        if self.num_transitions >= cfg.learning_starts:
+            return self.sac.act(self._obs)
+        if labels is None or not cfg.teacher_warmup:
+            return self._random_actions()
+        noise = torch.randn(labels.shape, generator=self.sac.generator, device=self.device)
+        return (labels + cfg.teacher_noise * noise).clamp(-1.0, 1.0)
 
     def _random_actions(self) -> torch.Tensor:
         """Uniform actions in [-1, 1], shape (num_envs, num_actions), from SAC's checkpointed generator

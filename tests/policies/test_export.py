@@ -65,6 +65,19 @@ VARIANTS = {
         },
         ("torchscript", "onnx"),
     ),
+    # The same with the closest-approach columns (hier_ssl.manager.encounter), padding included.
+    "sac_obstacle_encounters": (
+        "sac",
+        {
+            "task": "obstacle",
+            "obstacles": [{}, {}],
+            "min_start_distance": 0.6,
+            "observation": "encounters",
+            "neighbours": 3,
+            "action_frame": "target",
+        },
+        ("torchscript", "onnx"),
+    ),
     # A shared scenario manager: 2 teammates and 2 obstacles in 3 slots, teammate flags read from the input.
     "sac_crossing_shared": (
         "sac",
@@ -151,10 +164,17 @@ def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> tuple[n
         (x[:, 0:5], x[:, 5:7], x[:, 7], x[:, 8:10], x[:, 10]),
         {"max_pos": field.max_pos, "max_v": 2.5},
     )
-    if env.observation == "neighbours":
+    if env.observation != "paper":
         teammate = others[:, :, 5] > 0.5 if width == 6 else np.zeros((rows, k), dtype=bool)
+        encounters = env.observation == "encounters"
         obs = neighbour_observation(
-            *own, others[:, :, 0:2], others[:, :, 2:4], teammate, env.neighbours, **scales
+            *own,
+            others[:, :, 0:2],
+            others[:, :, 2:4],
+            teammate,
+            env.neighbours,
+            **scales,
+            encounters=encounters,
         )
     else:
         obs = manager_observation(*own, others[:, :, 0:2], others[:, :, 2:4], others[:, :, 4], **scales)

@@ -66,9 +66,28 @@ def test_sample_draws_only_filled_rows_reproducibly() -> None:
     assert a.obs.shape == (64, OBS_DIM) and a.actions.shape == (64, ACT_DIM)
     assert a.rewards.shape == a.terminated.shape == (64,)
     assert set(a.obs[:, 0].long().tolist()) <= {0, 1, 2, 3}
-    for x, y in zip(a, b, strict=True):
+    assert a.teacher_actions is None  # a buffer without a teacher keeps no labels
+    for x, y in zip(a[:-1], b[:-1], strict=True):
         assert torch.equal(x, y)
     assert torch.equal(a.rewards, 10 * a.obs[:, 0])  # fields of one sample come from one row
+
+
+def test_a_teacher_buffer_keeps_labels_aligned_and_through_a_round_trip() -> None:
+    buffer = ReplayBuffer(4, OBS_DIM, ACT_DIM, teacher=True)
+    transitions = _transitions(range(6))
+    rows = (*transitions, 100 + transitions[0][:, :ACT_DIM])  # labels: 100 + id
+    buffer.add(*rows)  # 6 rows into 4: ids 2..5 survive
+    batch = buffer.sample(32, torch.Generator().manual_seed(0))
+    assert torch.equal(batch.teacher_actions[:, 0], 100 + batch.obs[:, 0])
+    restored = ReplayBuffer(4, OBS_DIM, ACT_DIM, teacher=True)
+    restored.load_state_dict(_round_trip(buffer.state_dict()))
+    assert torch.equal(restored.teacher_actions, buffer.teacher_actions)
+    with pytest.raises(ValueError, match="teacher_actions: this replay buffer keeps them"):
+        buffer.add(*_transitions(range(1)))
+    with pytest.raises(ValueError, match="teacher_actions: this replay buffer does not keep them"):
+        _build_buffer().add(*rows)
+    with pytest.raises(ValueError, match="disagree on keeping teacher_actions"):
+        _build_buffer().load_state_dict(buffer.state_dict())
 
 
 def test_sample_from_empty_buffer_raises() -> None:

@@ -229,42 +229,45 @@ def write_figures(
     return paths
 
 
-def write_curves(runs: Sequence[Planned], results: Path) -> list[Path]:
-    """Per task, the selection curves (success and collision rate against vector steps x envs, i.e.
-    transitions) of every finished or running FSCAPS run of both families: where a run learned, stalled or
-    collapsed, which its final and best policies alone do not show."""
+def plot_curves(series: Sequence[tuple[str, str, Path]], title: str, path: Path) -> Path:
+    """Selection curves (success and collision rate against transitions, i.e. vector steps x envs) of
+    run directories, one line each from its ``curve.csv``; ``series`` is (label, line style, run_dir)."""
     import csv
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    fig = Figure(figsize=(9, 3.2), dpi=100)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2)
+    for label, style, run_dir in series:
+        rows = list(csv.DictReader((run_dir / "curve.csv").open()))
+        x = [int(row["transitions"]) / 1e6 for row in rows]
+        for ax, key in zip(axes, ("success_rate", "collision_rate"), strict=True):
+            ax.plot(x, [100 * float(row[key]) for row in rows], style, label=label)
+    for ax, name in zip(axes, ("selection success %", "selection collisions %"), strict=True):
+        ax.set_title(f"{title}: {name}", fontsize=9)
+        ax.set_xlabel("transitions (millions, log scale)", fontsize=8)
+        ax.set_xscale("log")
+        ax.tick_params(labelsize=7)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path)
+    return path
+
+
+def write_curves(runs: Sequence[Planned], results: Path) -> list[Path]:
+    """Per task, the selection curves of every finished or running FSCAPS run of both families: where a
+    run learned, stalled or collapsed, which its final and best policies alone do not show."""
     paths = []
     for task in dict.fromkeys(run.task for run in runs):
-        curves = [
-            r for r in runs if (r.task, r.setup) == (task, "fscaps") and (r.run_dir / "curve.csv").is_file()
+        series = [
+            (f"{FAMILY_TITLES[r.family]} s{r.config.seed}", "-" if r.family == "paper" else "--", r.run_dir)
+            for r in runs
+            if (r.task, r.setup) == (task, "fscaps") and (r.run_dir / "curve.csv").is_file()
         ]
-        if not curves:
-            continue
-        fig = Figure(figsize=(9, 3.2), dpi=100)
-        FigureCanvasAgg(fig)
-        axes = fig.subplots(1, 2)
-        for run in curves:
-            rows = list(csv.DictReader((run.run_dir / "curve.csv").open()))
-            x = [int(row["transitions"]) / 1e6 for row in rows]
-            style = "-" if run.family == "paper" else "--"
-            label = f"{FAMILY_TITLES[run.family]} s{run.config.seed}"
-            for ax, key in zip(axes, ("success_rate", "collision_rate"), strict=True):
-                ax.plot(x, [100 * float(row[key]) for row in rows], style, label=label)
-        for ax, title in zip(axes, ("selection success %", "selection collisions %"), strict=True):
-            ax.set_title(f"{task} FSCAPS: {title}", fontsize=9)
-            ax.set_xlabel("transitions (millions, log scale)", fontsize=8)
-            ax.set_xscale("log")
-            ax.tick_params(labelsize=7)
-        axes[0].legend(fontsize=7)
-        fig.tight_layout()
-        path = results / f"curves-{task}.png"
-        fig.savefig(path)
-        paths.append(path)
+        if series:
+            paths.append(plot_curves(series, f"{task} FSCAPS", results / f"curves-{task}.png"))
     return paths
 
 
@@ -324,4 +327,14 @@ def _header(episodes: int, seed: int, contact: dict[str, float]) -> str:
     )
 
 
-__all__ = ["EPISODE_KEYS", "FAMILIES", "VARIANTS", "Planned", "default_seeds", "plan", "reproduce", "select"]
+__all__ = [
+    "EPISODE_KEYS",
+    "FAMILIES",
+    "VARIANTS",
+    "Planned",
+    "default_seeds",
+    "plan",
+    "plot_curves",
+    "reproduce",
+    "select",
+]

@@ -5,8 +5,8 @@ puts one group of keys back to the public code's value (configs/paper/obstacle/f
 public code's config, ``paper`` as it is and ``paper-with-interface`` with our obstacle interface alone,
 both cut to ``--paper-steps``. Trains what is missing (resuming killed runs, ``hier_ssl.launch``), plays
 every run's best and final policy (mean action) on the same 1000 episodes of the paper family's Obstacle
-task (``hier-ssl reproduce``'s), prints a markdown table and writes the selection curves
-(``OUT/curves.png``).
+task (``hier-ssl reproduce``'s), prints a markdown table (also ``OUT/table.md``) and writes the selection
+curves (``OUT/curves.png``).
 
 Run: python benchmarks/obstacle_gap.py [--out runs/obstacle-gap] [--only no-interface paper ...] [--no-train]
 """
@@ -71,8 +71,8 @@ def main() -> None:
     launch([job for job in jobs if not args.no_train or run_state(job.run_dir) == "finished"], progress=False)
     done = [(name, sets, run) for name, sets, run in runs if run_state(run.run_dir) == "finished"]
     episodes = episodes_of("obstacle")
-    print("| run | keys changed | policy | success % | collision % | median length | train s |")
-    print("|---|---|---|---|---|---|---|")
+    header = "| run | keys changed | policy | success % | collision % | median length | train s |"
+    lines = [header, "|" + "---|" * 7]
     for name, sets, run in done:
         for which in ("best", "final"):
             r = evaluate_run(run, which, False, episodes, args.episodes, 0, args.out / "evals")
@@ -80,7 +80,9 @@ def main() -> None:
             figures = f"{100 * r['success_rate']:.1f} | {100 * r['collision_rate']:.1f} | {length:.0f}"
             wall = json.loads((run.run_dir / "eval.json").read_text()).get("train_wall_s")
             keys = ", ".join(f"`{s}`" for s in sets) or "-"
-            print(f"| {name} | {keys} | {which} | {figures} | {wall:.0f} |")
+            lines.append(f"| {name} | {keys} | {which} | {figures} | {wall:.0f} |")
+    print("\n".join(lines))
+    (args.out / "table.md").write_text("\n".join(lines) + "\n")
     series = [(name, "-" if run.family == "paper" else "--", run.run_dir) for name, _, run in done]
     if series:
         print("curves:", plot_curves(series, "Obstacle FSCAPS", args.out / "curves.png"))

@@ -78,7 +78,7 @@ def main() -> None:
             r = evaluate_run(run, which, False, episodes, args.episodes, 0, args.out / "evals")
             length = r["episode_length"]["median"]
             figures = f"{100 * r['success_rate']:.1f} | {100 * r['collision_rate']:.1f} | {length:.0f}"
-            wall = json.loads((run.run_dir / "eval.json").read_text()).get("train_wall_s")
+            wall = json.loads((run.run_dir / "eval.json").read_text())["train_wall_s"]
             keys = ", ".join(f"`{s}`" for s in sets) or "-"
             lines.append(f"| {name} | {keys} | {which} | {figures} | {wall:.0f} |")
     print("\n".join(lines))

@@ -226,6 +226,10 @@ class SACConfig(BaseModel):
             raise ValueError(f"{key}: needs a teacher (sac.teacher: sampling)")
         if self.teacher is not None and not any(uses.values()):
             raise ValueError("teacher: set teacher_weight, teacher_warmup or teacher_pretrain to use it")
+        # Keys that only shape the imitation term would otherwise be accepted and do nothing.
+        if self.teacher_weight == 0 and (self.teacher_filter or self.teacher_steps > 0):
+            key = "teacher_filter" if self.teacher_filter else "teacher_steps"
+            raise ValueError(f"{key}: only read with teacher_weight > 0")
         return self
 
     @property
@@ -329,6 +333,8 @@ class TrainConfig(Strict):
                 )
         if self.kind == "manager" and self.gotopoint is not None:
             raise ValueError("gotopoint: only read when kind is 'worker'")
+        if self.algo != "sac" and self.sac.teacher is not None:
+            raise ValueError(f"sac.teacher: only read with algo 'sac', got {self.algo!r}")
         if self.kind == "worker" and self.algo != "ppo":
             raise ValueError(f"algo: kind 'worker' trains with 'ppo', got {self.algo!r}")
         return self

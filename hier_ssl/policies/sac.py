@@ -229,7 +229,7 @@ class SAC:
         actor_loss = (alpha * log_pi - min_qf_pi).mean()
         terms = self._imitation(data, min_qf_pi)
         if not cfg.caps:
-            return actor_loss + terms.get("imitation", 0.0), log_pi, terms
+            return actor_loss + terms["imitation"] if terms else actor_loss, log_pi, terms
         if sampled_caps:
             caps_temporal, caps_spatial = caps_terms(
                 pi, next_state_actions, pi_bar, cfg.caps_lambda_t, cfg.caps_lambda_s
@@ -244,7 +244,9 @@ class SAC:
                 cfg.caps_sigma,
                 self.generator,
             )
-        actor_loss = actor_loss + caps_temporal + caps_spatial + terms.get("imitation", 0.0)
+        actor_loss = actor_loss + caps_temporal + caps_spatial
+        if terms:  # added last, as the runs in the README were trained
+            actor_loss = actor_loss + terms["imitation"]
         return actor_loss, log_pi, {"caps_temporal": caps_temporal, "caps_spatial": caps_spatial, **terms}
 
     def _imitation(self, data: Batch, min_qf_pi: torch.Tensor) -> dict[str, torch.Tensor]:

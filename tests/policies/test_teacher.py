@@ -38,6 +38,11 @@ def test_config_names_the_teacher_keys_it_needs() -> None:
         validate_config({"sac": {"teacher": "astar", "teacher_weight": 1.0}})
     with pytest.raises(ConfigError, match="sac.teacher_weight"):
         validate_config({"sac": {"teacher": "sampling", "teacher_weight": -1.0}})
+    for key, value in (("teacher_filter", True), ("teacher_steps", 100)):
+        with pytest.raises(ConfigError, match=f"sac.{key}: only read with teacher_weight > 0"):
+            validate_config({"sac": {"teacher": "sampling", "teacher_warmup": True, key: value}})
+    with pytest.raises(ConfigError, match="sac.teacher: only read with algo 'sac', got 'ppo'"):
+        validate_config({"algo": "ppo", "sac": {"teacher": "sampling", "teacher_weight": 1.0}})
 
 
 def test_the_weight_falls_linearly_to_zero() -> None:

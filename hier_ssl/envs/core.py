@@ -35,7 +35,7 @@ from hier_ssl.worker.observation import controlled_worker_observation, scale_com
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotState, World
 
-_ONE = np.array(1.0)
+_ONE, _NO_DECISION = np.array(1.0), np.array(0)
 
 OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``HierarchicalCore.observe_obstacle``)
 
@@ -88,6 +88,7 @@ class HierarchicalCore:
             self.obstacles.append((behaviour, slice(first, first + group.count)))
             first += group.count
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
+        self._layout = scenario.observation
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
         self.rules = Rules(scenario.reward_task, cfg)
         sizes = [scenario.scales[k] for k in ("half_length", "half_width", "max_v")]
@@ -117,6 +118,8 @@ class HierarchicalCore:
         self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
         self.ep_cpad = np.zeros((n, m))
         self._held = None  # the rules' part that sub-goals and targets fix (``Rules.hold``)
+        self._nobody, self._no_clips = np.zeros((n, m), dtype=bool), np.zeros((n, m), dtype=np.int64)
+        self._no_stats = self._stats(np.zeros(0, dtype=np.int64), self._nobody, self._nobody)
 
     @property
     def done(self) -> np.ndarray:
@@ -191,14 +194,14 @@ class HierarchicalCore:
             s.vel[:, :m].reshape(b, 2),
             s.ang_vel[:, :m].reshape(b),
         )
-        if self.scenario.observation == "paper":  # one robot: the others are its obstacles
+        if self._layout == "paper":  # one robot: the others are its obstacles
             obs = manager_observation(*rows, s.pos[:, m:], s.vel[:, m:], s.ang_vel[:, m:], **limits)
         else:
             j = self._others.shape[1]
             teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
             others_pos = s.pos[self._others_of].reshape(b, j, 2)
             others_vel = s.vel[self._others_of].reshape(b, j, 2)
-            extra = {"encounters": self.scenario.observation == "encounters"}
+            extra = {"encounters": self._layout == "encounters"}
             obs = neighbour_observation(
                 *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits, **extra
             )
@@ -230,13 +233,15 @@ class HierarchicalCore:
         field or the target frame (``action_frame``); values outside [-1, 1] are clipped, sub-goals to the
         field. Returns how many values were clipped per robot (N, M), 0 where not live."""
         n, m = live.shape
-        clipped = live * np.add.reduce(np.abs(action) > _ONE, axis=2)
+        outside = np.abs(action) > _ONE
+        clipped = live * np.add.reduce(outside, axis=2) if np.count_nonzero(outside) else self._no_clips
         subgoal = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
         subgoal = subgoal.reshape(n, m, 5)
         moved = cpad_increment(self.subgoal[..., 0:2], subgoal[..., 0:2])
-        np.add(self.ep_cpad, moved, out=self.ep_cpad, where=live & (self.decisions > 0))
+        np.add(self.ep_cpad, moved, out=self.ep_cpad, where=live & (self.decisions > _NO_DECISION))
         np.copyto(self.subgoal, subgoal, where=live[..., None])
-        self.decisions += live
+        # A new array of one dtype (see ``step``).
+        self.decisions = self.decisions + live.astype(np.int64)
         self._hold()
         return clipped
 
@@ -253,7 +258,8 @@ class HierarchicalCore:
         Returns reward (N, M), success (N, M) and collision (N, M), both only where live.
         """
         s, n, m = self.world.state, self.num_fields, self.num_agents
-        field_live = np.logical_or.reduce(live, axis=1)
+        # A field is live while any of its robots is (with one robot, a view of its column: no call).
+        field_live = live[:, 0] if m == 1 else np.logical_or.reduce(live, axis=1)
         command = np.zeros((n, m + self.num_obstacles, 3))
         if worker_action is None:
             own = self.worker(self._controlled(s), self.subgoal)
@@ -274,7 +280,7 @@ class HierarchicalCore:
             )
         s = self.world.step(command)
         self.control_steps += 1
-        self.steps += field_live
+        self.steps = self.steps + field_live.astype(np.int64)
 
         own, touching = self._controlled(s), self.world.robot_touch[:, :m]
         reward, success, hit = self.rules(
@@ -311,24 +317,29 @@ class HierarchicalCore:
             raise RuntimeError("step() with every episode finished: call reset() first")
         held = hold(self)
         clipped = self.set_subgoal(action, start)
-        live, shape = start, start.shape
-        reward, elapsed = np.zeros(shape), np.zeros(shape, dtype=np.int64)
-        success, collision = np.zeros(shape, bool), np.zeros(shape, bool)
+        live = start
+        # The first control step's reward and count are set, later ones added. Flags and counts are new
+        # arrays, not updated in place: on a few elements numpy's overlap check (and a bool added to an
+        # int) costs more than the operation.
+        reward, elapsed = np.zeros(start.shape), start.astype(np.int64)
+        success = collision = self._nobody
         try:
             # For bools a > b is a & ~b, in one call.
-            for _ in range(cfg.frame_skip):
+            for k in range(cfg.frame_skip):
                 r, succ, hit = self.control_step(live)
-                if self._sum_rewards:
+                if k and self._sum_rewards:
                     np.add(reward, r, out=reward, where=live)
                 else:
                     np.copyto(reward, r, where=live)
-                elapsed += live
-                success |= succ
-                collision |= hit > succ
-                live = live > (succ | hit)
+                ended = succ | hit
+                if np.count_nonzero(ended):  # most control steps nobody leaves
+                    success, collision = success | succ, collision | (hit > succ)
+                    live = live > ended
                 live = live > (self.steps >= self._max_steps)[:, None]
                 if not np.count_nonzero(live):
                     break
+                if k + 1 < cfg.frame_skip:
+                    elapsed = elapsed + live.astype(np.int64)
         except Exception:  # from the worker: undone, or the core needs a reset (step_guard)
             abandon(self, held)
             raise
@@ -348,12 +359,14 @@ class HierarchicalCore:
     ) -> StepResult:
         """Book-keeping after a decision period (or, for a view with exposed agents, one control step):
         returns, per-robot episode statistics, auto-reset. Every argument (N, M)."""
-        self.ep_return += reward
-        self.ep_length += elapsed
+        # New arrays rather than updates in place (see ``step``): the counters are replaced, never kept.
+        self.ep_return = self.ep_return + reward
+        self.ep_length = self.ep_length + elapsed
         left = success | collision | timeout
-        # Rows of the robots that left, row = field * M + robot; take() reads the arrays flat and copies.
+        # Rows of the robots that left, row = field * M + robot; most decisions have none, and share the
+        # same empty columns (an empty array cannot change).
         rows = left.ravel().nonzero()[0]
-        field, agent = np.divmod(rows, self.num_agents)
+        stats = self._stats(rows, success, collision) if len(rows) else dict(self._no_stats)
         info: dict[str, Any] = {
             "control_steps": elapsed,
             "success": success,
@@ -361,18 +374,9 @@ class HierarchicalCore:
             "action_clipped": clipped,
             "subgoal": self.subgoal.copy(),
             "live": start,
-            "task": {
-                "field": field,
-                "agent": agent,
-                "return": self.ep_return.take(rows),
-                "length": self.ep_length.take(rows),
-                "decisions": self.decisions.take(rows),
-                "success": success.take(rows).astype(np.float64),
-                "collision": collision.take(rows).astype(np.float64),
-                "cpad": self.ep_cpad.take(rows),
-            },
+            "task": stats,
         }
-        np.greater(self.active, left, out=self.active)
+        self.active = self.active > left
         obs = info["final_obs"] = self.observe()
         if self.autoreset and len(rows):
             finished = np.flatnonzero(self.done)
@@ -381,6 +385,20 @@ class HierarchicalCore:
                 self.reset_fields(finished)
                 obs[finished] = self.observe(finished)
         return StepResult(obs, reward.astype(np.float32), success | collision, timeout, info)
+
+    def _stats(self, rows: np.ndarray, success: np.ndarray, collision: np.ndarray) -> dict[str, Any]:
+        """``info["task"]``: episode statistics of the robots at flat ``rows``; take() reads flat, copies."""
+        field, agent = np.divmod(rows, self.num_agents)
+        return {
+            "field": field,
+            "agent": agent,
+            "return": self.ep_return.take(rows),
+            "length": self.ep_length.take(rows),
+            "decisions": self.decisions.take(rows),
+            "success": success.take(rows).astype(np.float64),
+            "collision": collision.take(rows).astype(np.float64),
+            "cpad": self.ep_cpad.take(rows),
+        }
 
 
 __all__ = [

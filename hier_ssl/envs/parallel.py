@@ -85,12 +85,13 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def _observations(self, manager_obs: np.ndarray) -> dict[str, np.ndarray]:
         """Observations of the live agents; ``manager_obs`` (M, O) of field 0."""
-        obs = {a: manager_obs[i] for i, a in enumerate(self.managers) if a in self.agents}
+        live = set(self.agents)
+        obs = {a: manager_obs[i] for i, a in enumerate(self.managers) if a in live}
         if self.workers:
             worker_obs = self.core.observe_worker()[0]
-            obs |= {a: worker_obs[i] for i, a in enumerate(self.workers) if a in self.agents}
+            obs |= {a: worker_obs[i] for i, a in enumerate(self.workers) if a in live}
         for j, agent in enumerate(self.obstacle_agents):
-            if agent in self.agents:
+            if agent in live:
                 obs[agent] = self.core.observe_obstacle(j)[0]
         return obs
 
@@ -120,23 +121,21 @@ class HierarchicalSSLEnv(ParallelEnv):
             if agent in checked:
                 batch[0, self._robot[agent]] = checked[agent]
         result = self._control_step(checked, batch) if self.per_control_step else self.core.step(batch)
-        self._trail.append(self.core.state.pos[0, : self.core.num_agents])
+        if self.render_mode is not None:  # without a render mode there is nothing to draw the trail on
+            self._trail.append(self.core.state.pos[0, : self.core.num_agents])
         out = self._outputs(result)
-        self.agents = [a for a in self.agents if self._still_in(a)]
+        # A manager or worker stays while its robot is in the episode, an obstacle while any robot is.
+        active = self.core.active[0].tolist()
+        robot, field_live = self._robot, any(active)
+        self.agents = [a for a in self.agents if (active[robot[a]] if a in robot else field_live)]
         if self.render_mode == "human":
             self.render()
         return out
 
-    def _still_in(self, agent: str) -> bool:
-        active = self.core.active[0]
-        if agent in self._robot:
-            return bool(active[self._robot[agent]])
-        return bool(active.any())
-
     def _outputs(self, result: StepResult) -> tuple[dict, dict, dict, dict, dict]:
         """The five dicts of ``step`` for the agents live before it, from the core's result."""
         info, stats = result.info, result.info["task"]
-        ended = {int(i): row for row, i in enumerate(stats["agent"])}
+        ended = {i: row for row, i in enumerate(stats["agent"].tolist())} if len(stats["agent"]) else {}
         obs = self._observations(result.obs[0])
         rewards, terms, truncs, infos = {}, {}, {}, {}
         for agent in self.agents:

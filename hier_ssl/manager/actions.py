@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hier_ssl.manager.observation import check_array
+from hier_ssl.world.frames import as_float
 
 ACTION_DIMS: dict[str, int] = {"pose4": 4, "pose6": 6}
 _ONE, _MINUS_ONE = np.array(1.0), np.array(-1.0)
@@ -112,9 +113,10 @@ class SubgoalDecoder:
 
     def __call__(self, action: ArrayLike, target: ArrayLike | None) -> np.ndarray:
         """Sub-goals (N, 5) of actions (N, A)."""
-        target = _check_frame(self.frame, target)
+        # (The frame's name was checked when made.)
+        target = None if self.frame == "field" else _check_frame(self.frame, target)
         # Clipped into a new array, which the target frame then changes in place.
-        action = np.minimum(np.maximum(np.asarray(action, dtype=np.float64), _MINUS_ONE), _ONE)
+        action = np.minimum(np.maximum(as_float(action), _MINUS_ONE), _ONE)
         if target is not None:
             action[:, 0:2] **= 3
             action[:, -1] += _ONE  # cos is last in both forms

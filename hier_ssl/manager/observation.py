@@ -18,6 +18,8 @@ and `obstacle_obs_slice`, not by bare column numbers.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -110,24 +112,27 @@ def manager_observation(
         (N, 13 + 5K) float32, laid out as in the module docstring.
     """
     n, k = obs_pos.shape[:2]
-    obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k))
-    # Every block is computed into its columns: one call a block, no concatenation.
-    s = MANAGER_OBS_SLICES
-    obstacles = obs[:, MANAGER_OBS_BASE_DIM:].reshape(n, k, OBSTACLE_OBS_DIM)
-    scaled = (
-        (target[:, 0:2], max_pos, obs[:, s["target_pos"]]),
-        (target[:, 3:5], max_v, obs[:, s["target_vel"]]),
-        (pos, max_pos, obs[:, s["robot_pos"]]),
-        (vel, max_v, obs[:, s["robot_vel"]]),
-        (ang_vel, max_w, obs[:, 12]),
-        (obs_pos, max_pos, obstacles[..., 0:2]),
-        (obs_vel, max_v, obstacles[..., 2:4]),
-        (obs_ang_vel, max_w, obstacles[..., 4]),
-    )
-    for value, scale, out in scaled:
-        np.divide(value, scale, out=out)
-    for heading, sincos in ((target[:, 2], s["target_sincos"]), (angle, s["robot_sincos"])):
-        np.sin(heading, out=obs[:, sincos.start])
-        np.cos(heading, out=obs[:, sincos.start + 1])
-    np.maximum(obs, -clip, out=obs)
-    return np.minimum(obs, clip, out=obs).astype(np.float32)
+    # One concatenation in layout order and one division by a row of scales (1 for sin and cos): on the
+    # few rows of one field a numpy call costs more than its arithmetic, and a block written into a
+    # strided slice of the output costs four times a new array.
+    t_sin, t_cos = np.sin(target[:, 2:3]), np.cos(target[:, 2:3])
+    r_sin, r_cos = np.sin(angle[:, None]), np.cos(angle[:, None])
+    blocks = (target[:, 0:2], t_sin, t_cos, target[:, 3:5], pos, r_sin, r_cos, vel, ang_vel[:, None])
+    if k:
+        blocks += (np.concatenate((obs_pos, obs_vel, obs_ang_vel[..., None]), axis=2).reshape(n, -1),)
+    obs = np.concatenate(blocks, axis=1) / _scales(k, float(max_pos), float(max_v), float(max_w))
+    low, high = _bounds(float(clip))
+    return np.minimum(np.maximum(obs, low), high).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=8)
+def _bounds(clip: float) -> tuple[np.ndarray, np.ndarray]:
+    """-clip and clip as 0-d arrays (a Python float operand costs numpy a conversion on every call)."""
+    return np.array(-clip), np.array(clip)
+
+
+@functools.lru_cache(maxsize=64)
+def _scales(k: int, max_pos: float, max_v: float, max_w: float) -> np.ndarray:
+    """The divisor of each column of the layout with ``k`` obstacles (1 for sin and cos)."""
+    base = [max_pos, max_pos, 1.0, 1.0, max_v, max_v, max_pos, max_pos, 1.0, 1.0, max_v, max_v, max_w]
+    return np.array(base + [max_pos, max_pos, max_v, max_v, max_w] * k)

@@ -16,7 +16,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from hier_ssl.world.frames import as_complex, wrap_angle
+from hier_ssl.world.frames import as_complex, as_float, wrap_angle
 from hier_ssl.world.physics import RobotState
 
 _COMPLEX = np.dtype(np.complex128)
@@ -80,7 +80,7 @@ class _Scripted:
 
     def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
         """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
-        subgoal = np.asarray(subgoal, dtype=np.float64)
+        subgoal = as_float(subgoal)
         return self._steer(self._k, state, subgoal, *_goal_axes(state, subgoal))
 
 
@@ -133,9 +133,11 @@ class PaperGoToPoint(_Scripted):
         change = np.maximum(np.minimum(change.view(np.float64), k.dv), k.minus_dv)
         v_new = v + change.view(_COMPLEX)
         v_new.real = np.minimum(v_new.real, reach)
-        # Field frame, scaled down to max_speed where faster, direction kept.
+        # Field frame, scaled down to max_speed where faster, direction kept (no division when none is).
         vel = v_new * ex
-        vel = vel / np.maximum(np.abs(vel) / k.max_speed, _K.one).astype(_COMPLEX)
+        speed = np.abs(vel)
+        if np.count_nonzero(speed > k.max_speed):
+            vel = vel / np.maximum(speed / k.max_speed, _K.one).astype(_COMPLEX)
 
         error = _heading_error(state, subgoal)
         spin = error * k.angle_gain

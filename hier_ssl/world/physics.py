@@ -231,6 +231,7 @@ class World:
         self._field_offsets = np.ascontiguousarray(np.broadcast_to(self.offsets[:, None, :], (n, r, 2)))
         wall_limit = np.broadcast_to(np.array([hx, hy]) - spec.radius, (n, r, 2))
         self._wall_hi, self._wall_lo = wall_limit.copy(), -wall_limit
+        self._clear = self._wall_hi - 1e-9
         self._max_speed = np.array(spec.max_speed)
         self._max_spin, self._min_spin = np.array(spec.max_ang_speed), np.array(-spec.max_ang_speed)
         self._one, self._zero, self._dt = np.array(1.0), np.array(0.0), np.array(self.dt)
@@ -347,9 +348,11 @@ class World:
 
         # Control bodies: the command turned into the field frame and capped at the speed limits.
         target = command[..., 0:2].view(_COMPLEX)[..., 0] * state.heading
-        over = np.maximum(np.abs(target) / self._max_speed, self._one)
+        speed = np.abs(target)
+        if np.count_nonzero(speed > self._max_speed):  # most steps no command is too fast: no division
+            target = target / np.maximum(speed / self._max_speed, self._one).astype(_COMPLEX)
         # (Results are assigned into the strided buffer views: a ufunc writing to them directly is slower.)
-        self._control_vel[...] = target / over.astype(_COMPLEX)
+        self._control_vel[...] = target
         self._control_spin[...] = np.maximum(np.minimum(command[..., 2], self._max_spin), self._min_spin)
         # Robots keep their velocity, less what would carry them into a wall within this period.
         self._robot_vel[...] = self._speculative_wall_stop(state.pos, state.vel)
@@ -371,6 +374,9 @@ class World:
         after moving bodies, so without this a robot at 2.5 m/s would sink v * dt into a wall before the
         contact pushes back.
         """
+        # Most steps no robot would reach a wall: then nothing changes (the margin covers rounding).
+        if not np.count_nonzero(np.abs(pos + vel * self._dt) >= self._clear):
+            return vel
         room_hi = np.maximum(self._wall_hi - pos, self._zero) / self._dt
         # -limit - pos is exactly -(limit + pos): the lower bound is the upper one mirrored, bit for bit.
         room_lo = np.minimum(self._wall_lo - pos, self._zero) / self._dt

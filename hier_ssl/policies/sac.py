@@ -269,10 +269,10 @@ class SAC:
     def imitate(self, steps: int) -> float:
         """``steps`` supervised actor steps towards the stored teacher actions (mean squared error of the
         mean action, replay batches of ``batch_size``); the critic is left alone. Returns the last loss."""
-        loss = torch.zeros(())
+        loss, unscaled = torch.zeros(()), torch.ones(())
         for _ in range(steps):
             data = self.replay.sample(self.config.batch_size, self.generator)
-            loss = (self.actor.deterministic(data.obs) - data.teacher_actions).square().sum(dim=-1).mean()
+            loss = imitation_loss(self.actor.deterministic(data.obs), data.teacher_actions, unscaled, 1.0)
             self.actor_optimizer.zero_grad(set_to_none=True)
             loss.backward()
             self.actor_optimizer.step()

@@ -29,6 +29,8 @@ from hier_ssl.manager.planners import make_planner
 Teacher = Callable[[np.ndarray], np.ndarray]
 """A numpy policy: observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""
 
+LABEL_BOUND = 0.999  # tanh(3.8): labels the actor's squashed mean can reach with a finite pre-activation
+
 
 def make_teacher(name: str, env: object) -> Teacher:
     """The planner ``name`` for the task of ``env`` (a vector env with a ``config``, the task config),
@@ -44,13 +46,15 @@ def teacher_labels(teacher: Teacher, obs: torch.Tensor) -> torch.Tensor:
     """The teacher's actions for ``obs`` (N, obs_dim), on obs's device, float32 (N, act_dim).
 
     Rows that are all zeros (robots that have left their episode, ``hier_ssl.envs.vector.TorchView``) are
-    not shown to the teacher and get zeros: no learner stores them.
+    not shown to the teacher and get zeros: no learner stores them. Labels are clipped to
+    +-``LABEL_BOUND``: the actor's tanh reaches +-1 only at infinite pre-activations, and a planner's
+    sub-goal on the target's heading is a cos of exactly 1 in the target frame.
     """
-    rows = obs.ne(0).any(dim=1).cpu().numpy()
     source = obs.detach().cpu().numpy()
+    rows = source.any(axis=1)
     labels = np.zeros((len(source), 0), dtype=np.float32)
     if rows.any():
-        acted = np.asarray(teacher(source[rows]), dtype=np.float32)
+        acted = np.clip(np.asarray(teacher(source[rows]), dtype=np.float32), -LABEL_BOUND, LABEL_BOUND)
         labels = np.zeros((len(source), acted.shape[1]), dtype=np.float32)
         labels[rows] = acted
     return torch.from_numpy(labels).to(obs.device)
@@ -82,4 +86,4 @@ def imitation_loss(
     return weight * q_scale * error.mean()
 
 
-__all__ = ["Teacher", "imitation_loss", "make_teacher", "teacher_labels", "teacher_weight"]
+__all__ = ["LABEL_BOUND", "Teacher", "imitation_loss", "make_teacher", "teacher_labels", "teacher_weight"]

@@ -10,7 +10,7 @@ from hier_ssl.config import ConfigError, validate_config
 from hier_ssl.envs import TorchVectorEnv, env_config, scenario_config
 from hier_ssl.manager.planners import make_planner
 from hier_ssl.policies import SAC, SACConfig, SACRunner
-from hier_ssl.policies.teacher import imitation_loss, teacher_labels, teacher_weight
+from hier_ssl.policies.teacher import LABEL_BOUND, imitation_loss, teacher_labels, teacher_weight
 from hier_ssl.worker import PaperGoToPoint
 
 OBS_DIM, ACT_DIM = 4, 2
@@ -96,12 +96,19 @@ def test_labels_skip_rows_of_robots_that_have_left() -> None:
 
     def teacher(obs: np.ndarray) -> np.ndarray:
         seen.append(obs.copy())
-        return obs[:, :ACT_DIM] + 1.0
+        return obs[:, :ACT_DIM] + 0.5
 
     obs = torch.tensor([[0.1, 0.2, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], [0.3, 0.4, 0.5, 0.0]])
     labels = teacher_labels(teacher, obs)
     np.testing.assert_array_equal(seen[0], obs[[0, 2]].numpy())
-    assert torch.equal(labels, torch.tensor([[1.1, 1.2], [0.0, 0.0], [1.3, 1.4]]))
+    assert torch.equal(labels, torch.tensor([[0.6, 0.7], [0.0, 0.0], [0.8, 0.9]]))
+
+
+def test_labels_stay_inside_what_the_squashed_actor_can_reach() -> None:
+    # A planner on the target's heading in the target frame: cos exactly 1.
+    labels = teacher_labels(lambda obs: np.array([[0.0, 1.0], [-1.0, 0.5]]), torch.ones(2, 4))
+    assert torch.equal(labels, torch.tensor([[0.0, LABEL_BOUND], [-LABEL_BOUND, 0.5]]))
+    assert torch.isfinite(torch.atanh(labels)).all()
 
 
 def test_runner_stores_the_planners_labels_and_warms_up_with_them(tmp_path: Path) -> None:
@@ -115,9 +122,9 @@ def test_runner_stores_the_planners_labels_and_warms_up_with_them(tmp_path: Path
     runner.learn(total_steps=6)
     replay, planner = runner.sac.replay, make_planner("sampling", task)
     n = len(replay)
-    want = planner(replay.obs[:n].numpy())
+    want = np.clip(planner(replay.obs[:n].numpy()), -LABEL_BOUND, LABEL_BOUND)
     np.testing.assert_allclose(replay.teacher_actions[:n].numpy(), want, atol=1e-6)
-    # Noise 0: the warm-up acted exactly as the teacher.
+    # Noise 0: the warm-up acted exactly as the (clipped) labels.
     np.testing.assert_allclose(replay.actions[:n].numpy(), want, atol=1e-6)
 
 

@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hier_ssl.envs import make_scenario
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.manager.planners import make_planner
 from hier_ssl.policies.actor import load_actor
 from hier_ssl.policies.export import export_manager
-from hier_ssl.world.field import get_field
 
 
 def _time(call, calls: int) -> tuple[float, float]:
@@ -48,8 +48,13 @@ def main() -> None:
     import onnxruntime
 
     actor, config = load_actor(args.run_dir)
-    k = len(config.env.obstacles)
-    state = np.random.default_rng(0).uniform(-1.0, 1.0, (1, 11 + 5 * k)).astype(np.float32)
+    env, task = config.task_config, make_scenario(config.task_config)
+    # The other robots of the exported input: a scenario's teammates (flagged 1) and its obstacles.
+    k, teammates = task.num_agents - 1 + task.num_obstacles, task.num_agents > 1
+    width = 5 + int(teammates)
+    state = np.random.default_rng(0).uniform(-1.0, 1.0, (1, 11 + width * k)).astype(np.float32)
+    if teammates:
+        state[0, 16::width] = np.arange(k) < task.num_agents - 1
     with tempfile.TemporaryDirectory() as tmp:
         script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
         onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
@@ -66,13 +71,14 @@ def main() -> None:
         def onnx_call() -> None:
             session.run(["subgoal"], {"state": state})
 
-        env, fld = config.env, get_field(config.env.field)
+        fld = task.field
 
         def observe() -> np.ndarray:
             s = state.astype(np.float64)
-            own, others = (s[:, 0:5], s[:, 5:7], s[:, 7], s[:, 8:10], s[:, 10]), s[:, 11:].reshape(1, k, 5)
+            own = (s[:, 0:5], s[:, 5:7], s[:, 7], s[:, 8:10], s[:, 10])
+            others = s[:, 11:].reshape(1, k, width)
             if env.observation != "paper":
-                teammate = np.zeros((1, k), dtype=bool)
+                teammate = others[:, :, 5] > 0.5 if teammates else np.zeros((1, k), dtype=bool)
                 extra = {"encounters": env.observation == "encounters"}
                 return neighbour_observation(
                     *own, others[:, :, 0:2], others[:, :, 2:4], teammate, env.neighbours, max_pos=fld.max_pos,
@@ -91,13 +97,12 @@ def main() -> None:
             s, obs = state.astype(np.float64), observe()
             with torch.inference_mode():
                 action = actor(torch.from_numpy(obs)).numpy()
-            zero = env.task != "baseline"
             decode_subgoal(
-                action, env.action_form, fld.half_length, fld.half_width, zero_velocity=zero,
+                action, env.action_form, fld.half_length, fld.half_width, zero_velocity=task.zero_velocity,
                 frame=env.action_frame, target=s[:, 0:5],
             )  # fmt: skip
 
-        print(f"{args.run_dir}: {config.algo}, task {config.env.task}, {k} obstacle(s), batch 1, one thread")
+        print(f"{args.run_dir}: {config.algo}, task {task.name}, {k} other robot(s), batch 1, one thread")
         for name, call, size in (
             ("torchscript", torchscript, script.stat().st_size),
             ("onnxruntime", onnx_call, onnx.stat().st_size),

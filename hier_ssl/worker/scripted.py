@@ -16,7 +16,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from hier_ssl.world.frames import as_complex, as_float, wrap_angle
+from hier_ssl.world.frames import as_complex, as_float, cap_speed, wrap_angle
 from hier_ssl.world.physics import RobotState
 
 _COMPLEX = np.dtype(np.complex128)
@@ -26,7 +26,7 @@ def _constants(**values: complex) -> SimpleNamespace:
     return SimpleNamespace(**{name: np.array(value) for name, value in values.items()})
 
 
-_K = _constants(zero=0.0, one=1.0, nudge=1e-12 + 0j)
+_K = _constants(zero=0.0, nudge=1e-12 + 0j)
 
 
 def _goal_axes(
@@ -134,10 +134,7 @@ class PaperGoToPoint(_Scripted):
         v_new = v + change.view(_COMPLEX)
         v_new.real = np.minimum(v_new.real, reach)
         # Field frame, scaled down to max_speed where faster, direction kept (no division when none is).
-        vel = v_new * ex
-        speed = np.abs(vel)
-        if np.count_nonzero(speed > k.max_speed):
-            vel = vel / np.maximum(speed / k.max_speed, _K.one).astype(_COMPLEX)
+        vel = cap_speed(v_new * ex, k.max_speed)
 
         error = _heading_error(state, subgoal)
         spin = error * k.angle_gain

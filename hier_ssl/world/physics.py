@@ -21,7 +21,7 @@ import pymunk
 import pymunk.batch as pb
 
 from hier_ssl.world.field import Field, get_field
-from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, heading, wrap_angle
+from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, cap_speed, heading, wrap_angle
 from hier_ssl.world.space import FastSpace
 
 _ROBOT, _WALL = 1, 2
@@ -234,7 +234,7 @@ class World:
         self._clear = self._wall_hi - 1e-9
         self._max_speed = np.array(spec.max_speed)
         self._max_spin, self._min_spin = np.array(spec.max_ang_speed), np.array(-spec.max_ang_speed)
-        self._one, self._zero, self._dt = np.array(1.0), np.array(0.0), np.array(self.dt)
+        self._zero, self._dt = np.array(0.0), np.array(self.dt)
 
     # -- contacts -----------------------------------------------------------------------------------------
 
@@ -347,10 +347,7 @@ class World:
         state = self.state
 
         # Control bodies: the command turned into the field frame and capped at the speed limits.
-        target = command[..., 0:2].view(_COMPLEX)[..., 0] * state.heading
-        speed = np.abs(target)
-        if np.count_nonzero(speed > self._max_speed):  # most steps no command is too fast: no division
-            target = target / np.maximum(speed / self._max_speed, self._one).astype(_COMPLEX)
+        target = cap_speed(command[..., 0:2].view(_COMPLEX)[..., 0] * state.heading, self._max_speed)
         # (Results are assigned into the strided buffer views: a ufunc writing to them directly is slower.)
         self._control_vel[...] = target
         self._control_spin[...] = np.maximum(np.minimum(command[..., 2], self._max_spin), self._min_spin)

@@ -54,7 +54,7 @@ def main() -> None:
     parser.add_argument("--no-train", action="store_true")
     args = parser.parse_args()
 
-    from hier_ssl.config import apply_overrides, config_dir, load_yaml
+    from hier_ssl.config_files import apply_overrides, config_dir, load_yaml
     from hier_ssl.envs import parse_config
     from hier_ssl.launch import Job, launch, run_state
     from hier_ssl.reproduce import Planned, episodes_of, evaluate_run, plot_curves

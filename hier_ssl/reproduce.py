@@ -21,8 +21,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import TaskConfig, TrainConfig, apply_overrides, load_yaml
-from hier_ssl.config import config_dir as shipped_configs
+from hier_ssl.config import TaskConfig, TrainConfig
+from hier_ssl.config_files import apply_overrides, load_yaml
+from hier_ssl.config_files import config_dir as shipped_configs
 from hier_ssl.envs import parse_config
 from hier_ssl.launch import Job, launch
 from hier_ssl.launch_options import LaunchOptions

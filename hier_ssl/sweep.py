@@ -18,7 +18,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.config import ConfigError, apply_overrides, load_yaml
+from hier_ssl.config import ConfigError
+from hier_ssl.config_files import apply_overrides, load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.launch import STOPPED_FILE, Job, launch, run_state
 from hier_ssl.launch_options import LaunchOptions

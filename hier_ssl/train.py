@@ -18,7 +18,8 @@ from typing import Any
 
 import torch
 
-from hier_ssl.config import ConfigError, TrainConfig, dump_config, load_yaml
+from hier_ssl.config import ConfigError, TrainConfig, dump_config
+from hier_ssl.config_files import load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.vector import TorchVectorEnv, TorchView
 from hier_ssl.evaluate import Policy, evaluate

@@ -47,6 +47,21 @@ def test_layers_import_only_what_they_may(layer: str) -> None:
     assert not bad, bad
 
 
+def test_modules_and_functions_stay_small() -> None:
+    """A module reads in one sitting (at most 400 lines), a function on one screen (at most 80)."""
+    too_long = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        text, name = path.read_text(), path.relative_to(PACKAGE).as_posix()
+        if len(text.splitlines()) > 400:
+            too_long.append((name, len(text.splitlines())))
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > 80:
+                    too_long.append((f"{name}:{node.name}", lines))
+    assert not too_long, too_long
+
+
 def test_a_worker_loads_a_learned_network_only_on_first_use() -> None:
     # The policies' loader (and torch with it) comes with a learned worker, not with the package.
     bad = [

@@ -170,7 +170,7 @@ def add_configs(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _configs(args: argparse.Namespace) -> int:
-    from hier_ssl.config import config_dir, config_names
+    from hier_ssl.config_files import config_dir, config_names
 
     print(config_dir() if args.dir else "\n".join(config_names()))
     return 0

@@ -34,7 +34,8 @@ def _train(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from hier_ssl.config import ConfigError, apply_overrides, load_yaml
+    from hier_ssl.config import ConfigError
+    from hier_ssl.config_files import apply_overrides, load_yaml
     from hier_ssl.envs import parse_config
     from hier_ssl.train import print_summary, resume_config, train
 

@@ -37,8 +37,6 @@ from hier_ssl.world.physics import RobotState, World
 
 _ONE, _NO_DECISION = np.array(1.0), np.array(0)
 
-OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``HierarchicalCore.observe_obstacle``)
-
 
 @dataclass
 class StepResult:
@@ -210,21 +208,6 @@ class HierarchicalCore:
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, M, 9) float32."""
         return controlled_worker_observation(self.world.state, self.subgoal, self.robot, self.field.max_pos)
-
-    def observe_obstacle(self, j: int) -> np.ndarray:
-        """Obstacle ``j``'s view of itself (N, 7): position, sin/cos heading, velocity, angular velocity."""
-        s, k = self.world.state, self.num_agents + j
-        obs = np.concatenate(
-            [
-                s.pos[:, k] / self.field.max_pos,
-                np.sin(s.angle[:, k])[:, None],
-                np.cos(s.angle[:, k])[:, None],
-                s.vel[:, k] / self.robot.max_speed,
-                s.ang_vel[:, k, None] / self.robot.max_ang_speed,
-            ],
-            axis=1,
-        )
-        return np.clip(obs, -1.2, 1.2).astype(np.float32)
 
     # -- acting --------------------------------------------------------------------------------------------
 
@@ -402,7 +385,6 @@ class HierarchicalCore:
 
 
 __all__ = [
-    "OBSTACLE_AGENT_OBS_DIM",
     "HierarchicalCore",
     "StepResult",
 ]

@@ -20,12 +20,13 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from hier_ssl.config import EnvConfig, TaskConfig
-from hier_ssl.envs.core import OBSTACLE_AGENT_OBS_DIM, HierarchicalCore, StepResult
+from hier_ssl.envs.core import HierarchicalCore, StepResult
 from hier_ssl.envs.rules import check_action
 from hier_ssl.envs.state import CLIP, global_state, state_dim
 from hier_ssl.envs.step_guard import abandon, hold
 from hier_ssl.manager import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker.observation import WORKER_OBS_DIM
+from hier_ssl.world.obstacles import OBSTACLE_AGENT_OBS_DIM, obstacle_observation
 
 MANAGER = "manager_0"
 
@@ -90,9 +91,10 @@ class HierarchicalSSLEnv(ParallelEnv):
         if self.workers:
             worker_obs = self.core.observe_worker()[0]
             obs |= {a: worker_obs[i] for i, a in enumerate(self.workers) if a in live}
+        core = self.core
         for j, agent in enumerate(self.obstacle_agents):
             if agent in live:
-                obs[agent] = self.core.observe_obstacle(j)[0]
+                obs[agent] = obstacle_observation(core.state, core.num_agents + j, core.field, core.robot)[0]
         return obs
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:

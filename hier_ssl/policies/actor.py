@@ -30,7 +30,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hier_ssl.config import ConfigError, TrainConfig, load_yaml, validate_config
+from hier_ssl.config import ConfigError, TrainConfig, validate_config
+from hier_ssl.config_files import load_yaml
 from hier_ssl.policies.networks import SquashedGaussianActor
 
 NumpyPolicy = Callable[[np.ndarray], np.ndarray]

@@ -8,11 +8,20 @@ from __future__ import annotations
 
 from hier_ssl.world.field import FIELDS, Field, get_field
 from hier_ssl.world.frames import to_field_frame, to_robot_frame, wrap_angle
-from hier_ssl.world.obstacles import OBSTACLES, PublicCodeRandom, RandomWalk, Stationary, make_obstacle
+from hier_ssl.world.obstacles import (
+    OBSTACLE_AGENT_OBS_DIM,
+    OBSTACLES,
+    PublicCodeRandom,
+    RandomWalk,
+    Stationary,
+    make_obstacle,
+    obstacle_observation,
+)
 from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 __all__ = [
     "FIELDS",
+    "OBSTACLE_AGENT_OBS_DIM",
     "OBSTACLES",
     "Field",
     "PublicCodeRandom",
@@ -23,6 +32,7 @@ __all__ = [
     "World",
     "get_field",
     "make_obstacle",
+    "obstacle_observation",
     "to_field_frame",
     "to_robot_frame",
     "wrap_angle",

@@ -2,7 +2,8 @@
 
 A behaviour drives one obstacle robot in every field: ``reset(fields, rng)`` when episodes start and
 ``__call__(pos (N, 2), angle (N,), rng) -> (N, 3)`` each control step, a robot-frame (vx, vy, w)
-command given the obstacle's own pose.
+command given the obstacle's own pose. An obstacle exposed as an agent instead sees
+``obstacle_observation``.
 """
 
 from __future__ import annotations
@@ -10,6 +11,27 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from hier_ssl.world.field import Field
+from hier_ssl.world.physics import RobotSpec, RobotState
+
+OBSTACLE_AGENT_OBS_DIM = 7  # an exposed obstacle's view of itself (``obstacle_observation``)
+
+
+def obstacle_observation(state: RobotState, index: int, field: Field, robot: RobotSpec) -> np.ndarray:
+    """Robot ``index``'s view of itself in every field (N, 7) float32: position, sin/cos heading,
+    velocity and angular velocity, each over the field's or the robot's limit, clipped to +-1.2."""
+    obs = np.concatenate(
+        [
+            state.pos[:, index] / field.max_pos,
+            np.sin(state.angle[:, index])[:, None],
+            np.cos(state.angle[:, index])[:, None],
+            state.vel[:, index] / robot.max_speed,
+            state.ang_vel[:, index, None] / robot.max_ang_speed,
+        ],
+        axis=1,
+    )
+    return np.clip(obs, -1.2, 1.2).astype(np.float32)
 
 
 @dataclass

@@ -69,3 +69,32 @@ def test_same_seed_same_draws() -> None:
     a = RandomWalk()(pos, angle, np.random.default_rng(9))
     b = RandomWalk()(pos, angle, np.random.default_rng(9))
     np.testing.assert_array_equal(a, b)
+
+
+def test_an_exposed_obstacle_sees_itself_scaled_and_clipped() -> None:
+    from hier_ssl.world.field import get_field
+    from hier_ssl.world.obstacles import OBSTACLE_AGENT_OBS_DIM, obstacle_observation
+    from hier_ssl.world.physics import RobotSpec, RobotState
+
+    field, robot = get_field("hardware_challenge"), RobotSpec()
+    # Field 0: robot 1 inside every limit; field 1: robot 1 beyond the speed and spin limits.
+    state = RobotState(
+        pos=np.array([[[0.0, 0.0], [1.0, -0.5]], [[0.0, 0.0], [-2.0, 1.0]]]),
+        angle=np.array([[0.0, np.pi / 6], [0.0, -np.pi / 2]]),
+        vel=np.array([[[0.0, 0.0], [1.0, 0.5]], [[0.0, 0.0], [10.0, 0.0]]]),
+        ang_vel=np.array([[0.0, -2.0], [0.0, 50.0]]),
+    )
+    obs = obstacle_observation(state, 1, field, robot)
+    assert obs.shape == (2, OBSTACLE_AGENT_OBS_DIM) and obs.dtype == np.float32
+    expected = [
+        1.0 / field.max_pos,
+        -0.5 / field.max_pos,
+        0.5,
+        np.sqrt(3) / 2,
+        1.0 / robot.max_speed,
+        0.5 / robot.max_speed,
+        -2.0 / robot.max_ang_speed,
+    ]
+    np.testing.assert_allclose(obs[0], expected, rtol=1e-6, atol=1e-7)
+    assert obs[1, 4] == pytest.approx(1.2) and obs[1, 6] == pytest.approx(1.2)  # clipped
+    assert obs[1, 2] == pytest.approx(-1.0) and obs[1, 3] == pytest.approx(0.0, abs=1e-7)

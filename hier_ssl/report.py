@@ -328,14 +328,28 @@ def episode_video(
     return path
 
 
-def pick_episode(outcomes: Sequence[Sequence[float]]) -> int:
-    """Index of the recorded episode to show: the first in which the most managers succeed.
+def pick_episode(outcomes: Sequence[Sequence[float]], spreads: Sequence[float] | None = None) -> int:
+    """Index of the recorded episode to show: one in which the most managers succeed; among those the
+    one whose paths differ most (``spreads``, ``path_spread`` per episode), else the first.
 
     ``outcomes[m][j]``: whether (or, with several robots, the share of robots for which) manager m
     succeeded in recorded episode j.
     """
     counts = np.sum(np.asarray(outcomes, dtype=float), axis=0)
-    return int(np.argmax(counts))
+    if spreads is None:
+        return int(np.argmax(counts))
+    return int(np.argmax(np.where(counts == counts.max(), np.asarray(spreads, dtype=float), -np.inf)))
+
+
+def path_spread(episodes: Sequence[dict[str, Any]]) -> float:
+    """How far apart the managers' paths of one episode run (``Recorder.episode`` dicts, one per
+    manager): the mean over control steps of the largest distance (m) between a controlled robot of the
+    first manager and the same robot of another, an episode that ended held at its last position."""
+    m = episodes[0]["controlled"]
+    paths = [e["robots"][:, :m] for e in episodes]
+    steps = max(len(p) for p in paths)
+    held = np.stack([np.concatenate([p, np.repeat(p[-1:], steps - len(p), axis=0)]) for p in paths])
+    return float(np.linalg.norm(held - held[:1], axis=-1).max(axis=(0, 2)).mean())
 
 
 # -- one evaluation's files ---------------------------------------------------------------------------------
@@ -349,8 +363,9 @@ def write_evaluation(
     title: str | None = None,
 ) -> list[Path]:
     """What ``hier-ssl eval`` writes for ``hier_ssl.compare.compare``'s evaluations: table.md, .csv and
-    .tex, fig3.png (when episodes were recorded: the recorded episode in which most managers succeed),
-    episode.gif with ``video``, and the JSON records at ``json_path``. Returns the paths written."""
+    .tex, fig3.png (when episodes were recorded: of the recorded episodes in which most managers succeed,
+    the one where their paths differ most), episode.gif with ``video``, and the JSON records at
+    ``json_path``. Returns the paths written."""
     import json
 
     from hier_ssl.world.field import get_field
@@ -362,7 +377,8 @@ def write_evaluation(
     labels = [f"{e.name} ({e.worker})" if several_workers else e.name for e in evaluations]
     recorded = [e.result.get("trajectories") for e in evaluations]
     if evaluations and all(recorded):
-        j = pick_episode([[np.mean(np.equal(t["outcome"], "success")) for t in ts] for ts in recorded])
+        outcomes = [[np.mean(np.equal(t["outcome"], "success")) for t in ts] for ts in recorded]
+        j = pick_episode(outcomes, [path_spread(episode) for episode in zip(*recorded, strict=True)])
         panels = [(label, ts[j]) for label, ts in zip(labels, recorded, strict=True)]
         fld = get_field(evaluations[0].env.field)
         episode = f"episode {panels[0][1]['field']}" + (f" - {title}" if title else "")
@@ -389,6 +405,7 @@ __all__ = [
     "make_record",
     "markdown_table",
     "outcome",
+    "path_spread",
     "pick_episode",
     "table_cells",
     "write_evaluation",

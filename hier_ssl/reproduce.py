@@ -195,11 +195,12 @@ def table_rows(
 def write_figures(
     runs: Sequence[Planned], results: Path, config_dir: str | Path | None, seed: int
 ) -> list[Path]:
-    """Fig. 3 per task: one episode (the recorded one most managers solve) played by each family's first
-    finished FSCAPS run (paper family: final policy, sampled; defaults: best) and by the planners."""
+    """Fig. 3 per task: one episode (of the recorded ones most managers solve, the one where their paths
+    differ most) played by each family's first finished FSCAPS run (paper family: final policy, sampled;
+    defaults: best) and by the planners."""
     from hier_ssl.compare import load_manager
     from hier_ssl.evaluate import evaluate
-    from hier_ssl.report import figure3, label_outcomes, pick_episode
+    from hier_ssl.report import figure3, label_outcomes, path_spread, pick_episode
     from hier_ssl.world.field import get_field
 
     paths = []
@@ -221,7 +222,9 @@ def write_figures(
             per = result["per_robot"]
             label_outcomes(result, per["success"], per["collision"], per["cpad"])
             recorded.append((name, result["trajectories"]))
-        j = pick_episode([[t["outcome"][0] == "success" for t in ts] for _, ts in recorded])
+        outcomes = [[t["outcome"][0] == "success" for t in ts] for _, ts in recorded]
+        spreads = [path_spread(episode) for episode in zip(*(ts for _, ts in recorded), strict=True)]
+        j = pick_episode(outcomes, spreads)
         title = f"{task}: episode {j} of seed {seed}"
         path = results / f"fig3-{task}.png"
         paths.append(

@@ -21,6 +21,7 @@ from hier_ssl.report import (
     figure3,
     latex_table,
     markdown_table,
+    path_spread,
     pick_episode,
     table_cells,
 )
@@ -192,3 +193,18 @@ def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
     assert len(trained) == 2  # finished runs are skipped
     with pytest.raises(ValueError, match="not a paper configuration"):
         reproduce_module.reproduce(only=["proposed/sac"], out=tmp_path)
+
+
+def test_pick_episode_shows_where_the_paths_differ_most() -> None:
+    line = np.linspace([0.0, 0.0], [2.0, 0.0], 11)[:, None]  # (T + 1, robots, 2): one robot on a line
+    detour = line + np.array([0.0, 0.5]) * np.sin(np.linspace(0, np.pi, 11))[:, None, None]
+    same = [{"controlled": 1, "robots": line}, {"controlled": 1, "robots": line[:6]}]
+    apart = [{"controlled": 1, "robots": line}, {"controlled": 1, "robots": detour}]
+    assert path_spread([same[0], same[0]]) == 0.0
+    # The shorter episode is held at its end: 1 m behind at the last step.
+    assert path_spread(same) == pytest.approx(np.mean(np.r_[np.zeros(6), 0.2, 0.4, 0.6, 0.8, 1.0]))
+    assert path_spread(apart) == pytest.approx(np.mean(0.5 * np.sin(np.linspace(0, np.pi, 11))))
+    spreads = [path_spread(same), path_spread(apart), 9.0]
+    # Episode 2's paths differ most but fewer managers solve it; of episodes 0 and 1, 1 differs more.
+    assert pick_episode([[True, True, True], [True, True, False]], spreads) == 1
+    assert pick_episode([[True, True, True], [True, True, False]]) == 0

@@ -158,7 +158,8 @@ def compare(
     manager's own), or Python objects of the worker protocol (their classes or factories too), labelled
     ``module:Class`` in records and tables (``hier_ssl.worker.worker_name``).
     """
-    from hier_ssl.report import label_outcomes, make_record
+    from hier_ssl.figures import label_outcomes
+    from hier_ssl.report import make_record
 
     runs = [run_config(spec).task_config for spec in specs if not is_planner(spec)]
     if config is None and runs and isinstance(runs[0], ScenarioConfig):

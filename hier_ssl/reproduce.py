@@ -200,7 +200,7 @@ def write_figures(
     defaults: best) and by the planners."""
     from hier_ssl.compare import load_manager
     from hier_ssl.evaluate import evaluate
-    from hier_ssl.report import figure3, label_outcomes, path_spread, pick_episode
+    from hier_ssl.figures import figure3, label_outcomes, path_spread, pick_episode
     from hier_ssl.world.field import get_field
 
     paths = []

@@ -140,7 +140,7 @@ def _render(args: argparse.Namespace) -> int:
     from hier_ssl.compare import compare
     from hier_ssl.config import ConfigError
     from hier_ssl.envs import TASKS, task_config
-    from hier_ssl.report import episode_video, figure3, panel_title
+    from hier_ssl.figures import episode_video, figure3, panel_title
     from hier_ssl.world.field import get_field
 
     out = Path(args.out)

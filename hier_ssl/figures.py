@@ -163,17 +163,14 @@ def episode_video(
     return path
 
 
-def pick_episode(outcomes: Sequence[Sequence[float]], spreads: Sequence[float] | None = None) -> int:
-    """Index of the recorded episode to show: one in which the most managers succeed; among those the
-    one whose paths differ most (``spreads``, ``path_spread`` per episode), else the first.
-
-    ``outcomes[m][j]``: whether (or, with several robots, the share of robots for which) manager m
-    succeeded in recorded episode j.
-    """
-    counts = np.sum(np.asarray(outcomes, dtype=float), axis=0)
-    if spreads is None:
-        return int(np.argmax(counts))
-    return int(np.argmax(np.where(counts == counts.max(), np.asarray(spreads, dtype=float), -np.inf)))
+def pick_episode(recorded: Sequence[Sequence[dict[str, Any]]]) -> int:
+    """Index of the episode to show of ``recorded[m][j]``, manager m's recorded episode j (with its
+    ``outcome`` labels): one in which the most managers succeed (with several robots, counting each
+    manager's share of robots that did), and of those the one where their paths differ most
+    (``path_spread``)."""
+    solved = np.sum([[np.mean(np.equal(e["outcome"], "success")) for e in row] for row in recorded], axis=0)
+    spread = [path_spread(episode) for episode in zip(*recorded, strict=True)]
+    return int(np.argmax(np.where(solved == solved.max(), spread, -np.inf)))
 
 
 def path_spread(episodes: Sequence[dict[str, Any]]) -> float:

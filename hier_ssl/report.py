@@ -21,9 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from hier_ssl.figures import episode_video, figure3, path_spread, pick_episode
+from hier_ssl.figures import episode_video, figure3, pick_episode
 
 RECORD_KEYS = (
     "manager",
@@ -202,8 +200,7 @@ def write_evaluation(
     labels = [f"{e.name} ({e.worker})" if several_workers else e.name for e in evaluations]
     recorded = [e.result.get("trajectories") for e in evaluations]
     if evaluations and all(recorded):
-        outcomes = [[np.mean(np.equal(t["outcome"], "success")) for t in ts] for ts in recorded]
-        j = pick_episode(outcomes, [path_spread(episode) for episode in zip(*recorded, strict=True)])
+        j = pick_episode(recorded)
         panels = [(label, ts[j]) for label, ts in zip(labels, recorded, strict=True)]
         fld = get_field(evaluations[0].env.field)
         episode = f"episode {panels[0][1]['field']}" + (f" - {title}" if title else "")

@@ -200,7 +200,7 @@ def write_figures(
     defaults: best) and by the planners."""
     from hier_ssl.compare import load_manager
     from hier_ssl.evaluate import evaluate
-    from hier_ssl.figures import figure3, label_outcomes, path_spread, pick_episode
+    from hier_ssl.figures import figure3, label_outcomes, pick_episode
     from hier_ssl.world.field import get_field
 
     paths = []
@@ -222,9 +222,7 @@ def write_figures(
             per = result["per_robot"]
             label_outcomes(result, per["success"], per["collision"], per["cpad"])
             recorded.append((name, result["trajectories"]))
-        outcomes = [[t["outcome"][0] == "success" for t in ts] for _, ts in recorded]
-        spreads = [path_spread(episode) for episode in zip(*(ts for _, ts in recorded), strict=True)]
-        j = pick_episode(outcomes, spreads)
+        j = pick_episode([ts for _, ts in recorded])
         title = f"{task}: episode {j} of seed {seed}"
         path = results / f"fig3-{task}.png"
         paths.append(

@@ -129,8 +129,7 @@ def test_same_manager_same_seed_gives_identical_tables() -> None:
 
 def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
     evaluations = compare(["direct", "sampling"], task="obstacle", episodes=4, seed=0, record=range(4))
-    outcomes = [[t["outcome"] == ["success"] for t in e.result["trajectories"]] for e in evaluations]
-    j = pick_episode(outcomes)
+    j = pick_episode([e.result["trajectories"] for e in evaluations])
     panels = [(e.name, e.result["trajectories"][j]) for e in evaluations]
     png = figure3(panels, get_field("hardware_challenge"), tmp_path / "fig" / "fig3.png", size=(220, 150))
     image = imread(png)
@@ -143,9 +142,21 @@ def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
         episode_video(panels, get_field("hardware_challenge"), tmp_path / "ep.mp4")
 
 
+def _episodes(outcomes: list[list[str]]) -> list[list[dict]]:
+    """Recorded episodes with these outcomes, every path the same (one robot standing still)."""
+    still = np.zeros((3, 1, 2))
+    return [[{"controlled": 1, "robots": still, "outcome": [o]} for o in row] for row in outcomes]
+
+
 def test_pick_episode_prefers_episodes_most_managers_solve() -> None:
-    assert pick_episode([[False, True, True], [False, False, True]]) == 2
-    assert pick_episode([[False, False], [False, False]]) == 0
+    assert (
+        pick_episode(_episodes([["timeout", "success", "success"], ["collision", "timeout", "success"]])) == 2
+    )
+    assert pick_episode(_episodes([["timeout", "timeout"], ["collision", "timeout"]])) == 0
+    # With several robots a manager counts for the share of its robots that succeeded.
+    half = [{"controlled": 2, "robots": np.zeros((3, 2, 2)), "outcome": ["success", "timeout"]}]
+    both = [{"controlled": 2, "robots": np.zeros((3, 2, 2)), "outcome": ["success", "success"]}]
+    assert pick_episode([half + both]) == 1
 
 
 def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
@@ -196,7 +207,10 @@ def test_pick_episode_shows_where_the_paths_differ_most() -> None:
     # The shorter episode is held at its end: 1 m behind at the last step.
     assert path_spread(same) == pytest.approx(np.mean(np.r_[np.zeros(6), 0.2, 0.4, 0.6, 0.8, 1.0]))
     assert path_spread(apart) == pytest.approx(np.mean(0.5 * np.sin(np.linspace(0, np.pi, 11))))
-    spreads = [path_spread(same), path_spread(apart), 9.0]
+    far = [{"controlled": 1, "robots": line}, {"controlled": 1, "robots": line + 9.0}]
+    recorded = [[same[m], apart[m], far[m]] for m in range(2)]
+    for m, outcomes in enumerate((["success"] * 3, ["success", "success", "timeout"])):
+        for episode, o in zip(recorded[m], outcomes, strict=True):
+            episode["outcome"] = [o]
     # Episode 2's paths differ most but fewer managers solve it; of episodes 0 and 1, 1 differs more.
-    assert pick_episode([[True, True, True], [True, True, False]], spreads) == 1
-    assert pick_episode([[True, True, True], [True, True, False]]) == 0
+    assert pick_episode(recorded) == 1

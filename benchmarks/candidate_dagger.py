@@ -10,7 +10,8 @@ observation to one logit per candidate and is trained by DAgger: round 0 plays t
 play the network; every state met is labelled with the planner's scores of all candidates (a softmax over the
 arrival times of the candidates in the planner's best safety tier, temperature ``--tau`` s) and the
 network is refitted on everything gathered so far. The figures are the rounds' own episodes and, at the
-end, ``--held-out`` episodes of seed 7 that no round played.
+end, ``--held-out`` episodes of seed 7 that no round played, and the time of one decision at batch 1 of
+the network (the geometry in numpy, the MLP in torch, not exported) and of the planner.
 
 Run: python benchmarks/candidate_dagger.py CONFIG [--set KEY=VALUE] [--rounds 30] [--episodes 500]
      [--epochs 8] [--hidden 256,256]   (CONFIG: a shipped config or YAML, e.g. scenarios/crowd)
@@ -66,6 +67,7 @@ def main() -> None:
 
     from hier_ssl.config import TrainConfig
     from hier_ssl.config_files import apply_overrides, load_yaml
+    from hier_ssl.envs.core import HierarchicalCore
     from hier_ssl.evaluate import evaluate
     from hier_ssl.manager.actions import encode_subgoal
     from hier_ssl.manager.planners import make_planner
@@ -128,6 +130,16 @@ def main() -> None:
         )
     result = evaluate(playing, config, args.held_out, seed=7)
     print(f"held out ({args.held_out} episodes, seed 7): {outcome(result)}")
+    # Decision time at batch 1, one robot's observation of a fresh episode (median of 300 calls).
+    core = HierarchicalCore(config, 1)
+    obs = core.reset(7).reshape(-1, core.obs_dim)[:1]
+    for name, decide in (("network", playing), ("sampling", planner)):
+        times = []
+        for _ in range(300):
+            begin = time.perf_counter()
+            decide(obs)
+            times.append(time.perf_counter() - begin)
+        print(f"decision time at batch 1, {name}: {1e6 * np.median(times):.0f} us")
     if args.save:
         torch.save(net.state_dict(), args.save)
 

@@ -69,23 +69,16 @@ def main() -> None:
     from hier_ssl.config_files import apply_overrides, load_yaml
     from hier_ssl.envs.core import HierarchicalCore
     from hier_ssl.evaluate import evaluate
-    from hier_ssl.manager.actions import encode_subgoal
     from hier_ssl.manager.planners import make_planner
 
     config = TrainConfig.model_validate(apply_overrides(load_yaml(args.config), args.set)).task_config
     planner = make_planner("sampling", config)
-    field = planner.field
     torch.manual_seed(args.seed)
     net, opt = None, None
     gathered: list[tuple[np.ndarray, np.ndarray]] = []
 
     def act(scene, cand: np.ndarray, choice: np.ndarray) -> np.ndarray:
-        chosen = cand[np.arange(len(cand)), choice]
-        subgoal = np.zeros((len(cand), 5))
-        subgoal[:, 0], subgoal[:, 1], subgoal[:, 2] = chosen.real, chosen.imag, scene.target[:, 2]
-        half = (field.half_length, field.half_width)
-        frame = {"frame": planner.action_frame, "target": scene.target}
-        return encode_subgoal(subgoal, planner.action_form, *half, planner.robot.max_speed, **frame)
+        return planner.action(scene, planner.subgoals(scene, cand[np.arange(len(cand)), choice]))
 
     def network_choice(obs: np.ndarray) -> np.ndarray:
         with torch.no_grad():

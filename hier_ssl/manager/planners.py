@@ -275,8 +275,12 @@ class SamplingPlanner:
         best = np.argmax(near, axis=1)
         best = np.where(close.any(axis=1), np.argmin(np.where(close, arrival, np.inf), axis=1), best)
         best = np.where(safe.any(axis=1), np.argmin(np.where(safe, arrival, np.inf), axis=1), best)
-        chosen = cand[np.arange(len(cand)), best]
-        subgoal = np.zeros((len(cand), 5))
+        return self.subgoals(scene, cand[np.arange(len(cand)), best])
+
+    @staticmethod
+    def subgoals(scene: Scene, chosen: np.ndarray) -> np.ndarray:
+        """Sub-goal poses (N, 5) at positions ``chosen`` (N,) complex: the target's heading, zero velocity."""
+        subgoal = np.zeros((len(chosen), 5))
         subgoal[:, 0], subgoal[:, 1], subgoal[:, 2] = chosen.real, chosen.imag, scene.target[:, 2]
         return subgoal
 
@@ -285,9 +289,14 @@ class SamplingPlanner:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """Actions (N, A) for manager observations (N, O)."""
-        fld, scene = self.field, self.read(obs)
+        scene = self.read(obs)
+        return self.action(scene, self.plan(scene))
+
+    def action(self, scene: Scene, subgoal: np.ndarray) -> np.ndarray:
+        """The actions (N, A) that name sub-goal poses (N, 5) in ``scene``'s task."""
+        fld = self.field
         return encode_subgoal(
-            self.plan(scene),
+            subgoal,
             self.action_form,
             fld.half_length,
             fld.half_width,

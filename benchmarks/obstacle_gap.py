@@ -1,14 +1,16 @@
-"""Measurement, not CI: why the paper family's Obstacle FSCAPS does not learn here (README "Results").
+"""Measurement, not CI: why the paper family's Obstacle FSCAPS does not learn here, and why its Obstacle
+CAPS collides more than the paper's (README "Results").
 
-Two sides, seed 0. From our default (configs/obstacle/fscaps.yaml, 12,000 vector steps), each ``no-*`` run
-puts one group of keys back to the public code's value (configs/paper/obstacle/fscaps.yaml). From the
-public code's config, ``paper`` as it is and ``paper-with-interface`` with our obstacle interface alone,
-both cut to ``--paper-steps``. Trains what is missing (resuming killed runs, ``hier_ssl.launch``), plays
-every run's best and final policy (mean action) on the same 1000 episodes of the paper family's Obstacle
-task (``hier-ssl reproduce``'s), prints a markdown table (also ``OUT/table.md``) and writes the selection
-curves (``OUT/curves.png``).
+Two sides, seed 0, of the Obstacle ``--setup`` (fscaps or caps). From our default
+(configs/obstacle/SETUP.yaml), each ``no-*`` run puts one group of keys back to the public code's value
+(configs/paper/obstacle/SETUP.yaml). From the public code's config, ``paper`` as it is and
+``paper-with-interface`` with our obstacle interface alone, both cut to ``--paper-steps``. Trains what is
+missing (resuming killed runs, ``hier_ssl.launch``), plays every run's best and final policy (mean action)
+on the same 1000 episodes of the paper family's Obstacle task (``hier-ssl reproduce``'s), prints a markdown
+table (also ``OUT/table.md``) and writes the selection curves (``OUT/curves.png``).
 
-Run: python benchmarks/obstacle_gap.py [--out runs/obstacle-gap] [--only no-interface paper ...] [--no-train]
+Run: python benchmarks/obstacle_gap.py [--setup fscaps] [--out runs/obstacle-gap] [--paper-steps 40000]
+     [--only no-interface paper ...] [--no-train]   (--out: runs/obstacle-gap-caps with --setup caps)
 """
 
 from __future__ import annotations
@@ -46,13 +48,15 @@ PAPER_SIDE = {
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("runs/obstacle-gap"))
+    parser.add_argument("--setup", choices=["fscaps", "caps"], default="fscaps")
+    parser.add_argument("--out", type=Path)
     parser.add_argument("--only", nargs="+", choices=[*GROUPS, *PAPER_SIDE], default=[*GROUPS, *PAPER_SIDE])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--paper-steps", type=int, default=40000)
     parser.add_argument("--episodes", type=int, default=1000)
     parser.add_argument("--no-train", action="store_true")
     args = parser.parse_args()
+    out = args.out or Path("runs/obstacle-gap" + ("" if args.setup == "fscaps" else f"-{args.setup}"))
 
     from hier_ssl.config_files import apply_overrides, config_dir, load_yaml
     from hier_ssl.envs import parse_config
@@ -63,9 +67,9 @@ def main() -> None:
     for name in args.only:
         family = "paper" if name in PAPER_SIDE else "defaults"
         sets = PAPER_SIDE[name] + [f"total_steps={args.paper_steps}"] if family == "paper" else GROUPS[name]
-        path = config_dir() / ("paper/obstacle/fscaps.yaml" if family == "paper" else "obstacle/fscaps.yaml")
+        path = config_dir() / ("paper/" if family == "paper" else "") / f"obstacle/{args.setup}.yaml"
         config = parse_config({**apply_overrides(load_yaml(path), sets), "seed": args.seed})
-        runs.append((name, sets, Planned(family, "obstacle", "fscaps", config, args.out / name)))
+        runs.append((name, sets, Planned(family, "obstacle", args.setup, config, out / name)))
     # With --no-train only finished runs go to launch, which checks them against their config.yaml.
     jobs = [Job(run.config, run.run_dir) for _, _, run in runs]
     launch([job for job in jobs if not args.no_train or run_state(job.run_dir) == "finished"], progress=False)
@@ -75,17 +79,17 @@ def main() -> None:
     lines = [header, "|" + "---|" * 7]
     for name, sets, run in done:
         for which in ("best", "final"):
-            r = evaluate_run(run, which, False, episodes, args.episodes, 0, args.out / "evals")
+            r = evaluate_run(run, which, False, episodes, args.episodes, 0, out / "evals")
             length = r["episode_length"]["median"]
             figures = f"{100 * r['success_rate']:.1f} | {100 * r['collision_rate']:.1f} | {length:.0f}"
             wall = json.loads((run.run_dir / "eval.json").read_text())["train_wall_s"]
             keys = ", ".join(f"`{s}`" for s in sets) or "-"
             lines.append(f"| {name} | {keys} | {which} | {figures} | {wall:.0f} |")
     print("\n".join(lines))
-    (args.out / "table.md").write_text("\n".join(lines) + "\n")
+    (out / "table.md").write_text("\n".join(lines) + "\n")
     series = [(name, "-" if run.family == "paper" else "--", run.run_dir) for name, _, run in done]
     if series:
-        print("curves:", plot_curves(series, "Obstacle FSCAPS", args.out / "curves.png"))
+        print("curves:", plot_curves(series, f"Obstacle {args.setup.upper()}", out / "curves.png"))
 
 
 if __name__ == "__main__":

@@ -5,7 +5,9 @@ Exports RUN_DIR's manager as TorchScript and ONNX into a temporary folder, then 
 ONNX through an onnxruntime session with one intra-op thread, and, for reference, the Python path that
 ``hier_ssl.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``) and the scripted
 ``sampling`` planner on the same observation (the manager a learned one has to beat, also at batch 1).
-Prints one line per path: file size, and the median and 90th percentile time per call.
+Prints one line per path: file size, and the median and 90th percentile time per call. An ``algo: dagger``
+run does not export: its Python path (numpy observation, the planner's candidates, the torch classifier,
+``decode_subgoal``) and the planner are timed.
 
 Run: python benchmarks/export_latency.py RUN_DIR [--calls 5000]
 """
@@ -24,7 +26,7 @@ from hier_ssl.envs import make_scenario
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.manager.planners import make_planner
-from hier_ssl.policies.actor import load_actor
+from hier_ssl.policies.actor import load_policy, run_config
 from hier_ssl.policies.export import export_manager
 
 
@@ -47,7 +49,8 @@ def main() -> None:
     torch.set_num_threads(1)
     import onnxruntime
 
-    actor, config = load_actor(args.run_dir)
+    config = run_config(args.run_dir)
+    policy = load_policy(args.run_dir)
     env, task = config.task_config, make_scenario(config.task_config)
     # The other robots of the exported input: a scenario's teammates (flagged 1) and its obstacles.
     k, teammates = task.num_agents - 1 + task.num_obstacles, task.num_agents > 1
@@ -56,20 +59,27 @@ def main() -> None:
     if teammates:
         state[0, 16::width] = np.arange(k) < task.num_agents - 1
     with tempfile.TemporaryDirectory() as tmp:
-        script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
-        onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
-        module = torch.jit.load(str(script))
-        options = onnxruntime.SessionOptions()
-        options.intra_op_num_threads = options.inter_op_num_threads = 1
-        session = onnxruntime.InferenceSession(str(onnx), options, providers=["CPUExecutionProvider"])
-        x = torch.from_numpy(state)
+        paths = []
+        if config.algo != "dagger":
+            script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
+            onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
+            module = torch.jit.load(str(script))
+            options = onnxruntime.SessionOptions()
+            options.intra_op_num_threads = options.inter_op_num_threads = 1
+            session = onnxruntime.InferenceSession(str(onnx), options, providers=["CPUExecutionProvider"])
+            x = torch.from_numpy(state)
 
-        def torchscript() -> None:
-            with torch.inference_mode():
-                module(x)
+            def torchscript() -> None:
+                with torch.inference_mode():
+                    module(x)
 
-        def onnx_call() -> None:
-            session.run(["subgoal"], {"state": state})
+            def onnx_call() -> None:
+                session.run(["subgoal"], {"state": state})
+
+            paths = [
+                ("torchscript", torchscript, script.stat().st_size),
+                ("onnxruntime", onnx_call, onnx.stat().st_size),
+            ]
 
         fld = task.field
 
@@ -96,17 +106,17 @@ def main() -> None:
         def python() -> None:
             s, obs = state.astype(np.float64), observe()
             with torch.inference_mode():
-                action = actor(torch.from_numpy(obs)).numpy()
+                action = policy(obs)
             decode_subgoal(
                 action, env.action_form, fld.half_length, fld.half_width, zero_velocity=task.zero_velocity,
                 frame=env.action_frame, target=s[:, 0:5],
             )  # fmt: skip
 
         print(f"{args.run_dir}: {config.algo}, task {task.name}, {k} other robot(s), batch 1, one thread")
+        learned = "candidates + torch classifier" if config.algo == "dagger" else "torch actor"
         for name, call, size in (
-            ("torchscript", torchscript, script.stat().st_size),
-            ("onnxruntime", onnx_call, onnx.stat().st_size),
-            ("python (numpy obs + torch actor + decode)", python, None),
+            *paths,
+            (f"python (numpy obs + {learned} + decode)", python, None),
             ("sampling planner (numpy obs + plan)", sampling, None),
         ):
             median, p90 = _time(call, args.calls if call is not sampling else max(1, args.calls // 10))

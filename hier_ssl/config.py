@@ -254,6 +254,21 @@ class PPOConfig(Strict):
     init_noise_std: float = Field(0.5, gt=0)
 
 
+class DAggerConfig(Strict):
+    """``algo: dagger``: a classifier over the ``sampling`` planner's candidate sub-goals, fitted by DAgger
+    (``hier_ssl.policies.dagger``). A run is ``rounds`` rounds of ``episodes`` episodes each (the first
+    played by the planner, the others by the network), each followed by ``epochs`` passes over every
+    state gathered so far; the model is scored on the selection episodes after every round."""
+
+    rounds: int = Field(30, ge=1)
+    episodes: int = Field(500, ge=1)
+    epochs: int = Field(8, ge=1)
+    tau: float = Field(0.05, gt=0)  # s: temperature of the planner's soft choice over arrival times
+    hidden: tuple[int, ...] = (256, 256)
+    learning_rate: float = Field(1e-3, gt=0)
+    batch_size: int = Field(256, ge=1)
+
+
 class GoToPointConfig(Strict):
     """The goToPoint task, where the worker is the learner (``hier_ssl.envs.gotopoint``).
 
@@ -281,18 +296,21 @@ class TrainConfig(Strict):
     """A training run: the environment, the learner, and how long.
 
     ``kind: manager`` (default) trains a manager over the worker ``env.worker``; ``kind: worker`` trains
-    the goToPoint worker itself on the task the ``gotopoint`` section describes (PPO only).
+    the goToPoint worker itself on the task the ``gotopoint`` section describes (PPO only). ``algo:
+    dagger`` runs ``dagger.rounds`` rounds and reads neither ``num_envs``, ``total_steps`` nor the
+    intervals: it plays whole episodes and is scored and saved after every round.
     """
 
     name: str = "run"
     kind: Literal["manager", "worker"] = "manager"
     env: EnvConfig = Field(default_factory=EnvConfig)
-    # A multi-robot scenario in place of ``env``: one manager shared by every controlled robot (SAC).
+    # A multi-robot scenario in place of ``env``: one manager shared by every controlled robot (SAC, DAgger).
     scenario: ScenarioConfig | None = None
     gotopoint: GoToPointConfig | None = None
-    algo: Literal["sac", "ppo"] = "sac"
+    algo: Literal["sac", "ppo", "dagger"] = "sac"
     sac: SACConfig = Field(default_factory=SACConfig)
     ppo: PPOConfig = Field(default_factory=PPOConfig)
+    dagger: DAggerConfig = Field(default_factory=DAggerConfig)
     num_envs: int = Field(16, ge=1)
     total_steps: int = Field(150_000, ge=1)  # vector-env steps (manager decisions per env)
     eval_episodes: int = Field(200, ge=1)
@@ -326,12 +344,15 @@ class TrainConfig(Strict):
         if self.scenario is not None:
             if "env" in self.model_fields_set and self.env != EnvConfig():
                 raise ValueError("env: not read when 'scenario' is set; put the task keys in the scenario")
-            if self.kind != "manager" or self.algo != "sac":
+            if self.kind != "manager" or self.algo == "ppo":
                 raise ValueError(
-                    f"scenario: trains a shared manager with SAC, not kind {self.kind!r}, algo {self.algo!r}"
+                    "scenario: trains a shared manager with SAC or DAgger, "
+                    f"not kind {self.kind!r}, algo {self.algo!r}"
                 )
         if self.kind == "manager" and self.gotopoint is not None:
             raise ValueError("gotopoint: only read when kind is 'worker'")
+        if self.algo != "dagger" and self.dagger != DAggerConfig():
+            raise ValueError(f"dagger: only read with algo 'dagger', got {self.algo!r}")
         if self.algo != "sac" and self.sac.teacher is not None:
             raise ValueError(f"sac.teacher: only read with algo 'sac', got {self.algo!r}")
         if self.kind == "worker" and self.algo != "ppo":

@@ -103,7 +103,7 @@ def checkpoint_path(run_dir: str | Path, config: TrainConfig, which: str = "best
     if which not in CHECKPOINTS:
         raise ConfigError(f"checkpoint {which!r}: expected one of {list(CHECKPOINTS)}")
     best = run_dir / BEST_ACTOR_FILE
-    if config.algo == "sac":
+    if config.algo in ("sac", "dagger"):
         path = best if which == "best" else run_dir / FINAL_SAC_FILE
         if not path.is_file():
             raise ConfigError(f"{run_dir}: no {which} checkpoint ({path.name} missing)")
@@ -145,6 +145,12 @@ def load_actor(run_dir: str | Path, which: str = "best") -> tuple[nn.Sequential,
     name the run directory or the checkpoint file when either is unusable.
     """
     config = run_config(run_dir)
+    if config.algo == "dagger":
+        raise ConfigError(
+            f"{run_dir}: algo 'dagger' chooses among the sampling planner's candidates, which hier_ssl "
+            "builds in numpy at every decision; it has no stand-alone actor to load or export "
+            "(load_policy plays it)"
+        )
     path = checkpoint_path(run_dir, config, which)
     with _reading(path, config.algo):
         saved = torch.load(path, map_location="cpu", weights_only=True)
@@ -206,14 +212,32 @@ def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Genera
     return policy
 
 
+def _candidate_policy(
+    run_dir: str | Path, config: TrainConfig, which: str, generator: torch.Generator | None
+) -> NumpyPolicy:
+    """An ``algo: dagger`` run's classifier over the planner's candidates (``hier_ssl.policies.dagger``):
+    ``best_actor.pt`` and ``model.pt`` both hold its weights under "net"."""
+    from hier_ssl.policies.dagger import candidate_planner, candidate_policy, chooser_from_state
+
+    path = checkpoint_path(run_dir, config, which)
+    with _reading(path, config.algo):
+        net = chooser_from_state(torch.load(path, map_location="cpu", weights_only=True)["net"])
+    return candidate_policy(freeze(net), candidate_planner(config), generator)
+
+
 def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which: str = "best") -> NumpyPolicy:
     """The run's policy (its ``which`` checkpoint, "best" or "final") as a numpy function, on the CPU.
 
-    ``sample=False``: the deterministic actor of ``load_actor``. ``sample=True``: actions drawn from the
-    policy's distribution (SAC: tanh of a Gaussian sample; PPO: the Gaussian, clipped to [-1, 1]) with a
+    ``sample=False``: the deterministic actor of ``load_actor`` (DAgger: the candidate of highest logit).
+    ``sample=True``: actions drawn from the policy's distribution (SAC: tanh of a Gaussian sample; PPO: the
+    Gaussian, clipped to [-1, 1]; DAgger: a candidate drawn from the logits' softmax) with a
     generator seeded by ``seed``, so the same seed and the same calls give the same actions. Input
     (N, obs_dim), output (N, act_dim) float32 in [-1, 1]. ``ConfigError`` names an unusable run or file.
     """
+    config = run_config(run_dir)
+    if config.algo == "dagger":
+        generator = torch.Generator().manual_seed(seed) if sample else None
+        return _candidate_policy(run_dir, config, which, generator)
     if not sample:
         actor, _ = load_actor(run_dir, which)
 
@@ -222,7 +246,6 @@ def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which:
                 return actor(torch.as_tensor(obs, dtype=torch.float32)).numpy()
 
         return policy
-    config = run_config(run_dir)
     path = checkpoint_path(run_dir, config, which)
     generator = torch.Generator().manual_seed(seed)
     with _reading(path, config.algo):

@@ -5,9 +5,9 @@ Exports RUN_DIR's manager as TorchScript and ONNX into a temporary folder, then 
 ONNX through an onnxruntime session with one intra-op thread, and, for reference, the Python path that
 ``hier_ssl.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``) and the scripted
 ``sampling`` planner on the same observation (the manager a learned one has to beat, also at batch 1).
-Prints one line per path: file size, and the median and 90th percentile time per call. An ``algo: dagger``
-run does not export: its Python path (numpy observation, the planner's candidates, the torch classifier,
-``decode_subgoal``) and the planner are timed.
+Prints one line per path: file size, and the median and 90th percentile time per call. An ``algo:
+candidates`` run does not export: its Python path (numpy observation, the planner's candidates, the torch
+classifier, ``decode_subgoal``) and the planner are timed.
 
 Run: python benchmarks/export_latency.py RUN_DIR [--calls 5000]
 """
@@ -60,7 +60,7 @@ def main() -> None:
         state[0, 16::width] = np.arange(k) < task.num_agents - 1
     with tempfile.TemporaryDirectory() as tmp:
         paths = []
-        if config.algo != "dagger":
+        if config.algo != "candidates":
             script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
             onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
             module = torch.jit.load(str(script))
@@ -113,7 +113,7 @@ def main() -> None:
             )  # fmt: skip
 
         print(f"{args.run_dir}: {config.algo}, task {task.name}, {k} other robot(s), batch 1, one thread")
-        learned = "candidates + torch classifier" if config.algo == "dagger" else "torch actor"
+        learned = "candidates + torch classifier" if config.algo == "candidates" else "torch actor"
         for name, call, size in (
             *paths,
             (f"python (numpy obs + {learned} + decode)", python, None),

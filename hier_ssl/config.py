@@ -254,19 +254,44 @@ class PPOConfig(Strict):
     init_noise_std: float = Field(0.5, gt=0)
 
 
-class DAggerConfig(Strict):
-    """``algo: dagger``: a classifier over the ``sampling`` planner's candidate sub-goals, fitted by DAgger
-    (``hier_ssl.policies.dagger``). A run is ``rounds`` rounds of ``episodes`` episodes each (the first
-    played by the planner, the others by the network), each followed by ``epochs`` passes over every
-    state gathered so far; the model is scored on the selection episodes after every round."""
+class CandidatePPOConfig(Strict):
+    """Phase 2 of ``algo: candidates``: PPO on the classifier's categorical policy from its DAgger fit
+    (``hier_ssl.policies.candidates``), rewarded by outcomes alone: minus ``time_cost`` per 100 control
+    steps, plus ``success_reward`` at a success, minus ``collision_cost`` at a collision."""
 
+    iterations: int = Field(0, ge=0)  # 0: DAgger alone
+    fields: int = Field(64, ge=1)  # fields played at once
+    horizon: int = Field(32, ge=1)  # decisions per field per iteration
+    learning_rate: float = Field(1e-4, gt=0)
+    value_learning_rate: float = Field(1e-3, gt=0)
+    value_hidden: tuple[int, ...] = (256, 256)
+    value_warmup: int = Field(10, ge=0)  # iterations that fit the value alone before the policy moves
+    gamma: float = Field(0.99, gt=0, le=1)  # per decision
+    lam: float = Field(0.95, ge=0, le=1)
+    clip: float = Field(0.1, gt=0)
+    epochs: int = Field(4, ge=1)
+    minibatches: int = Field(4, ge=1)
+    kl_weight: float = Field(0.05, ge=0)  # KL(policy || the DAgger fit) in the policy loss
+    time_cost: float = Field(1.0, ge=0)
+    success_reward: float = Field(10.0, ge=0)
+    collision_cost: float = Field(20.0, ge=0)
+    eval_interval: int = Field(50, ge=1)  # iterations between selection scores and checkpoints
+
+
+class CandidatesConfig(Strict):
+    """``algo: candidates``: a classifier over the ``sampling`` planner's candidate sub-goals
+    (``hier_ssl.policies.candidates``). Phase 1 fits it by DAgger: ``rounds`` rounds of ``episodes``
+    episodes (the first played by the planner, the others by the network), each followed by ``epochs``
+    passes over every state gathered so far; phase 2 is ``ppo``."""
+
+    hidden: tuple[int, ...] = (256, 256)
     rounds: int = Field(30, ge=1)
     episodes: int = Field(500, ge=1)
     epochs: int = Field(8, ge=1)
     tau: float = Field(0.05, gt=0)  # s: temperature of the planner's soft choice over arrival times
-    hidden: tuple[int, ...] = (256, 256)
     learning_rate: float = Field(1e-3, gt=0)
     batch_size: int = Field(256, ge=1)
+    ppo: CandidatePPOConfig = Field(default_factory=CandidatePPOConfig)
 
 
 class GoToPointConfig(Strict):
@@ -297,20 +322,21 @@ class TrainConfig(Strict):
 
     ``kind: manager`` (default) trains a manager over the worker ``env.worker``; ``kind: worker`` trains
     the goToPoint worker itself on the task the ``gotopoint`` section describes (PPO only). ``algo:
-    dagger`` runs ``dagger.rounds`` rounds and reads neither ``num_envs``, ``total_steps`` nor the
-    intervals: it plays whole episodes and is scored and saved after every round.
+    candidates`` reads neither ``num_envs``, ``total_steps`` nor the intervals: its own section says how
+    long each phase runs and when it is scored.
     """
 
     name: str = "run"
     kind: Literal["manager", "worker"] = "manager"
     env: EnvConfig = Field(default_factory=EnvConfig)
-    # A multi-robot scenario in place of ``env``: one manager shared by every controlled robot (SAC, DAgger).
+    # A multi-robot scenario in place of ``env``: one manager shared by every controlled robot (SAC or
+    # candidates).
     scenario: ScenarioConfig | None = None
     gotopoint: GoToPointConfig | None = None
-    algo: Literal["sac", "ppo", "dagger"] = "sac"
+    algo: Literal["sac", "ppo", "candidates"] = "sac"
     sac: SACConfig = Field(default_factory=SACConfig)
     ppo: PPOConfig = Field(default_factory=PPOConfig)
-    dagger: DAggerConfig = Field(default_factory=DAggerConfig)
+    candidates: CandidatesConfig = Field(default_factory=CandidatesConfig)
     num_envs: int = Field(16, ge=1)
     total_steps: int = Field(150_000, ge=1)  # vector-env steps (manager decisions per env)
     eval_episodes: int = Field(200, ge=1)
@@ -346,13 +372,13 @@ class TrainConfig(Strict):
                 raise ValueError("env: not read when 'scenario' is set; put the task keys in the scenario")
             if self.kind != "manager" or self.algo == "ppo":
                 raise ValueError(
-                    "scenario: trains a shared manager with SAC or DAgger, "
+                    "scenario: trains a shared manager with SAC or candidates, "
                     f"not kind {self.kind!r}, algo {self.algo!r}"
                 )
         if self.kind == "manager" and self.gotopoint is not None:
             raise ValueError("gotopoint: only read when kind is 'worker'")
-        if self.algo != "dagger" and self.dagger != DAggerConfig():
-            raise ValueError(f"dagger: only read with algo 'dagger', got {self.algo!r}")
+        if self.algo != "candidates" and self.candidates != CandidatesConfig():
+            raise ValueError(f"candidates: only read with algo 'candidates', got {self.algo!r}")
         if self.algo != "sac" and self.sac.teacher is not None:
             raise ValueError(f"sac.teacher: only read with algo 'sac', got {self.algo!r}")
         if self.kind == "worker" and self.algo != "ppo":

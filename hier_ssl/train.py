@@ -49,7 +49,7 @@ def resume_config(run_dir: Path) -> TrainConfig:
         if not (run_dir / name).is_file():
             raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / name}")
     config = parse_config(load_yaml(run_dir / CONFIG_FILE))
-    if config.algo in ("sac", "dagger") and not (run_dir / MODEL_FILE).is_file():
+    if config.algo in ("sac", "candidates") and not (run_dir / MODEL_FILE).is_file():
         raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / MODEL_FILE}")
     return config
 
@@ -142,8 +142,8 @@ def train(
         atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
-    if config.algo == "dagger":
-        policy, train_wall_s = _train_dagger(config, run_dir, resume, progress, on_selection)
+    if config.algo == "candidates":
+        policy, train_wall_s = _train_candidates(config, run_dir, resume, progress, on_selection)
     else:
         # SAC keeps the world on the CPU; its runner puts the learner on config.device.
         env_device = "cpu" if config.algo == "sac" else config.device
@@ -207,15 +207,14 @@ def _train_sac(
     return sac_policy(runner.sac.actor), runner.train_time_s
 
 
-def _train_dagger(config: TrainConfig, run_dir: Path, resume: bool, progress: bool, on_selection=None):
-    """DAgger over the planner's candidates (``hier_ssl.policies.dagger``), scored after every round; a
-    round's "step" in curve.csv is its number, its "transitions" the labelled states gathered so far."""
-    from hier_ssl.policies.dagger import candidate_planner, candidate_policy, learn
+def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress: bool, on_selection=None):
+    """The classifier over the planner's candidates (``hier_ssl.policies.candidates``): DAgger, then PPO."""
+    from hier_ssl.policies.candidates import CandidateLearner, candidate_policy
 
-    selection = _Selection(config, run_dir, on_selection)
+    learner = CandidateLearner(config, run_dir, _Selection(config, run_dir, on_selection).record, progress)
     saved = torch.load(run_dir / MODEL_FILE, weights_only=True) if resume else None
-    net, train_wall_s = learn(config, run_dir, selection.record, saved, progress)
-    return candidate_policy(net, candidate_planner(config)), train_wall_s
+    net = learner.learn(saved)
+    return candidate_policy(net, learner.planner), learner.train_time
 
 
 def _train_ppo(

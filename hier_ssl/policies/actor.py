@@ -103,7 +103,7 @@ def checkpoint_path(run_dir: str | Path, config: TrainConfig, which: str = "best
     if which not in CHECKPOINTS:
         raise ConfigError(f"checkpoint {which!r}: expected one of {list(CHECKPOINTS)}")
     best = run_dir / BEST_ACTOR_FILE
-    if config.algo in ("sac", "dagger"):
+    if config.algo in ("sac", "candidates"):
         path = best if which == "best" else run_dir / FINAL_SAC_FILE
         if not path.is_file():
             raise ConfigError(f"{run_dir}: no {which} checkpoint ({path.name} missing)")
@@ -145,9 +145,9 @@ def load_actor(run_dir: str | Path, which: str = "best") -> tuple[nn.Sequential,
     name the run directory or the checkpoint file when either is unusable.
     """
     config = run_config(run_dir)
-    if config.algo == "dagger":
+    if config.algo == "candidates":
         raise ConfigError(
-            f"{run_dir}: algo 'dagger' chooses among the sampling planner's candidates, which hier_ssl "
+            f"{run_dir}: algo 'candidates' chooses among the sampling planner's candidates, which hier_ssl "
             "builds in numpy at every decision; it has no stand-alone actor to load or export "
             "(load_policy plays it)"
         )
@@ -215,9 +215,10 @@ def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Genera
 def _candidate_policy(
     run_dir: str | Path, config: TrainConfig, which: str, generator: torch.Generator | None
 ) -> NumpyPolicy:
-    """An ``algo: dagger`` run's classifier over the planner's candidates (``hier_ssl.policies.dagger``):
-    ``best_actor.pt`` and ``model.pt`` both hold its weights under "net"."""
-    from hier_ssl.policies.dagger import candidate_planner, candidate_policy, chooser_from_state
+    """An ``algo: candidates`` run's classifier over the planner's candidates
+    (``hier_ssl.policies.candidates``): ``best_actor.pt`` and ``model.pt`` both hold its weights under
+    "net"."""
+    from hier_ssl.policies.candidates import candidate_planner, candidate_policy, chooser_from_state
 
     path = checkpoint_path(run_dir, config, which)
     with _reading(path, config.algo):
@@ -228,14 +229,14 @@ def _candidate_policy(
 def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which: str = "best") -> NumpyPolicy:
     """The run's policy (its ``which`` checkpoint, "best" or "final") as a numpy function, on the CPU.
 
-    ``sample=False``: the deterministic actor of ``load_actor`` (DAgger: the candidate of highest logit).
+    ``sample=False``: the deterministic actor of ``load_actor`` (candidates: the one of highest logit).
     ``sample=True``: actions drawn from the policy's distribution (SAC: tanh of a Gaussian sample; PPO: the
-    Gaussian, clipped to [-1, 1]; DAgger: a candidate drawn from the logits' softmax) with a
+    Gaussian, clipped to [-1, 1]; candidates: one drawn from the logits' softmax) with a
     generator seeded by ``seed``, so the same seed and the same calls give the same actions. Input
     (N, obs_dim), output (N, act_dim) float32 in [-1, 1]. ``ConfigError`` names an unusable run or file.
     """
     config = run_config(run_dir)
-    if config.algo == "dagger":
+    if config.algo == "candidates":
         generator = torch.Generator().manual_seed(seed) if sample else None
         return _candidate_policy(run_dir, config, which, generator)
     if not sample:

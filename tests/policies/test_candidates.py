@@ -1,0 +1,140 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from hier_ssl.config import ConfigError
+from hier_ssl.config_files import config_dir, load_yaml
+from hier_ssl.envs import parse_config
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.evaluate import evaluate
+from hier_ssl.manager.planners import make_planner
+from hier_ssl.policies.actor import load_actor, load_policy
+from hier_ssl.policies.candidates import soft_choice
+from hier_ssl.train import resume_config, train
+
+SHIPPED = load_yaml(config_dir() / "obstacle" / "candidates.yaml")
+
+
+def _config(ppo: dict | None = None, **dagger: object) -> dict:
+    section = {"hidden": [64, 64], **dagger, "ppo": {"iterations": 0, **(ppo or {})}}
+    return {**SHIPPED, "eval_episodes": 40, "candidates": section}
+
+
+def test_the_soft_choice_peaks_on_the_planners_own_choice() -> None:
+    config = parse_config(SHIPPED).task_config
+    planner = make_planner("sampling", config)
+    core = HierarchicalCore(config, 64)
+    obs = core.reset(3).reshape(-1, core.obs_dim)
+    scene = planner.read(obs)
+    cand, soft = soft_choice(planner, scene, tau=0.05)
+    np.testing.assert_allclose(soft.sum(1), 1.0, rtol=1e-9)
+    chosen = cand[np.arange(len(cand)), soft.argmax(1)]
+    np.testing.assert_allclose(planner.subgoals(scene, chosen), planner.plan(scene))
+    # At a high temperature the choice spreads over the planner's best tier (where it has more than one).
+    sharp, spread = soft.max(1), soft_choice(planner, scene, tau=10.0)[1].max(1)
+    assert (spread <= sharp + 1e-12).all() and (spread < 0.9).sum() > len(obs) // 2
+
+
+def test_dagger_alone_learns_to_pass_the_obstacle_where_the_direct_sub_goal_collides(
+    tmp_path: Path, one_thread: None
+) -> None:
+    run = tmp_path / "run"
+    summary = train(parse_config(_config(rounds=5, episodes=100, epochs=20)), run, progress=False)
+    task = parse_config(SHIPPED).task_config
+    direct = evaluate(make_planner("direct", task), task, 40, seed=20_000)
+    # The direct sub-goal drives into the midpoint obstacle (about 6 % success); the classifier, five
+    # short rounds from the planner's choices, goes round it in most episodes.
+    assert direct["success_rate"] < 0.2
+    assert summary["success_rate"] > 0.7 and summary["collision_rate"] < 0.3, summary
+    steps = [int(row.split(",")[0]) for row in (run / "curve.csv").read_text().splitlines()[1:]]
+    assert steps == [1, 2, 3, 4, 5]
+
+
+def _more(run: Path, **changes: object) -> None:
+    """Raise the run's budget in its config.yaml, as a user continuing a finished run would."""
+    saved = yaml.safe_load((run / "config.yaml").read_text())
+    section = saved["candidates"]
+    section |= {k: v for k, v in changes.items() if k != "ppo"}
+    section["ppo"] |= changes.get("ppo", {})
+    (run / "config.yaml").write_text(yaml.safe_dump(saved))
+
+
+def _steps(run: Path) -> list[int]:
+    return [int(row.split(",")[0]) for row in (run / "curve.csv").read_text().splitlines()[1:]]
+
+
+def test_a_candidates_run_resumes_in_either_phase_and_plays_as_a_policy(tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    train(parse_config(_config(rounds=2, episodes=10)), run, progress=False)
+    _more(run, rounds=3)
+    train(resume_config(run), run, resume=True, progress=False)
+    rows = (run / "curve.csv").read_text().splitlines()[1:]
+    assert _steps(run) == [1, 2, 3]
+    assert int(rows[2].split(",")[1]) > int(rows[1].split(",")[1])  # round 3 added labelled states
+    # PPO on top: scored every 2 iterations and at the last; a resumed PPO phase goes on from its last save.
+    ppo = {"iterations": 3, "fields": 8, "horizon": 4, "value_warmup": 1, "eval_interval": 2}
+    _more(run, ppo=ppo)
+    train(resume_config(run), run, resume=True, progress=False)
+    assert _steps(run) == [1, 2, 3, 5, 6] and torch.load(run / "model.pt")["phase"] == "ppo"
+    _more(run, ppo={"iterations": 4})
+    train(resume_config(run), run, resume=True, progress=False)
+    assert _steps(run) == [1, 2, 3, 5, 6, 7]
+    core = HierarchicalCore(resume_config(run).task_config, 8)
+    obs = core.reset(1).reshape(-1, core.obs_dim)
+    for which in ("best", "final"):
+        actions = load_policy(run, which=which)(obs)
+        assert actions.shape == (8, core.act_dim) and np.abs(actions).max() <= 1.0
+    first, again = (load_policy(run, sample=True, seed=5)(obs) for _ in range(2))
+    np.testing.assert_array_equal(first, again)
+    with pytest.raises(ConfigError, match="algo 'candidates'.*no stand-alone actor"):
+        load_actor(run)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"algo": "sac", "candidates": {"rounds": 3}}, "candidates: only read with algo 'candidates'"),
+        ({"candidates": {"rounds": 0}}, "candidates.rounds"),
+        ({"candidates": {"tau": 0}}, "candidates.tau"),
+        ({"candidates": {"ppo": {"gamma": 1.5}}}, "candidates.ppo.gamma"),
+    ],
+)
+def test_candidates_config_errors_name_the_key(change: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_config({**SHIPPED, **change})
+
+
+def test_a_dagger_scenario_run_shares_its_classifier_between_the_robots(tmp_path: Path) -> None:
+    data = load_yaml(config_dir() / "scenarios" / "formation.yaml")
+    section = {"rounds": 1, "episodes": 3, "ppo": {"iterations": 2, "fields": 2, "horizon": 4}}
+    config = {**data, "algo": "candidates", "eval_episodes": 3, "candidates": section}
+    summary = train(parse_config(config), tmp_path / "run", progress=False)
+    assert summary["task"] == "formation" and summary["robots"] == 6 * 3 and summary["episodes"] == 3
+
+
+def test_the_ppo_reward_prices_time_success_and_collisions() -> None:
+    from hier_ssl.config import CandidatePPOConfig
+    from hier_ssl.policies.candidates import outcome_reward
+
+    settings = CandidatePPOConfig(time_cost=2.0, success_reward=10.0, collision_cost=30.0)
+    steps = np.array([16, 16, 7, 16])
+    reward = outcome_reward(settings, steps, np.array([1, 2]), np.array([1.0, 0.0]), np.array([0.0, 1.0]))
+    np.testing.assert_allclose(reward, [-0.32, -0.32 + 10.0, -0.14 - 30.0, -0.32], rtol=1e-6)
+
+
+def test_advantages_stop_at_episode_ends() -> None:
+    from hier_ssl.policies.candidates import advantages
+
+    rewards = torch.tensor([[1.0], [2.0], [3.0]])
+    values = torch.tensor([[0.5], [0.25], [1.0]])
+    dones = torch.tensor([[0.0], [1.0], [0.0]])
+    adv = advantages(rewards, values, torch.tensor([2.0]), dones, gamma=0.9, lam=0.5)
+    last = 3.0 + 0.9 * 2.0 - 1.0  # bootstraps from the value after the rollout
+    second = 2.0 - 0.25  # the episode ended: no bootstrap, nothing from the next episode
+    first = (1.0 + 0.9 * 0.25 - 0.5) + 0.9 * 0.5 * second
+    torch.testing.assert_close(adv, torch.tensor([[first], [second], [last]]))

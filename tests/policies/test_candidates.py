@@ -138,3 +138,20 @@ def test_advantages_stop_at_episode_ends() -> None:
     second = 2.0 - 0.25  # the episode ended: no bootstrap, nothing from the next episode
     first = (1.0 + 0.9 * 0.25 - 0.5) + 0.9 * 0.5 * second
     torch.testing.assert_close(adv, torch.tensor([[first], [second], [last]]))
+
+
+def test_ppo_takes_the_classifier_past_the_obstacle_where_imitation_left_it(
+    tmp_path: Path, one_thread: None
+) -> None:
+    import csv
+
+    ppo = {"iterations": 40, "fields": 32, "horizon": 16, "value_warmup": 5, "eval_interval": 10}
+    config = _config(ppo={**ppo, "learning_rate": 1e-3, "kl_weight": 0.0}, rounds=2, episodes=30, epochs=20)
+    run = tmp_path / "run"
+    summary = train(parse_config({**config, "eval_episodes": 100}), run, progress=False)
+    curve = {
+        int(row["step"]): float(row["success_rate"]) for row in csv.DictReader((run / "curve.csv").open())
+    }
+    # Two small DAgger rounds leave it at the direct sub-goal's success; PPO's outcomes alone lift it.
+    assert curve[2] < 0.2 and curve[42] > 0.7, curve
+    assert summary["final"]["success_rate"] > 0.7, summary

@@ -265,16 +265,21 @@ class SamplingPlanner:
         arrival[late] = self.horizon + np.abs(goal - p)[late] / speed
         return arrival, clearance, hard, near
 
+    def score(self, scene: Scene, cand: np.ndarray) -> np.ndarray:
+        """How the planner ranks the candidates (N, M): the highest is its choice. Within the best tier it
+        can choose from, minus the arrival time (the candidates clear of the growing safety distance;
+        failing those, the ones clear of the fixed one), -inf outside it; failing both, the distance kept
+        from the obstacles over the prediction window (1e3 without obstacles)."""
+        arrival, clearance, hard, near = self.rollout(scene, cand)
+        safe, close = clearance >= 0.0, hard >= 0.0
+        score = np.where(np.isfinite(near), near, 1e3)
+        score = np.where(close.any(1, keepdims=True), np.where(close, -arrival, -np.inf), score)
+        return np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
+
     def plan(self, scene: Scene) -> np.ndarray:
         """The chosen sub-goal poses (N, 5): x, y, the target's heading, zero velocity."""
         cand = self.candidates(scene)
-        arrival, clearance, hard, near = self.rollout(scene, cand)
-        # The fastest candidate clear of the growing safety distance; failing that, the fastest clear of
-        # the fixed one; failing that, the one that keeps farthest from the obstacles.
-        safe, close = clearance >= 0.0, hard >= 0.0
-        best = np.argmax(near, axis=1)
-        best = np.where(close.any(axis=1), np.argmin(np.where(close, arrival, np.inf), axis=1), best)
-        best = np.where(safe.any(axis=1), np.argmin(np.where(safe, arrival, np.inf), axis=1), best)
+        best = np.argmax(self.score(scene, cand), axis=1)  # ties to the earlier candidate
         return self.subgoals(scene, cand[np.arange(len(cand)), best])
 
     @staticmethod

@@ -2,22 +2,15 @@
 DAgger, then improved on the task's own outcomes by PPO.
 
 The planner's choice is discontinuous in the observation (pass an obstacle on the left or on the right),
-and a Gaussian actor fitted to it lands between the branches. Here the manager's action is a class: one
-of the planner's candidate sub-goals (``SamplingPlanner.candidates``: the target, the robot's position,
-rings around each seen obstacle, points along the robot-target line, a ring around the robot), which the
-planner builds from the observation by geometry alone. An MLP maps the observation to one logit per
-candidate.
+and a Gaussian actor fitted to it lands between the branches. Here the action is a class: one of the
+planner's candidates (``SamplingPlanner.candidates``, geometry from the observation alone), scored by an
+MLP with one logit each.
 
-1. DAgger (Ross et al., 2011), ``rounds`` rounds: round 0 plays the planner, every later round the
-   network; every state met is labelled with the planner's soft choice over all candidates (a softmax of
-   minus the arrival time over the candidates of the best safety tier the planner would choose from,
-   temperature ``tau`` seconds), and the network is refitted on everything gathered so far.
-2. PPO (``ppo.iterations``; 0 skips it) on the categorical policy the logits define, from the DAgger
-   fit, against the task's outcomes: per decision minus ``time_cost`` per 100 control steps, plus
-   ``success_reward`` at a success, minus ``collision_cost`` at a collision. The planner's labels stop
-   here; a KL penalty towards the DAgger fit (``kl_weight``) keeps the policy near what it learned there,
-   and the value function is fitted alone for ``value_warmup`` iterations before the policy moves. This
-   is what lets the manager improve on the planner rather than copy it.
+1. DAgger (Ross et al., 2011): round 0 plays the planner, every later round the network; every state met
+   is labelled with the planner's soft choice (``soft_choice``) and the network refitted on all of them.
+2. PPO on the categorical policy of the logits, from the DAgger fit, rewarded by outcomes alone
+   (``outcome_reward``: time, success, collision), with a KL penalty towards the DAgger fit and a value
+   function fitted alone for its first iterations. This is what can improve on the planner, not copy it.
 
 A hybrid: at every decision the manager runs the planner's candidate geometry (not its rollouts, which
 are where the planner's time goes), so it needs hier_ssl at run time and does not export.
@@ -37,8 +30,9 @@ from torch import nn
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hier_ssl.config import CandidatePPOConfig, TrainConfig
+from hier_ssl.config import TrainConfig
 from hier_ssl.evaluate import evaluate
+from hier_ssl.learner_config import CandidatePPOConfig
 from hier_ssl.manager.planners import SamplingPlanner, Scene, make_planner
 
 NumpyPolicy = Callable[[np.ndarray], np.ndarray]
@@ -53,18 +47,10 @@ def candidate_planner(config: TrainConfig) -> SamplingPlanner:
 
 
 def soft_choice(planner: SamplingPlanner, scene: Scene, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """The planner's candidates (N, C) complex and its soft choice over them (N, C), rows summing to 1.
-
-    The tiers are ``SamplingPlanner.plan``'s: the candidates clear of the growing safety distance; failing
-    those, the ones clear of the fixed distance; failing those, all, scored by the distance they keep from
-    the obstacles instead of by arrival time. Within the tier a softmax of minus the score / ``tau``.
-    """
+    """The planner's candidates (N, C) complex and its soft choice over them (N, C), rows summing to 1:
+    a softmax of its ``score`` / ``tau`` (over the best tier it would choose from, by arrival time)."""
     cand = planner.candidates(scene)
-    arrival, clearance, hard, near = planner.rollout(scene, cand)
-    safe, close = clearance >= 0.0, hard >= 0.0
-    score = np.where(np.isfinite(near), near, 1e3)  # no obstacle at all: every candidate keeps clear
-    score = np.where(close.any(1, keepdims=True), np.where(close, -arrival, -np.inf), score)
-    score = np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
+    score = planner.score(scene, cand)
     weight = np.exp((score - score.max(1, keepdims=True)) / tau)
     return cand, weight / weight.sum(1, keepdims=True)
 
@@ -269,109 +255,105 @@ class CandidateLearner:
         """Phase 2: ``ppo.iterations`` PPO iterations from the DAgger fit, from ``saved["iteration"]``."""
         from hier_ssl.envs.vector import TorchVectorEnv
 
-        settings, planner, net = self.settings.ppo, self.planner, self.net
+        settings, net = self.settings.ppo, self.net
         assert net is not None
-        obs_dim = net[0].in_features
-        reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
-        reference.requires_grad_(False)
-        value = mlp([obs_dim, *settings.value_hidden, 1], nn.Tanh)
-        policy_optimizer = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
-        value_optimizer = torch.optim.Adam(value.parameters(), lr=settings.value_learning_rate)
+        self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
+        self.reference.requires_grad_(False)
+        self.value = mlp([net[0].in_features, *settings.value_hidden, 1], nn.Tanh)
+        self.optimizers = (
+            torch.optim.Adam(net.parameters(), lr=settings.learning_rate),
+            torch.optim.Adam(self.value.parameters(), lr=settings.value_learning_rate),
+        )
         first, decisions = 0, 0
         if saved:
-            value.load_state_dict(saved["value"])
-            policy_optimizer.load_state_dict(saved["optimizer"])
-            value_optimizer.load_state_dict(saved["value_optimizer"])
+            self.value.load_state_dict(saved["value"])
+            for optimizer, state in zip(self.optimizers, saved["optimizers"], strict=True):
+                optimizer.load_state_dict(state)
             first, decisions, self.states = saved["iteration"], saved["decisions"], saved["states"]
         self.bar.update(self.settings.rounds + first - self.bar.n)
-        env = TorchVectorEnv(self.config.task_config, settings.fields)
-        obs = env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
-        generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
+        self.env = TorchVectorEnv(self.config.task_config, settings.fields)
+        self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
+        self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
         for iteration in range(first, settings.iterations):
             began = time.perf_counter()
-            rollout: dict[str, list] = {
-                k: [] for k in ("obs", "choice", "log_prob", "reward", "done", "real")
-            }
-            ended = {"success": 0.0, "collision": 0.0, "episodes": 0}
-            for _ in range(settings.horizon):
-                # Rows of robots that have left are zeros until their field resets: no scene to plan in.
-                real = obs.any(1)
-                choice, log_prob = torch.zeros(len(obs), dtype=torch.long), torch.zeros(len(obs))
-                action = np.zeros((len(obs), env.num_actions), dtype=np.float32)
-                if real.any():
-                    choice[real], log_prob[real], action[real] = act(net, planner, obs[real], generator)
-                next_obs, _, terminated, truncated, info = env.step_rows(action)
-                stats, rows = info["task"], info["task_rows"]
-                reward = outcome_reward(
-                    settings, info["control_steps"], rows, stats["success"], stats["collision"]
-                )
-                # A truncated episode would have gone on: its last decision bootstraps from the value of
-                # the observation it ended on.
-                cut = truncated & ~terminated
-                if cut.any():
-                    with torch.no_grad():
-                        final = value(torch.as_tensor(info["final_obs"][cut], dtype=torch.float32))[:, 0]
-                    reward[cut] += settings.gamma * final.numpy()
-                ended["success"] += float(stats["success"].sum())
-                ended["collision"] += float(stats["collision"].sum())
-                ended["episodes"] += len(rows)
-                for key, item in (
-                    ("obs", obs), ("choice", choice), ("log_prob", log_prob), ("reward", reward),
-                    ("done", terminated | truncated), ("real", real),
-                ):  # fmt: skip
-                    rollout[key].append(torch.as_tensor(item))
-                obs = next_obs.astype(np.float32)
-            o, choices, old_log_probs = (torch.stack(rollout[k]) for k in ("obs", "choice", "log_prob"))
-            rewards = torch.stack(rollout["reward"]).float()
-            dones = torch.stack(rollout["done"]).float()
-            real = torch.stack(rollout["real"])
-            with torch.no_grad():
-                values = value(o).squeeze(-1)
-                last = value(torch.as_tensor(obs)).squeeze(-1)
-            adv = advantages(rewards, values, last, dones, settings.gamma, settings.lam)
-            returns = adv + values
-            batch = [t[real] for t in (o, choices, old_log_probs, adv, returns)]
+            batch, logs = self.rollout()
             decisions += len(batch[0])
-            moving = iteration >= settings.value_warmup
-            logs = self.update(net, reference, value, policy_optimizer, value_optimizer, batch, moving)
+            logs |= self.update(batch, moving=iteration >= settings.value_warmup)
             self.train_time += time.perf_counter() - began
             step = self.settings.rounds + iteration + 1
-            if ended["episodes"]:
-                logs["episode/success_rate"] = ended["success"] / ended["episodes"]
-                logs["episode/collision_rate"] = ended["collision"] / ended["episodes"]
             for key, item in logs.items():
                 self.writer.add_scalar(key, item, step)
             self.bar.update(1)
             if (iteration + 1) % settings.eval_interval == 0 or iteration + 1 == settings.iterations:
                 weights = {
                     "net": net.state_dict(),
-                    "reference": reference.state_dict(),
-                    "value": value.state_dict(),
-                    "optimizer": policy_optimizer.state_dict(),
-                    "value_optimizer": value_optimizer.state_dict(),
+                    "reference": self.reference.state_dict(),
+                    "value": self.value.state_dict(),
+                    "optimizers": [optimizer.state_dict() for optimizer in self.optimizers],
                 }
                 progress = {"iteration": iteration + 1, "decisions": decisions, "states": self.states}
                 self.save({"phase": "ppo", **progress, **weights})
                 self.scored(step, self.states + decisions)
 
-    def update(
-        self,
-        net: nn.Module,
-        reference: nn.Module,
-        value: nn.Module,
-        policy_optimizer: torch.optim.Optimizer,
-        value_optimizer: torch.optim.Optimizer,
-        batch: list[torch.Tensor],
-        moving: bool,
-    ) -> dict[str, float]:
+    def rollout(self) -> tuple[list[torch.Tensor], dict[str, float]]:
+        """``ppo.horizon`` decisions of every field with the sampled policy: the live rows' observations,
+        choices, log-probabilities, advantages and returns, and the success and collision rates of the
+        episodes that ended (TensorBoard)."""
+        settings, env, value = self.settings.ppo, self.env, self.value
+        keys = ("obs", "choice", "log_prob", "reward", "done", "real")
+        steps: dict[str, list] = {k: [] for k in keys}
+        ended = np.zeros(3)  # successes, collisions, episodes
+        for _ in range(settings.horizon):
+            obs = self.obs
+            # Rows of robots that have left are zeros until their field resets: no scene to plan in.
+            real = obs.any(1)
+            choice, log_prob = torch.zeros(len(obs), dtype=torch.long), torch.zeros(len(obs))
+            action = np.zeros((len(obs), env.num_actions), dtype=np.float32)
+            if real.any():
+                choice[real], log_prob[real], action[real] = act(
+                    self.net, self.planner, obs[real], self.generator
+                )
+            next_obs, _, terminated, truncated, info = env.step_rows(action)
+            stats, rows = info["task"], info["task_rows"]
+            reward = outcome_reward(
+                settings, info["control_steps"], rows, stats["success"], stats["collision"]
+            )
+            # A truncated episode would have gone on: its last decision bootstraps from the value of the
+            # observation it ended on.
+            cut = truncated & ~terminated
+            if cut.any():
+                with torch.no_grad():
+                    final = value(torch.as_tensor(info["final_obs"][cut], dtype=torch.float32))[:, 0]
+                reward[cut] += settings.gamma * final.numpy()
+            ended += [stats["success"].sum(), stats["collision"].sum(), len(rows)]
+            for key, item in zip(
+                keys, (obs, choice, log_prob, reward, terminated | truncated, real), strict=True
+            ):
+                steps[key].append(torch.as_tensor(item))
+            self.obs = next_obs.astype(np.float32)
+        obs, choices, log_probs, rewards, dones, real = (torch.stack(steps[k]) for k in keys)
+        with torch.no_grad():
+            values = value(obs).squeeze(-1)
+            last = value(torch.as_tensor(self.obs)).squeeze(-1)
+        adv = advantages(rewards.float(), values, last, dones.float(), settings.gamma, settings.lam)
+        logs = {}
+        if ended[2]:
+            logs = {
+                "episode/success_rate": ended[0] / ended[2],
+                "episode/collision_rate": ended[1] / ended[2],
+            }
+        return [t[real] for t in (obs, choices, log_probs, adv, adv + values)], logs
+
+    def update(self, batch: list[torch.Tensor], moving: bool) -> dict[str, float]:
         """PPO's epochs over one rollout ``batch`` (obs, choices, log-probs, advantages, returns); the
         policy moves only when ``moving``. The losses of the last minibatch, for TensorBoard."""
-        settings = self.settings.ppo
+        settings, net, value = self.settings.ppo, self.net, self.value
+        assert net is not None
+        policy_optimizer, value_optimizer = self.optimizers
         obs, choices, old_log_probs, adv, returns = batch
-        size = max(1, len(obs) // settings.minibatches)
         logs: dict[str, float] = {}
         for _ in range(settings.epochs):
-            for rows in torch.randperm(len(obs)).split(size):
+            for rows in torch.randperm(len(obs)).split(max(1, len(obs) // settings.minibatches)):
                 value_loss = (value(obs[rows]).squeeze(-1) - returns[rows]).square().mean()
                 value_optimizer.zero_grad()
                 value_loss.backward()
@@ -385,11 +367,10 @@ class CandidateLearner:
                 clipped = ratio.clamp(1.0 - settings.clip, 1.0 + settings.clip)
                 surrogate = -torch.min(ratio * a, clipped * a).mean()
                 with torch.no_grad():
-                    anchor = torch.log_softmax(reference(obs[rows]), 1)
+                    anchor = torch.log_softmax(self.reference(obs[rows]), 1)
                 kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
-                loss = surrogate + settings.kl_weight * kl
                 policy_optimizer.zero_grad()
-                loss.backward()
+                (surrogate + settings.kl_weight * kl).backward()
                 policy_optimizer.step()
                 logs |= {"losses/surrogate": surrogate.item(), "losses/kl_to_dagger": kl.item()}
         return logs

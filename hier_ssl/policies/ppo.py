@@ -22,8 +22,8 @@ import torch
 from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
-from hier_ssl.config import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
+from hier_ssl.learner_config import PPOConfig
 from hier_ssl.policies.actor import NumpyPolicy
 
 

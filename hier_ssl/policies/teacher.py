@@ -23,7 +23,7 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from hier_ssl.config import SACConfig
+from hier_ssl.learner_config import SACConfig
 from hier_ssl.manager.planners import make_planner
 
 Teacher = Callable[[np.ndarray], np.ndarray]

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from hier_ssl.config import ConfigError, PPOConfig, dump_config
+from hier_ssl.config import ConfigError, dump_config
 from hier_ssl.envs import parse_config, vector_env
+from hier_ssl.learner_config import PPOConfig
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy

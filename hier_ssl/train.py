@@ -209,10 +209,12 @@ def _train_sac(
 
 def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress: bool, on_selection=None):
     """The classifier over the planner's candidates (``hier_ssl.policies.candidates``): DAgger, then PPO."""
-    from hier_ssl.policies.candidates import CandidateLearner, candidate_policy
+    from hier_ssl.policies.candidates import CandidateLearner, candidate_policy, missing_keys
 
     learner = CandidateLearner(config, run_dir, _Selection(config, run_dir, on_selection).record, progress)
     saved = torch.load(run_dir / MODEL_FILE, weights_only=True) if resume else None
+    if saved is not None and (missing := missing_keys(saved)):
+        raise ConfigError(f"cannot resume {run_dir}: {run_dir / MODEL_FILE} lacks {missing}")
     net = learner.learn(saved)
     return candidate_policy(net, learner.planner), learner.train_time
 

@@ -50,7 +50,7 @@ def freeze(module: nn.Module) -> nn.Module:
     return module
 
 
-def _linear_layers(
+def linear_layers(
     state_dict: dict[str, torch.Tensor], prefix: str
 ) -> list[tuple[torch.Tensor, torch.Tensor]]:
     """(weight, bias) of every ``{prefix}{i}.weight`` in index order."""
@@ -72,7 +72,7 @@ def mean_actor(
 ) -> nn.Sequential:
     """An MLP from ``state_dict``'s ``{prefix}{i}`` linear layers, the last cut to its first ``out_dim``
     rows, then ``squash``. Shape: (B, obs_dim) -> (B, out_dim)."""
-    layers = _linear_layers(state_dict, prefix)
+    layers = linear_layers(state_dict, prefix)
     if not layers:
         raise ValueError(f"no '{prefix}<i>.weight' layers in the state dict")
     modules: list[nn.Module] = []
@@ -156,11 +156,11 @@ def load_actor(run_dir: str | Path, which: str = "best") -> tuple[nn.Sequential,
         saved = torch.load(path, map_location="cpu", weights_only=True)
         if config.algo == "sac":
             state = _sac_actor_state(saved, path)
-            act_dim = _linear_layers(state, "net.")[-1][0].shape[0] // 2
+            act_dim = linear_layers(state, "net.")[-1][0].shape[0] // 2
             actor = mean_actor(state, "net.", nn.ReLU, act_dim, nn.Tanh())
         else:
             state = _ppo_actor_state(saved)
-            act_dim = _linear_layers(state, "mlp.")[-1][0].shape[0]
+            act_dim = linear_layers(state, "mlp.")[-1][0].shape[0]
             actor = mean_actor(state, "mlp.", nn.ELU, act_dim, nn.Hardtanh(-1.0, 1.0))
     return freeze(actor), config
 
@@ -184,7 +184,7 @@ def sac_policy(actor: SquashedGaussianActor, generator: torch.Generator | None =
 
 def _sampling_sac_policy(state: dict[str, torch.Tensor], generator: torch.Generator) -> NumpyPolicy:
     """The full SAC actor rebuilt from its state dict (sizes read from the weights), sampling."""
-    layers = _linear_layers(state, "net.")
+    layers = linear_layers(state, "net.")
     hidden = tuple(weight.shape[0] for weight, _ in layers[:-1])
     actor = SquashedGaussianActor(layers[0][0].shape[1], layers[-1][0].shape[0] // 2, hidden)
     actor.load_state_dict(state)
@@ -194,7 +194,7 @@ def _sampling_sac_policy(state: dict[str, torch.Tensor], generator: torch.Genera
 def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Generator) -> NumpyPolicy:
     """rsl-rl's Gaussian: mean + std * N(0, 1) with the saved state-independent std (scalar or log form,
     clamped at rsl-rl's floor 1e-6), clipped to [-1, 1] as the env clips the actions it is given."""
-    act_dim = _linear_layers(state, "mlp.")[-1][0].shape[0]
+    act_dim = linear_layers(state, "mlp.")[-1][0].shape[0]
     mean = freeze(mean_actor(state, "mlp.", nn.ELU, act_dim, nn.Identity()))
     if "distribution.std_param" in state:
         std = state["distribution.std_param"].clamp(min=1e-6)

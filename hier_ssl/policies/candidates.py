@@ -34,6 +34,8 @@ from hier_ssl.config import TrainConfig
 from hier_ssl.evaluate import evaluate
 from hier_ssl.learner_config import CandidatePPOConfig
 from hier_ssl.manager.planners import SamplingPlanner, Scene, make_planner
+from hier_ssl.policies.actor import linear_layers, mean_actor
+from hier_ssl.policies.networks import mlp
 
 NumpyPolicy = Callable[[np.ndarray], np.ndarray]
 Scorer = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
@@ -55,26 +57,9 @@ def soft_choice(planner: SamplingPlanner, scene: Scene, tau: float) -> tuple[np.
     return cand, weight / weight.sum(1, keepdims=True)
 
 
-def mlp(sizes: list[int], activation: type[nn.Module]) -> nn.Sequential:
-    """Linear layers of ``sizes`` with ``activation`` between them (none after the last)."""
-    layers: list[nn.Module] = []
-    for a, b in zip(sizes[:-1], sizes[1:], strict=True):
-        layers += [nn.Linear(a, b), activation()]
-    return nn.Sequential(*layers[:-1])
-
-
-def chooser(obs_dim: int, num_candidates: int, hidden: tuple[int, ...]) -> nn.Sequential:
-    """The classifier: observations (B, obs_dim) -> one logit per candidate (B, C), ReLU between layers."""
-    return mlp([obs_dim, *hidden, num_candidates], nn.ReLU)
-
-
 def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Sequential:
-    """The classifier rebuilt from its state dict, its sizes read from the weights."""
-    keys = sorted((k for k in state if k.endswith(".weight")), key=lambda k: int(k.split(".")[0]))
-    weights = [state[key] for key in keys]
-    net = chooser(weights[0].shape[1], weights[-1].shape[0], tuple(w.shape[0] for w in weights[:-1]))
-    net.load_state_dict(state)
-    return net
+    """The classifier (``mlp(obs_dim, hidden, C)``) rebuilt from its state dict, sizes from the weights."""
+    return mean_actor(state, "", nn.ReLU, linear_layers(state, "")[-1][0].shape[0], nn.Identity())
 
 
 def act(
@@ -150,6 +135,16 @@ def _seed(config: TrainConfig, phase: int, index: int) -> int:
     return (config.seed + 1) * 1_000_000 + phase * 100_000 + index
 
 
+def missing_keys(saved: dict[str, Any]) -> list[str]:
+    """What a ``model.pt`` of ``CandidateLearner`` lacks for its phase (empty: it can be resumed)."""
+    needs = {
+        "dagger": ("optimizer", "obs", "labels", "round"),
+        "ppo": ("reference", "value", "optimizers", "iteration", "decisions", "states"),
+    }
+    wanted = ("net", "train_time_s", "torch_rng", *needs.get(saved.get("phase"), ("phase",)))
+    return [key for key in wanted if key not in saved]
+
+
 class CandidateLearner:
     """Both phases over one run directory (module docstring). ``model.pt`` is rewritten after every DAgger
     round and every ``ppo.eval_interval`` PPO iterations, then ``score`` rates the greedy policy: curve
@@ -218,7 +213,7 @@ class CandidateLearner:
             p = torch.as_tensor(np.concatenate(label_parts))
             obs_parts, label_parts = [x.numpy()], [p.numpy()]
             if self.net is None:
-                self.net = chooser(x.shape[1], p.shape[1], settings.hidden)
+                self.net = mlp(x.shape[1], settings.hidden, p.shape[1])
             net = self.net
             if optimizer is None:
                 optimizer = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
@@ -259,7 +254,7 @@ class CandidateLearner:
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
-        self.value = mlp([net[0].in_features, *settings.value_hidden, 1], nn.Tanh)
+        self.value = mlp(net[0].in_features, settings.value_hidden, 1, nn.Tanh)
         self.optimizers = (
             torch.optim.Adam(net.parameters(), lr=settings.learning_rate),
             torch.optim.Adam(self.value.parameters(), lr=settings.value_learning_rate),
@@ -393,8 +388,8 @@ __all__ = [
     "advantages",
     "candidate_planner",
     "candidate_policy",
-    "chooser",
     "chooser_from_state",
+    "missing_keys",
     "outcome_reward",
     "soft_choice",
 ]

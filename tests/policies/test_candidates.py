@@ -72,6 +72,12 @@ def test_a_candidates_run_resumes_in_either_phase_and_plays_as_a_policy(tmp_path
     run = tmp_path / "run"
     train(parse_config(_config(rounds=2, episodes=10)), run, progress=False)
     _more(run, rounds=3)
+    saved = torch.load(run / "model.pt")
+    torch.save({k: v for k, v in saved.items() if k != "labels"}, tmp_path / "model.pt")
+    (tmp_path / "model.pt").replace(run / "model.pt")
+    with pytest.raises(ConfigError, match=r"model.pt lacks \['labels'\]"):
+        train(resume_config(run), run, resume=True, progress=False)
+    torch.save(saved, run / "model.pt")
     train(resume_config(run), run, resume=True, progress=False)
     rows = (run / "curve.csv").read_text().splitlines()[1:]
     assert _steps(run) == [1, 2, 3]

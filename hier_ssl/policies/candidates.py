@@ -34,10 +34,9 @@ from hier_ssl.config import TrainConfig
 from hier_ssl.evaluate import evaluate
 from hier_ssl.learner_config import CandidatePPOConfig
 from hier_ssl.manager.planners import SamplingPlanner, Scene, make_planner
-from hier_ssl.policies.actor import linear_layers, mean_actor
+from hier_ssl.policies.actor import NumpyPolicy, linear_layers, mean_actor
 from hier_ssl.policies.networks import mlp
 
-NumpyPolicy = Callable[[np.ndarray], np.ndarray]
 Scorer = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
 """Model selection: ``(policy, step, transitions, train_time_s, state)``; ``state()`` is what
 ``best_actor.pt`` keeps (``hier_ssl.train``)."""

@@ -347,7 +347,9 @@ class CandidateLearner:
         obs, choices, old_log_probs, adv, returns = batch
         logs: dict[str, float] = {}
         for _ in range(settings.epochs):
-            for rows in torch.randperm(len(obs)).split(max(1, len(obs) // settings.minibatches)):
+            # Equal shares: a scenario's live rows rarely divide evenly, and a remainder of one row would
+            # have no spread to normalise its advantages by.
+            for rows in torch.randperm(len(obs)).chunk(settings.minibatches):
                 value_loss = (value(obs[rows]).squeeze(-1) - returns[rows]).square().mean()
                 value_optimizer.zero_grad()
                 value_loss.backward()
@@ -357,7 +359,8 @@ class CandidateLearner:
                     continue
                 log_probs = torch.log_softmax(net(obs[rows]), 1)
                 ratio = (log_probs.gather(1, choices[rows, None])[:, 0] - old_log_probs[rows]).exp()
-                a = (adv[rows] - adv[rows].mean()) / (adv[rows].std() + 1e-8)
+                a = adv[rows] - adv[rows].mean()
+                a = a / (a.std() + 1e-8) if len(rows) > 1 else a
                 clipped = ratio.clamp(1.0 - settings.clip, 1.0 + settings.clip)
                 surrogate = -torch.min(ratio * a, clipped * a).mean()
                 with torch.no_grad():

@@ -161,3 +161,22 @@ def test_ppo_takes_the_classifier_past_the_obstacle_where_imitation_left_it(
     # Two small DAgger rounds leave it at the direct sub-goal's success; PPO's outcomes alone lift it.
     assert curve[2] < 0.2 and curve[42] > 0.7, curve
     assert summary["final"]["success_rate"] > 0.7, summary
+
+
+def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: Path) -> None:
+    from hier_ssl.policies.candidates import CandidateLearner
+    from hier_ssl.policies.networks import mlp
+
+    learner = CandidateLearner(parse_config(_config()), tmp_path, score=lambda *args: None, progress=False)
+    learner.net, learner.reference, learner.value = mlp(6, (8,), 4), mlp(6, (8,), 4), mlp(6, (8,), 1)
+    learner.optimizers = tuple(torch.optim.Adam(m.parameters()) for m in (learner.net, learner.value))
+    # Five live rows in four minibatches (a scenario whose robots left at different times).
+    batch = [
+        torch.randn(5, 6),
+        torch.tensor([0, 1, 2, 3, 0]),
+        torch.full((5,), -1.4),
+        torch.randn(5),
+        torch.randn(5),
+    ]
+    learner.update(batch, moving=True)
+    assert all(torch.isfinite(p).all() for p in learner.net.parameters())

@@ -6,13 +6,17 @@ ranges, and nothing from the rest of the package.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 
 class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+LayerSizes = Annotated[tuple[Annotated[int, Field(ge=1)], ...], Field(min_length=1)]
+"""Hidden layer sizes: at least one layer, each of at least one unit."""
 
 
 class SACConfig(BaseModel):
@@ -150,7 +154,7 @@ class CandidatePPOConfig(Strict):
     horizon: int = Field(32, ge=1)  # decisions per field per iteration
     learning_rate: float = Field(1e-4, gt=0)
     value_learning_rate: float = Field(1e-3, gt=0)
-    value_hidden: tuple[int, ...] = (256, 256)
+    value_hidden: LayerSizes = (256, 256)
     value_warmup: int = Field(10, ge=0)  # iterations that fit the value alone before the policy moves
     gamma: float = Field(0.99, gt=0, le=1)  # per decision
     lam: float = Field(0.95, ge=0, le=1)
@@ -170,7 +174,7 @@ class CandidatesConfig(Strict):
     episodes (the first played by the planner, the others by the network), each followed by ``epochs``
     passes over every state gathered so far; phase 2 is ``ppo``."""
 
-    hidden: tuple[int, ...] = (256, 256)
+    hidden: LayerSizes = (256, 256)
     rounds: int = Field(30, ge=1)
     episodes: int = Field(500, ge=1)
     epochs: int = Field(8, ge=1)

@@ -83,6 +83,10 @@ def asha(jobs: Sequence[Job]) -> Any:
                 self.stopped[trial.config["run"]] = int(result["step"])
             return action
 
+    if any(job.config.algo == "candidates" for job in jobs):
+        raise ValueError(
+            "--asha: algo 'candidates' counts rounds and iterations, not the vector steps ASHA's rungs use"
+        )
     grace = max(
         max(job.config.eval_interval for job in jobs), max(job.config.total_steps for job in jobs) // 4
     )

@@ -164,7 +164,6 @@ class CandidateLearner:
         torch.manual_seed(self.config.seed)
         saved = saved or {}
         if saved:
-            torch.set_rng_state(saved["torch_rng"])
             self.train_time = saved["train_time_s"]
             self.net = chooser_from_state(saved["net"])
         try:
@@ -189,6 +188,8 @@ class CandidateLearner:
             optimizer = torch.optim.Adam(self.net.parameters(), lr=settings.learning_rate)
             optimizer.load_state_dict(saved["optimizer"])
         first = saved["round"] + 1 if saved else 0
+        if saved:  # after the networks are built, whose initialisation draws from it
+            torch.set_rng_state(saved["torch_rng"])
         self.bar.update(first)
 
         def labelling(student: nn.Module | None) -> NumpyPolicy:
@@ -264,6 +265,7 @@ class CandidateLearner:
             for optimizer, state in zip(self.optimizers, saved["optimizers"], strict=True):
                 optimizer.load_state_dict(state)
             first, decisions, self.states = saved["iteration"], saved["decisions"], saved["states"]
+            torch.set_rng_state(saved["torch_rng"])  # after the networks are built, as in dagger()
         self.bar.update(self.settings.rounds + first - self.bar.n)
         self.env = TorchVectorEnv(self.config.task_config, settings.fields)
         self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
@@ -347,9 +349,10 @@ class CandidateLearner:
         obs, choices, old_log_probs, adv, returns = batch
         logs: dict[str, float] = {}
         for _ in range(settings.epochs):
-            # Equal shares: a scenario's live rows rarely divide evenly, and a remainder of one row would
-            # have no spread to normalise its advantages by.
-            for rows in torch.randperm(len(obs)).chunk(settings.minibatches):
+            # Near-equal shares: a scenario's live rows rarely divide evenly, and one row has no spread.
+            for rows in torch.tensor_split(torch.randperm(len(obs)), settings.minibatches):
+                if not len(rows):  # fewer rows than minibatches
+                    continue
                 value_loss = (value(obs[rows]).squeeze(-1) - returns[rows]).square().mean()
                 value_optimizer.zero_grad()
                 value_loss.backward()

@@ -97,6 +97,7 @@ def test_a_candidates_run_resumes_in_either_phase_and_plays_as_a_policy(tmp_path
         assert actions.shape == (8, core.act_dim) and np.abs(actions).max() <= 1.0
     first, again = (load_policy(run, sample=True, seed=5)(obs) for _ in range(2))
     np.testing.assert_array_equal(first, again)
+
     with pytest.raises(ConfigError, match="algo 'candidates'.*no stand-alone actor"):
         load_actor(run)
 
@@ -108,6 +109,8 @@ def test_a_candidates_run_resumes_in_either_phase_and_plays_as_a_policy(tmp_path
         ({"candidates": {"rounds": 0}}, "candidates.rounds"),
         ({"candidates": {"tau": 0}}, "candidates.tau"),
         ({"candidates": {"ppo": {"gamma": 1.5}}}, "candidates.ppo.gamma"),
+        ({"candidates": {"hidden": []}}, "candidates.hidden"),
+        ({"candidates": {"ppo": {"value_hidden": [64, 0]}}}, "candidates.ppo.value_hidden"),
     ],
 )
 def test_candidates_config_errors_name_the_key(change: dict, message: str) -> None:
@@ -117,7 +120,13 @@ def test_candidates_config_errors_name_the_key(change: dict, message: str) -> No
 
 def test_a_dagger_scenario_run_shares_its_classifier_between_the_robots(tmp_path: Path) -> None:
     data = load_yaml(config_dir() / "scenarios" / "formation.yaml")
-    section = {"rounds": 1, "episodes": 3, "ppo": {"iterations": 2, "fields": 2, "horizon": 4}}
+    # value_warmup 0: the policy moves in the first iteration, over rows of robots that leave at
+    # different times (masked as they go).
+    section = {
+        "rounds": 1,
+        "episodes": 3,
+        "ppo": {"iterations": 2, "fields": 2, "horizon": 8, "value_warmup": 0},
+    }
     config = {**data, "algo": "candidates", "eval_episodes": 3, "candidates": section}
     summary = train(parse_config(config), tmp_path / "run", progress=False)
     assert summary["task"] == "formation" and summary["robots"] == 6 * 3 and summary["episodes"] == 3
@@ -180,3 +189,36 @@ def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: 
     ]
     learner.update(batch, moving=True)
     assert all(torch.isfinite(p).all() for p in learner.net.parameters())
+
+
+def test_sampling_draws_from_the_logits_and_greedy_takes_the_highest() -> None:
+    from hier_ssl.policies.candidates import act, candidate_planner
+    from hier_ssl.policies.networks import mlp
+
+    config = parse_config(SHIPPED)
+    planner = candidate_planner(config)
+    core = HierarchicalCore(config.task_config, 64)
+    obs = core.reset(2).reshape(-1, core.obs_dim)
+    width = planner.candidates(planner.read(obs)).shape[1]
+    net = mlp(core.obs_dim, (8,), width)
+    torch.nn.init.zeros_(net[-1].weight)
+    torch.nn.init.zeros_(net[-1].bias)
+    with torch.no_grad():
+        net[-1].bias[7] = 1.0  # candidate 7 is the most likely, but with uniform logits elsewhere not sure
+    greedy, log_prob, _ = act(net, planner, obs)
+    assert (greedy == 7).all() and torch.allclose(log_prob, torch.full((64,), log_prob[0].item()))
+    drawn = [act(net, planner, obs, torch.Generator().manual_seed(seed))[0] for seed in (1, 1, 2)]
+    assert torch.equal(drawn[0], drawn[1]) and not torch.equal(drawn[0], drawn[2])
+    assert (drawn[0] != 7).any()
+
+
+def test_a_resumed_dagger_phase_ends_with_the_weights_of_an_uninterrupted_run(tmp_path: Path) -> None:
+    whole, halves = tmp_path / "whole", tmp_path / "halves"
+    train(parse_config(_config(rounds=2, episodes=8)), whole, progress=False)
+    train(parse_config(_config(rounds=1, episodes=8)), halves, progress=False)
+    _more(halves, rounds=2)
+    train(resume_config(halves), halves, resume=True, progress=False)
+    # The saved RNG state is restored after the network is rebuilt (its initialisation draws from it), so
+    # the resumed round shuffles its minibatches as the uninterrupted one did.
+    for key, value in torch.load(whole / "model.pt")["net"].items():
+        torch.testing.assert_close(torch.load(halves / "model.pt")["net"][key], value, rtol=0, atol=0)

@@ -1,10 +1,9 @@
 """A manager that chooses one of the ``sampling`` planner's candidate sub-goals: fitted to the planner by
 DAgger, then improved on the task's own outcomes by PPO.
 
-The planner's choice is discontinuous in the observation (pass an obstacle on the left or on the right),
-and a Gaussian actor fitted to it lands between the branches. Here the action is a class: one of the
-planner's candidates (``SamplingPlanner.candidates``, geometry from the observation alone), scored by an
-MLP with one logit each.
+The planner's choice is discontinuous (pass an obstacle left or right); a Gaussian actor fitted to it
+lands between the branches. Here the action is a class: one of the planner's candidates
+(``SamplingPlanner.candidates``, geometry from the observation alone), one MLP logit each.
 
 1. DAgger (Ross et al., 2011): round 0 plays the planner, every later round the network; every state met
    is labelled with the planner's soft choice (``soft_choice``) and the network refitted on all of them.
@@ -12,8 +11,8 @@ MLP with one logit each.
    (``outcome_reward``: time, success, collision), with a KL penalty towards the DAgger fit and a value
    function fitted alone for its first iterations. This is what can improve on the planner, not copy it.
 
-A hybrid: at every decision the manager runs the planner's candidate geometry (not its rollouts, which
-are where the planner's time goes), so it needs hier_ssl at run time and does not export.
+A hybrid: at every decision it runs the planner's candidate geometry (not its rollouts, where the
+planner's time goes), so it needs hier_ssl at run time and does not export.
 """
 
 from __future__ import annotations
@@ -62,12 +61,16 @@ def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Sequential:
 
 
 def act(
-    net: nn.Module, planner: SamplingPlanner, obs: np.ndarray, generator: torch.Generator | None = None
+    net: nn.Module,
+    planner: SamplingPlanner,
+    obs: np.ndarray,
+    generator: torch.Generator | None = None,
+    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
     """The candidate each row chooses (B,) (highest logit, or drawn from the logits' softmax with
-    ``generator``), its log-probability (B,) and the action (B, A) that names it."""
-    scene = planner.read(obs)
-    cand = planner.candidates(scene)
+    ``generator``), its log-probability (B,), the action (B, A) naming it; ``obs``'s scene and candidates
+    are built unless given."""
+    scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
     with torch.no_grad():
         logits = net(torch.as_tensor(obs, dtype=torch.float32))
     if logits.shape[1] != cand.shape[1]:
@@ -136,18 +139,16 @@ def _seed(config: TrainConfig, phase: int, index: int) -> int:
 
 def missing_keys(saved: dict[str, Any]) -> list[str]:
     """What a ``model.pt`` of ``CandidateLearner`` lacks for its phase (empty: it can be resumed)."""
-    needs = {
-        "dagger": ("optimizer", "obs", "labels", "round"),
-        "ppo": ("reference", "value", "optimizers", "iteration", "decisions", "states"),
-    }
+    dagger, ppo = ("optimizer", "obs", "labels", "round"), ("reference", "value", "optimizers", "iteration")
+    needs = {"dagger": dagger, "ppo": (*ppo, "decisions", "states")}
     wanted = ("net", "train_time_s", "torch_rng", *needs.get(saved.get("phase"), ("phase",)))
     return [key for key in wanted if key not in saved]
 
 
 class CandidateLearner:
-    """Both phases over one run directory (module docstring). ``model.pt`` is rewritten after every DAgger
-    round and every ``ppo.eval_interval`` PPO iterations, then ``score`` rates the greedy policy: curve
-    step = the round, then rounds + the PPO iteration. A resumed PPO phase starts new episodes."""
+    """Both phases over one run directory. ``model.pt`` is rewritten after every DAgger round and every
+    ``ppo.eval_interval`` PPO iterations, then ``score`` rates the greedy policy (curve step: the round,
+    then rounds + the iteration). A resumed PPO phase starts new episodes."""
 
     def __init__(self, config: TrainConfig, run_dir: Path, score: Scorer, progress: bool = True) -> None:
         self.config, self.run_dir, self.score = config, run_dir, score
@@ -198,8 +199,8 @@ class CandidateLearner:
                 cand, soft = soft_choice(planner, scene, settings.tau)
                 obs_parts.append(np.asarray(obs, dtype=np.float32))
                 label_parts.append(soft.astype(np.float32))
-                if student is not None:
-                    return act(student, planner, obs)[2]
+                if student is not None:  # the scene and candidates soft_choice built, not built again
+                    return act(student, planner, obs, scene_and_candidates=(scene, cand))[2]
                 chosen = cand[np.arange(len(cand)), soft.argmax(1)]
                 return planner.action(scene, planner.subgoals(scene, chosen))
 
@@ -237,8 +238,7 @@ class CandidateLearner:
                 ("episode/collision_rate", played["collision_rate"]),
             ):
                 self.writer.add_scalar(key, value, step)
-            # Saved before the round is scored: a run killed while scoring resumes at the next round, and
-            # the curve never holds a round twice.
+            # Saved before scoring: a run killed while scoring resumes at the next round, no curve row twice.
             weights = {"net": net.state_dict(), "optimizer": optimizer.state_dict(), "obs": x, "labels": p}
             self.save({"phase": "dagger", "round": round_, "states": len(x), **weights})
             self.scored(step, len(x))

@@ -169,11 +169,14 @@ class CandidatePPOConfig(Strict):
 
 
 class CandidatesConfig(Strict):
-    """``algo: candidates``: a classifier over the ``sampling`` planner's candidate sub-goals
-    (``hier_ssl.policies.candidates``). Phase 1 fits it by DAgger: ``rounds`` rounds of ``episodes``
-    episodes (the first played by the planner, the others by the network), each followed by ``epochs``
-    passes over every state gathered so far; phase 2 is ``ppo``."""
+    """``algo: candidates``: a choice among the ``sampling`` planner's candidate sub-goals
+    (``hier_ssl.policies.candidates``) by a ``network``: "classifier" (an MLP over the observation, a
+    logit per candidate slot) or "scorer" (an MLP shared by the candidates, over each one's features).
+    Phase 1 fits it by DAgger: ``rounds`` rounds of ``episodes`` episodes (the first played by the
+    planner, the others by the network), each followed by ``epochs`` passes over every state gathered so
+    far; phase 2 is ``ppo``."""
 
+    network: Literal["classifier", "scorer"] = "classifier"
     hidden: LayerSizes = (256, 256)
     rounds: int = Field(30, ge=1)
     episodes: int = Field(500, ge=1)

@@ -218,7 +218,8 @@ def _candidate_policy(
     """An ``algo: candidates`` run's classifier over the planner's candidates
     (``hier_ssl.policies.candidates``): ``best_actor.pt`` and ``model.pt`` both hold its weights under
     "net"."""
-    from hier_ssl.policies.candidates import candidate_planner, candidate_policy, chooser_from_state
+    from hier_ssl.policies.candidate_nets import chooser_from_state
+    from hier_ssl.policies.candidates import candidate_planner, candidate_policy
 
     path = checkpoint_path(run_dir, config, which)
     with _reading(path, config.algo):

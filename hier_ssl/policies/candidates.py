@@ -3,7 +3,8 @@ DAgger, then improved on the task's own outcomes by PPO.
 
 The planner's choice is discontinuous (pass an obstacle left or right); a Gaussian actor fitted to it
 lands between the branches. Here the action is a class: one of the planner's candidates
-(``SamplingPlanner.candidates``, geometry from the observation alone), one MLP logit each.
+(``SamplingPlanner.candidates``, geometry from the observation alone), one logit each, from a classifier
+over the observation or a scorer over each candidate's features (``candidate_nets``).
 
 1. DAgger (Ross et al., 2011): round 0 plays the planner, every later round the network; every state met
    is labelled with the planner's soft choice (``soft_choice``) and the network refitted on all of them.
@@ -33,7 +34,15 @@ from hier_ssl.config import TrainConfig
 from hier_ssl.evaluate import evaluate
 from hier_ssl.learner_config import CandidatePPOConfig
 from hier_ssl.manager.planners import SamplingPlanner, Scene, make_planner
-from hier_ssl.policies.actor import NumpyPolicy, linear_layers, mean_actor
+from hier_ssl.policies.actor import NumpyPolicy
+from hier_ssl.policies.candidate_nets import (
+    build_chooser,
+    chooser_from_state,
+    chooser_inputs,
+    chooser_logits,
+    observation_features,
+    soft_choice,
+)
 from hier_ssl.policies.networks import mlp
 
 Scorer = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
@@ -44,20 +53,6 @@ Scorer = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
 def candidate_planner(config: TrainConfig) -> SamplingPlanner:
     """The ``sampling`` planner of the run's task: its candidates are the manager's classes."""
     return make_planner("sampling", config.task_config)
-
-
-def soft_choice(planner: SamplingPlanner, scene: Scene, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """The planner's candidates (N, C) complex and its soft choice over them (N, C), rows summing to 1:
-    a softmax of its ``score`` / ``tau`` (over the best tier it would choose from, by arrival time)."""
-    cand = planner.candidates(scene)
-    score = planner.score(scene, cand)
-    weight = np.exp((score - score.max(1, keepdims=True)) / tau)
-    return cand, weight / weight.sum(1, keepdims=True)
-
-
-def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Sequential:
-    """The classifier (``mlp(obs_dim, hidden, C)``) rebuilt from its state dict, sizes from the weights."""
-    return mean_actor(state, "", nn.ReLU, linear_layers(state, "")[-1][0].shape[0], nn.Identity())
 
 
 def act(
@@ -72,7 +67,7 @@ def act(
     are built unless given."""
     scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
     with torch.no_grad():
-        logits = net(torch.as_tensor(obs, dtype=torch.float32))
+        logits = net(chooser_inputs(net, planner, obs, (scene, cand)))
     if logits.shape[1] != cand.shape[1]:
         raise ValueError(
             f"the network scores {logits.shape[1]} candidates, the planner builds {cand.shape[1]} "
@@ -155,12 +150,12 @@ class CandidateLearner:
         self.settings = config.candidates
         self.planner = candidate_planner(config)
         self.train_time = 0.0  # rollouts and updates, without the scoring
-        self.net: nn.Sequential | None = None
+        self.net: nn.Module | None = None
         self.writer = SummaryWriter(run_dir)
         total = self.settings.rounds + self.settings.ppo.iterations
         self.bar = tqdm(total=total, desc="candidates (DAgger, then PPO)", disable=not progress)
 
-    def learn(self, saved: dict[str, Any] | None = None) -> nn.Sequential:
+    def learn(self, saved: dict[str, Any] | None = None) -> nn.Module:
         """Both phases, continuing ``saved`` (a ``model.pt``) where given; the final network."""
         torch.manual_seed(self.config.seed)
         saved = saved or {}
@@ -213,21 +208,23 @@ class CandidateLearner:
             x = torch.as_tensor(np.concatenate(obs_parts))
             p = torch.as_tensor(np.concatenate(label_parts))
             obs_parts, label_parts = [x.numpy()], [p.numpy()]
-            if self.net is None:
-                self.net = mlp(x.shape[1], settings.hidden, p.shape[1])
+            if self.net is None:  # a scorer's standardisation from the first round's states
+                first = x if settings.network == "classifier" else observation_features(planner, x.numpy())
+                self.net = build_chooser(settings.network, settings.hidden, first, p.shape[1])
             net = self.net
             if optimizer is None:
                 optimizer = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
             losses = []
             for _ in range(settings.epochs):
                 for rows in torch.randperm(len(x)).split(settings.batch_size):
-                    loss = -(p[rows] * torch.log_softmax(net(x[rows]), 1)).sum(1).mean()
+                    logits = net(chooser_inputs(net, planner, x[rows].numpy()))
+                    loss = -(p[rows] * torch.log_softmax(logits, 1)).sum(1).mean()
                     optimizer.zero_grad()
                     loss.backward()
                     optimizer.step()
                     losses.append(loss.item())
             with torch.no_grad():
-                agreement = float((net(x).argmax(1) == p.argmax(1)).float().mean())
+                agreement = float((chooser_logits(net, planner, x).argmax(1) == p.argmax(1)).float().mean())
             self.train_time += time.perf_counter() - began
             step = round_ + 1
             for key, value in (
@@ -254,7 +251,8 @@ class CandidateLearner:
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
-        self.value = mlp(net[0].in_features, settings.value_hidden, 1, nn.Tanh)
+        self.env = TorchVectorEnv(self.config.task_config, settings.fields)
+        self.value = mlp(self.env.num_obs, settings.value_hidden, 1, nn.Tanh)
         self.optimizers = (
             torch.optim.Adam(net.parameters(), lr=settings.learning_rate),
             torch.optim.Adam(self.value.parameters(), lr=settings.value_learning_rate),
@@ -267,7 +265,6 @@ class CandidateLearner:
             first, decisions, self.states = saved["iteration"], saved["decisions"], saved["states"]
             torch.set_rng_state(saved["torch_rng"])  # after the networks are built, as in dagger()
         self.bar.update(self.settings.rounds + first - self.bar.n)
-        self.env = TorchVectorEnv(self.config.task_config, settings.fields)
         self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
         self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
         for iteration in range(first, settings.iterations):
@@ -347,6 +344,7 @@ class CandidateLearner:
         assert net is not None
         policy_optimizer, value_optimizer = self.optimizers
         obs, choices, old_log_probs, adv, returns = batch
+        inputs = chooser_inputs(net, self.planner, obs.numpy())  # a scorer's features, built once
         logs: dict[str, float] = {}
         for _ in range(settings.epochs):
             # Near-equal shares: a scenario's live rows rarely divide evenly, and one row has no spread.
@@ -360,14 +358,14 @@ class CandidateLearner:
                 logs["losses/value"] = value_loss.item()
                 if not moving:
                     continue
-                log_probs = torch.log_softmax(net(obs[rows]), 1)
+                log_probs = torch.log_softmax(net(inputs[rows]), 1)
                 ratio = (log_probs.gather(1, choices[rows, None])[:, 0] - old_log_probs[rows]).exp()
                 a = adv[rows] - adv[rows].mean()
                 a = a / (a.std() + 1e-8) if len(rows) > 1 else a
                 clipped = ratio.clamp(1.0 - settings.clip, 1.0 + settings.clip)
                 surrogate = -torch.min(ratio * a, clipped * a).mean()
                 with torch.no_grad():
-                    anchor = torch.log_softmax(self.reference(obs[rows]), 1)
+                    anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
                 kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
                 policy_optimizer.zero_grad()
                 (surrogate + settings.kl_weight * kl).backward()
@@ -393,8 +391,6 @@ __all__ = [
     "advantages",
     "candidate_planner",
     "candidate_policy",
-    "chooser_from_state",
     "missing_keys",
     "outcome_reward",
-    "soft_choice",
 ]

@@ -14,7 +14,7 @@ from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.evaluate import evaluate
 from hier_ssl.manager.planners import make_planner
 from hier_ssl.policies.actor import load_actor, load_policy
-from hier_ssl.policies.candidates import soft_choice
+from hier_ssl.policies.candidate_nets import soft_choice
 from hier_ssl.train import resume_config, train
 
 SHIPPED = load_yaml(config_dir() / "obstacle" / "candidates.yaml")

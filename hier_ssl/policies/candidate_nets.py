@@ -1,0 +1,111 @@
+"""The two networks a candidates manager can choose with (``candidates.network``), and what each reads.
+
+- ``classifier``: an MLP over the manager's observation (B, O) with one logit per candidate slot (B, C).
+- ``scorer``: one small MLP shared by every candidate, over that candidate's features (B, C, F)
+  (``hier_ssl.manager.candidate_features``), one logit each. It scores a candidate by what happens on the
+  way to it, not by its slot, so "pass left of the second-nearest obstacle" is not a class of its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from hier_ssl.manager.candidate_features import candidate_features
+from hier_ssl.manager.planners import SamplingPlanner, Scene
+from hier_ssl.policies.actor import linear_layers, mean_actor
+from hier_ssl.policies.networks import mlp
+
+NETWORKS = ("classifier", "scorer")
+
+
+class Scorer(nn.Module):
+    """Logits (B, C) of features (B, C, F): ``body`` (F -> hidden -> 1) on each candidate's features,
+    standardised by the ``mean`` and ``std`` (F,) of the first data it was fitted on."""
+
+    def __init__(self, features: int, hidden: Sequence[int], mean: torch.Tensor, std: torch.Tensor) -> None:
+        super().__init__()
+        self.register_buffer("mean", mean.detach().clone().float())
+        self.register_buffer("std", std.detach().clone().float())
+        self.body = mlp(features, hidden, 1)
+
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
+        return self.body((features - self.mean) / self.std)[..., 0]
+
+
+def build_chooser(network: str, hidden: Sequence[int], inputs: torch.Tensor, candidates: int) -> nn.Module:
+    """A new network of kind ``network`` for ``inputs`` (its first data: observations (B, O) for the
+    classifier, features (B, C, F) for the scorer, whose standardisation they fix)."""
+    if network == "classifier":
+        return mlp(inputs.shape[1], hidden, candidates)
+    if network != "scorer":
+        raise ValueError(f"unknown candidates.network {network!r}; expected one of {NETWORKS}")
+    flat = inputs.reshape(-1, inputs.shape[-1])
+    return Scorer(flat.shape[1], hidden, flat.mean(0), flat.std(0).clamp_min(1e-3))
+
+
+def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Module:
+    """The classifier or scorer rebuilt from its state dict (a scorer's holds "mean"), sizes from the
+    weights."""
+    if "mean" not in state:
+        return mean_actor(state, "", nn.ReLU, linear_layers(state, "")[-1][0].shape[0], nn.Identity())
+    layers = linear_layers(state, "body.")
+    hidden = [weight.shape[0] for weight, _ in layers[:-1]]
+    scorer = Scorer(layers[0][0].shape[1], hidden, state["mean"], state["std"])
+    scorer.load_state_dict(state)
+    return scorer
+
+
+def soft_choice(planner: SamplingPlanner, scene: Scene, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """The planner's candidates (N, C) complex and its soft choice over them (N, C), rows summing to 1,
+    which the networks are fitted to: a softmax of its ``score`` / ``tau`` (over the best tier it would
+    choose from, by arrival time)."""
+    cand = planner.candidates(scene)
+    score = planner.score(scene, cand)
+    weight = np.exp((score - score.max(1, keepdims=True)) / tau)
+    return cand, weight / weight.sum(1, keepdims=True)
+
+
+def observation_features(
+    planner: SamplingPlanner, obs: np.ndarray, scene_and_candidates: tuple[Scene, np.ndarray] | None = None
+) -> torch.Tensor:
+    """Features (B, C, F) of the planner's candidates in the scenes of observations ``obs`` (B, O), the
+    scenes and candidates built unless given."""
+    scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
+    return torch.from_numpy(candidate_features(planner, scene, cand))
+
+
+def chooser_inputs(
+    net: nn.Module,
+    planner: SamplingPlanner,
+    obs: np.ndarray,
+    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
+) -> torch.Tensor:
+    """What ``net`` reads for observations ``obs`` (B, O): the observations themselves, or (scorer) the
+    features of the planner's candidates (``observation_features``)."""
+    if isinstance(net, Scorer):
+        return observation_features(planner, obs, scene_and_candidates)
+    return torch.as_tensor(obs, dtype=torch.float32)
+
+
+def chooser_logits(
+    net: nn.Module, planner: SamplingPlanner, obs: torch.Tensor, rows: int = 2048
+) -> torch.Tensor:
+    """Logits (B, C) of observations ``obs`` (B, O), ``rows`` at a time (a scorer's features of every
+    state at once would not fit in memory)."""
+    return torch.cat([net(chooser_inputs(net, planner, part.numpy())) for part in obs.split(rows)])
+
+
+__all__ = [
+    "NETWORKS",
+    "Scorer",
+    "build_chooser",
+    "chooser_from_state",
+    "chooser_inputs",
+    "chooser_logits",
+    "observation_features",
+    "soft_choice",
+]

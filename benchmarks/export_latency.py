@@ -7,7 +7,7 @@ ONNX through an onnxruntime session with one intra-op thread, and, for reference
 ``sampling`` planner on the same observation (the manager a learned one has to beat, also at batch 1).
 Prints one line per path: file size, and the median and 90th percentile time per call. An ``algo:
 candidates`` run does not export: its Python path (numpy observation, the planner's candidates, the torch
-classifier, ``decode_subgoal``) and the planner are timed.
+classifier or scorer with the candidates' features, ``decode_subgoal``) and the planner are timed.
 
 Run: python benchmarks/export_latency.py RUN_DIR [--calls 5000]
 """
@@ -113,7 +113,11 @@ def main() -> None:
             )  # fmt: skip
 
         print(f"{args.run_dir}: {config.algo}, task {task.name}, {k} other robot(s), batch 1, one thread")
-        learned = "candidates + torch classifier" if config.algo == "candidates" else "torch actor"
+        learned = (
+            f"candidates + torch {config.candidates.network}"
+            if config.algo == "candidates"
+            else "torch actor"
+        )
         for name, call, size in (
             *paths,
             (f"python (numpy obs + {learned} + decode)", python, None),

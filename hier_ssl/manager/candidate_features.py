@@ -37,40 +37,39 @@ def closest_approach(
     return np.where(t1 < t0, np.inf, distance), t
 
 
-def _leg(
+def _pieces(
     planner: SamplingPlanner,
     r0: np.ndarray,
     w: np.ndarray,
-    a: np.ndarray,
-    b: np.ndarray,
+    begin: np.ndarray,
+    end: np.ndarray,
     q: np.ndarray,
     u: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The robot at r0 + w (t - a) over [a, b] against obstacles at q + u min(t, H) (H: the planner's
-    prediction horizon): closest distance (N, C, K), its time, and the smallest clearance beyond the growing
-    safety distance at the piece's ends and closest point. Split at H, where the obstacles stop."""
+    """Pieces of the robot's path, each r0 + w (t - begin) over [begin, end] ((P, N, C, 1) complex and
+    float), against obstacles at q + u min(t, H) ((N, 1, K); H: the planner's prediction horizon): per
+    piece the closest distance (P, N, C, K), its time, and the smallest clearance beyond the growing safety
+    distance at its ends and closest point. All pieces at once: on one scene numpy's per-call cost is the
+    price."""
     h = planner.predict_horizon
+    # Each piece split at H: before it the obstacles move, after it they hold where the prediction left
+    # them. rel0 + rel_v * t is the relative position at absolute time t.
+    start = r0 - w * begin - q
+    lo = np.concatenate([begin, np.maximum(begin, h)])
+    hi = np.concatenate([np.minimum(end, h), end])
+    rel0 = np.concatenate([start, start - u * h])
+    rel_v = np.concatenate([w - u, np.broadcast_to(w, (w - u).shape)])
+    d, t = closest_approach(rel0 + rel_v * lo, rel_v, lo, hi)
+    ends = np.stack(np.broadcast_arrays(lo, t, hi))
     safety = planner.collision_distance + planner.margin
-    best_d = best_t = clearance = None
-    # Before H the obstacles move; after it they hold where the prediction left them.
-    for lo, hi, rel0, rel_v in (
-        (a, np.minimum(b, h), r0 + w * (0 - a) - q, w - u),
-        (np.maximum(a, h), b, r0 + w * (0 - a) - q - u * h, w + 0 * u),
-    ):
-        # rel0 + rel_v * t is the relative position at absolute time t.
-        d, t = closest_approach(rel0 + rel_v * lo, rel_v, lo, hi)
-        piece = np.full(d.shape, np.inf)
-        for s in (np.broadcast_to(lo, d.shape), t, np.broadcast_to(hi, d.shape)):
-            gap = np.abs(rel0 + rel_v * s) - safety - planner.margin_growth * np.minimum(s, h) ** 1.5
-            piece = np.minimum(piece, gap)
-        piece = np.where(hi < lo, np.inf, piece)
-        if best_d is None:
-            best_d, best_t, clearance = d, t, piece
-        else:
-            closer = d < best_d
-            best_d, best_t = np.where(closer, d, best_d), np.where(closer, t, best_t)
-            clearance = np.minimum(clearance, piece)
-    return best_d, best_t, clearance
+    gap = np.abs(rel0 + rel_v * ends) - safety - planner.margin_growth * np.minimum(ends, h) ** 1.5
+    clearance = np.where(hi < lo, np.inf, gap.min(0))
+    # The halves back together: the closer of the two, the smaller clearance.
+    half = len(begin)
+    closer = d[half:] < d[:half]
+    distance = np.where(closer, d[half:], d[:half])
+    when = np.where(closer, t[half:], t[:half])
+    return distance, when, np.minimum(clearance[half:], clearance[:half])
 
 
 def two_legs(planner: SamplingPlanner, scene: Scene, cand: np.ndarray) -> dict[str, np.ndarray]:
@@ -88,12 +87,20 @@ def two_legs(planner: SamplingPlanner, scene: Scene, cand: np.ndarray) -> dict[s
     t1 = l1 / speed
     # The worker drives to a held sub-goal and waits there; the target itself is never left.
     tp = np.where(np.abs(c - g) == 0, t1, np.maximum(t1, planner.hold))
-    d1, s1, c1 = _leg(planner, p, w1, np.zeros_like(t1), t1, q, u)
-    dk, sk, ck = _leg(planner, c, 0 * w1, t1, tp, q, u)
-    closer = dk < d1
-    d1, s1, c1 = np.where(closer, dk, d1), np.where(closer, sk, s1), np.minimum(c1, ck)
-    d2, s2, c2 = _leg(planner, c, w2, tp, tp + l2 / speed, q, u)
-    return {"t1": t1[..., 0], "tp": tp[..., 0], "t2": (l2 / speed)[..., 0], "d1": d1, "s1": s1, "c1": c1,
+    t2 = tp + l2 / speed
+    zero = np.zeros_like(t1)
+    shape = np.broadcast_shapes(c.shape, p.shape)
+    pieces = (  # to the candidate, parked there, on to the target
+        (np.broadcast_to(p, shape), w1, zero, t1),
+        (np.broadcast_to(c, shape), 0 * w1, t1, tp),
+        (np.broadcast_to(c, shape), w2, tp, t2),
+    )
+    r0, w, begin, end = (np.stack(parts) for parts in zip(*pieces, strict=True))
+    d, s, clear = _pieces(planner, r0, w, begin, end, q, u)
+    closer = d[1] < d[0]
+    d1, s1 = np.where(closer, d[1], d[0]), np.where(closer, s[1], s[0])
+    c1, d2, s2, c2 = np.minimum(clear[0], clear[1]), d[2], s[2], clear[2]
+    return {"t1": t1[..., 0], "tp": tp[..., 0], "t2": (t2 - tp)[..., 0], "d1": d1, "s1": s1, "c1": c1,
             "d2": d2, "s2": s2, "c2": c2}  # fmt: skip
 
 

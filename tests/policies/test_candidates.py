@@ -14,7 +14,7 @@ from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.evaluate import evaluate
 from hier_ssl.manager.planners import make_planner
 from hier_ssl.policies.actor import load_actor, load_policy
-from hier_ssl.policies.candidate_nets import soft_choice
+from hier_ssl.policies.candidate_nets import Scorer, chooser_from_state, chooser_inputs, soft_choice
 from hier_ssl.train import resume_config, train
 
 SHIPPED = load_yaml(config_dir() / "obstacle" / "candidates.yaml")
@@ -53,6 +53,28 @@ def test_dagger_alone_learns_to_pass_the_obstacle_where_the_direct_sub_goal_coll
     assert summary["success_rate"] > 0.7 and summary["collision_rate"] < 0.3, summary
     steps = [int(row.split(",")[0]) for row in (run / "curve.csv").read_text().splitlines()[1:]]
     assert steps == [1, 2, 3, 4, 5]
+
+
+def test_a_scorer_learns_from_fewer_states_than_the_classifier_and_reloads_as_saved(
+    tmp_path: Path, one_thread: None
+) -> None:
+    run = tmp_path / "run"
+    summary = train(parse_config(_config(network="scorer", rounds=2, episodes=40)), run, progress=False)
+    # Two rounds of 40 episodes: the classifier needs five of 100 (above) to pass the obstacle this often.
+    assert summary["success_rate"] > 0.7 and summary["collision_rate"] < 0.3, summary
+    state = torch.load(run / "model.pt")["net"]
+    net = chooser_from_state(state)
+    assert isinstance(net, Scorer)
+    task = parse_config(SHIPPED).task_config
+    planner = make_planner("sampling", task)
+    obs = HierarchicalCore(task, 16).reset(5).reshape(16, -1)
+    rebuilt = net(chooser_inputs(net, planner, obs))
+    saved = Scorer(net.mean.shape[0], (64, 64), state["mean"], state["std"])
+    saved.load_state_dict(state)
+    torch.testing.assert_close(rebuilt, saved(chooser_inputs(saved, planner, obs)))
+    assert rebuilt.shape == (16, planner.candidates(planner.read(obs)).shape[1])
+    played = evaluate(load_policy(run, which="final"), task, 40, seed=20_000)
+    assert played["success_rate"] > 0.7, played
 
 
 def _more(run: Path, **changes: object) -> None:

@@ -39,9 +39,9 @@ from hier_ssl.policies.candidate_nets import (
     build_chooser,
     chooser_from_state,
     chooser_inputs,
-    chooser_logits,
-    observation_features,
+    fit_chooser,
     soft_choice,
+    stored_inputs,
 )
 from hier_ssl.policies.networks import mlp
 
@@ -179,6 +179,8 @@ class CandidateLearner:
         settings, planner = self.settings, self.planner
         obs_parts = [saved["obs"].numpy()] if saved else []
         label_parts = [saved["labels"].numpy()] if saved else []
+        # What the network reads of each state, kept as it was met (a resume rebuilds it from the states).
+        input_parts = [stored_inputs(settings.network, planner, saved["obs"].numpy())] if saved else []
         optimizer = None
         if self.net is not None:
             optimizer = torch.optim.Adam(self.net.parameters(), lr=settings.learning_rate)
@@ -194,6 +196,7 @@ class CandidateLearner:
                 cand, soft = soft_choice(planner, scene, settings.tau)
                 obs_parts.append(np.asarray(obs, dtype=np.float32))
                 label_parts.append(soft.astype(np.float32))
+                input_parts.append(stored_inputs(settings.network, planner, obs, (scene, cand)))
                 if student is not None:  # the scene and candidates soft_choice built, not built again
                     return act(student, planner, obs, scene_and_candidates=(scene, cand))[2]
                 chosen = cand[np.arange(len(cand)), soft.argmax(1)]
@@ -207,28 +210,18 @@ class CandidateLearner:
             played = evaluate(labelling(self.net), self.config.task_config, settings.episodes, seed)
             x = torch.as_tensor(np.concatenate(obs_parts))
             p = torch.as_tensor(np.concatenate(label_parts))
-            obs_parts, label_parts = [x.numpy()], [p.numpy()]
+            inputs = torch.as_tensor(np.concatenate(input_parts))
+            obs_parts, label_parts, input_parts = [x.numpy()], [p.numpy()], [inputs.numpy()]
             if self.net is None:  # a scorer's standardisation from the first round's states
-                first = x if settings.network == "classifier" else observation_features(planner, x.numpy())
-                self.net = build_chooser(settings.network, settings.hidden, first, p.shape[1])
+                self.net = build_chooser(settings.network, settings.hidden, inputs.float(), p.shape[1])
             net = self.net
             if optimizer is None:
                 optimizer = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
-            losses = []
-            for _ in range(settings.epochs):
-                for rows in torch.randperm(len(x)).split(settings.batch_size):
-                    logits = net(chooser_inputs(net, planner, x[rows].numpy()))
-                    loss = -(p[rows] * torch.log_softmax(logits, 1)).sum(1).mean()
-                    optimizer.zero_grad()
-                    loss.backward()
-                    optimizer.step()
-                    losses.append(loss.item())
-            with torch.no_grad():
-                agreement = float((chooser_logits(net, planner, x).argmax(1) == p.argmax(1)).float().mean())
+            loss, agreement = fit_chooser(net, optimizer, inputs, p, settings.epochs, settings.batch_size)
             self.train_time += time.perf_counter() - began
             step = round_ + 1
             for key, value in (
-                ("losses/cross_entropy", float(np.mean(losses))),
+                ("losses/cross_entropy", loss),
                 ("dagger/first_choice_agreement", agreement),
                 ("dagger/states", len(x)),
                 ("episode/success_rate", played["success_rate"]),

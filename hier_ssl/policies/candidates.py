@@ -61,13 +61,14 @@ def act(
     obs: np.ndarray,
     generator: torch.Generator | None = None,
     scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
-) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
+) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor]:
     """The candidate each row chooses (B,) (highest logit, or drawn from the logits' softmax with
-    ``generator``), its log-probability (B,), the action (B, A) naming it; ``obs``'s scene and candidates
-    are built unless given."""
+    ``generator``), its log-probability (B,), the action (B, A) naming it and what the network read
+    (``chooser_inputs``); ``obs``'s scene and candidates are built unless given."""
     scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
+    inputs = chooser_inputs(net, planner, obs, (scene, cand))
     with torch.no_grad():
-        logits = net(chooser_inputs(net, planner, obs, (scene, cand)))
+        logits = net(inputs)
     if logits.shape[1] != cand.shape[1]:
         raise ValueError(
             f"the network scores {logits.shape[1]} candidates, the planner builds {cand.shape[1]} "
@@ -80,7 +81,7 @@ def act(
         choice = torch.multinomial(log_probs.exp(), 1, generator=generator)[:, 0]
     chosen = cand[np.arange(len(cand)), choice.numpy()]
     action = planner.action(scene, planner.subgoals(scene, chosen)).astype(np.float32)
-    return choice, log_probs.gather(1, choice[:, None])[:, 0], action
+    return choice, log_probs.gather(1, choice[:, None])[:, 0], action, inputs
 
 
 def candidate_policy(
@@ -289,6 +290,7 @@ class CandidateLearner:
         keys = ("obs", "choice", "log_prob", "reward", "done", "real")
         steps: dict[str, list] = {k: [] for k in keys}
         ended = np.zeros(3)  # successes, collisions, episodes
+        read = []  # what the network read, live rows only: a scorer's features are not built twice
         for _ in range(settings.horizon):
             obs = self.obs
             # Rows of robots that have left are zeros until their field resets: no scene to plan in.
@@ -296,9 +298,10 @@ class CandidateLearner:
             choice, log_prob = torch.zeros(len(obs), dtype=torch.long), torch.zeros(len(obs))
             action = np.zeros((len(obs), env.num_actions), dtype=np.float32)
             if real.any():
-                choice[real], log_prob[real], action[real] = act(
+                choice[real], log_prob[real], action[real], inputs = act(
                     self.net, self.planner, obs[real], self.generator
                 )
+                read.append(inputs)
             next_obs, _, terminated, truncated, info = env.step_rows(action)
             stats, rows = info["task"], info["task_rows"]
             reward = outcome_reward(
@@ -328,16 +331,17 @@ class CandidateLearner:
                 "episode/success_rate": ended[0] / ended[2],
                 "episode/collision_rate": ended[1] / ended[2],
             }
-        return [t[real] for t in (obs, choices, log_probs, adv, adv + values)], logs
+        live = [t[real] for t in (obs, choices, log_probs, adv, adv + values)]
+        return [*live, torch.cat(read) if read else obs[real]], logs
 
     def update(self, batch: list[torch.Tensor], moving: bool) -> dict[str, float]:
-        """PPO's epochs over one rollout ``batch`` (obs, choices, log-probs, advantages, returns); the
-        policy moves only when ``moving``. The losses of the last minibatch, for TensorBoard."""
+        """PPO's epochs over one rollout ``batch`` (obs, choices, log-probs, advantages, returns, what the
+        network read); the policy moves only when ``moving``. The losses of the last minibatch, for
+        TensorBoard."""
         settings, net, value = self.settings.ppo, self.net, self.value
         assert net is not None
         policy_optimizer, value_optimizer = self.optimizers
-        obs, choices, old_log_probs, adv, returns = batch
-        inputs = chooser_inputs(net, self.planner, obs.numpy())  # a scorer's features, built once
+        obs, choices, old_log_probs, adv, returns, inputs = batch
         logs: dict[str, float] = {}
         for _ in range(settings.epochs):
             # Near-equal shares: a scenario's live rows rarely divide evenly, and one row has no spread.
@@ -357,13 +361,17 @@ class CandidateLearner:
                 a = a / (a.std() + 1e-8) if len(rows) > 1 else a
                 clipped = ratio.clamp(1.0 - settings.clip, 1.0 + settings.clip)
                 surrogate = -torch.min(ratio * a, clipped * a).mean()
-                with torch.no_grad():
-                    anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
-                kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
+                loss = surrogate
+                if settings.kl_weight:  # the reference's forward pass costs a scorer as much as its own
+                    with torch.no_grad():
+                        anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
+                    kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
+                    loss = loss + settings.kl_weight * kl
+                    logs["losses/kl_to_dagger"] = kl.item()
                 policy_optimizer.zero_grad()
-                (surrogate + settings.kl_weight * kl).backward()
+                loss.backward()
                 policy_optimizer.step()
-                logs |= {"losses/surrogate": surrogate.item(), "losses/kl_to_dagger": kl.item()}
+                logs["losses/surrogate"] = surrogate.item()
         return logs
 
     def save(self, state: dict[str, Any]) -> None:

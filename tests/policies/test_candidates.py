@@ -209,7 +209,7 @@ def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: 
         torch.randn(5),
         torch.randn(5),
     ]
-    learner.update(batch, moving=True)
+    learner.update([*batch, batch[0]], moving=True)  # a classifier reads the observations
     assert all(torch.isfinite(p).all() for p in learner.net.parameters())
 
 
@@ -227,7 +227,8 @@ def test_sampling_draws_from_the_logits_and_greedy_takes_the_highest() -> None:
     torch.nn.init.zeros_(net[-1].bias)
     with torch.no_grad():
         net[-1].bias[7] = 1.0  # candidate 7 is the most likely, but with uniform logits elsewhere not sure
-    greedy, log_prob, _ = act(net, planner, obs)
+    greedy, log_prob, _, read = act(net, planner, obs)
+    assert torch.equal(read, torch.as_tensor(obs, dtype=torch.float32))
     assert (greedy == 7).all() and torch.allclose(log_prob, torch.full((64,), log_prob[0].item()))
     drawn = [act(net, planner, obs, torch.Generator().manual_seed(seed))[0] for seed in (1, 1, 2)]
     assert torch.equal(drawn[0], drawn[1]) and not torch.equal(drawn[0], drawn[2])

@@ -208,7 +208,8 @@ def _train_sac(
 
 
 def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress: bool, on_selection=None):
-    """The classifier over the planner's candidates (``hier_ssl.policies.candidates``): DAgger, then PPO."""
+    """The classifier or scorer over the planner's candidates (``hier_ssl.policies.candidates``): DAgger,
+    then PPO."""
     from hier_ssl.policies.candidates import CandidateLearner, candidate_policy, missing_keys
 
     learner = CandidateLearner(config, run_dir, _Selection(config, run_dir, on_selection).record, progress)

@@ -215,7 +215,7 @@ def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Genera
 def _candidate_policy(
     run_dir: str | Path, config: TrainConfig, which: str, generator: torch.Generator | None
 ) -> NumpyPolicy:
-    """An ``algo: candidates`` run's classifier over the planner's candidates
+    """An ``algo: candidates`` run's classifier or scorer over the planner's candidates
     (``hier_ssl.policies.candidates``): ``best_actor.pt`` and ``model.pt`` both hold its weights under
     "net"."""
     from hier_ssl.policies.candidate_nets import chooser_from_state

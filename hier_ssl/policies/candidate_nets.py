@@ -91,20 +91,15 @@ def chooser_inputs(
     return torch.as_tensor(obs, dtype=torch.float32)
 
 
-def stored_inputs(
-    network: str,
-    planner: SamplingPlanner,
-    obs: np.ndarray,
-    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
+def stored_features(
+    planner: SamplingPlanner, obs: np.ndarray, scene_and_candidates: tuple[Scene, np.ndarray] | None = None
 ) -> np.ndarray:
-    """What a DAgger round keeps of observations ``obs`` (B, O) to fit a ``network`` on: the observations
-    (classifier), or their candidates' features in float16 (scorer: built once per state rather than at
-    every pass, in half the memory; 2,000 states at a time)."""
-    if network == "classifier":
-        return np.asarray(obs, dtype=np.float32)
+    """What a scorer's DAgger keeps of observations ``obs`` (B, O): their candidates' features, built once
+    per state rather than at every pass, in float16 for half the memory (the fit reads them rounded so,
+    the policy in float32); 2,000 states at a time."""
     if scene_and_candidates is None and len(obs) > 2000:
         parts = np.split(obs, range(2000, len(obs), 2000))
-        return np.concatenate([stored_inputs(network, planner, part) for part in parts])
+        return np.concatenate([stored_features(planner, part) for part in parts])
     return observation_features(planner, obs, scene_and_candidates).numpy().astype(np.float16)
 
 
@@ -117,8 +112,8 @@ def fit_chooser(
     batch_size: int,
 ) -> tuple[float, float]:
     """``epochs`` passes of the cross-entropy to the planner's soft choice ``labels`` (B, C) over
-    ``inputs`` (``stored_inputs``); the mean loss and the share of states where the network's first choice
-    is the planner's."""
+    ``inputs`` (observations, or ``stored_features``); the mean loss and the share of states where the
+    network's first choice is the planner's."""
     losses = []
     for _ in range(epochs):
         for rows in torch.randperm(len(inputs)).split(batch_size):
@@ -141,5 +136,5 @@ __all__ = [
     "fit_chooser",
     "observation_features",
     "soft_choice",
-    "stored_inputs",
+    "stored_features",
 ]

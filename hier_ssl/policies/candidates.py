@@ -41,11 +41,11 @@ from hier_ssl.policies.candidate_nets import (
     chooser_inputs,
     fit_chooser,
     soft_choice,
-    stored_inputs,
+    stored_features,
 )
 from hier_ssl.policies.networks import mlp
 
-Scorer = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
+Selection = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
 """Model selection: ``(policy, step, transitions, train_time_s, state)``; ``state()`` is what
 ``best_actor.pt`` keeps (``hier_ssl.train``)."""
 
@@ -87,7 +87,7 @@ def act(
 def candidate_policy(
     net: nn.Module, planner: SamplingPlanner, generator: torch.Generator | None = None
 ) -> NumpyPolicy:
-    """The classifier as a numpy manager (``act``'s action); a live view of ``net``'s weights."""
+    """The network as a numpy manager (``act``'s action); a live view of ``net``'s weights."""
     return lambda obs: act(net, planner, obs, generator)[2]
 
 
@@ -146,7 +146,7 @@ class CandidateLearner:
     ``ppo.eval_interval`` PPO iterations, then ``score`` rates the greedy policy (curve step: the round,
     then rounds + the iteration). A resumed PPO phase starts new episodes."""
 
-    def __init__(self, config: TrainConfig, run_dir: Path, score: Scorer, progress: bool = True) -> None:
+    def __init__(self, config: TrainConfig, run_dir: Path, score: Selection, progress: bool = True) -> None:
         self.config, self.run_dir, self.score = config, run_dir, score
         self.settings = config.candidates
         self.planner = candidate_planner(config)
@@ -180,8 +180,9 @@ class CandidateLearner:
         settings, planner = self.settings, self.planner
         obs_parts = [saved["obs"].numpy()] if saved else []
         label_parts = [saved["labels"].numpy()] if saved else []
-        # What the network reads of each state, kept as it was met (a resume rebuilds it from the states).
-        input_parts = [stored_inputs(settings.network, planner, saved["obs"].numpy())] if saved else []
+        # A scorer's features of each state, kept as they were met (a resume rebuilds them from the states).
+        scorer = settings.network == "scorer"
+        input_parts = [stored_features(planner, saved["obs"].numpy())] if saved and scorer else []
         optimizer = None
         if self.net is not None:
             optimizer = torch.optim.Adam(self.net.parameters(), lr=settings.learning_rate)
@@ -197,7 +198,8 @@ class CandidateLearner:
                 cand, soft = soft_choice(planner, scene, settings.tau)
                 obs_parts.append(np.asarray(obs, dtype=np.float32))
                 label_parts.append(soft.astype(np.float32))
-                input_parts.append(stored_inputs(settings.network, planner, obs, (scene, cand)))
+                if scorer:
+                    input_parts.append(stored_features(planner, obs, (scene, cand)))
                 if student is not None:  # the scene and candidates soft_choice built, not built again
                     return act(student, planner, obs, scene_and_candidates=(scene, cand))[2]
                 chosen = cand[np.arange(len(cand)), soft.argmax(1)]
@@ -211,8 +213,8 @@ class CandidateLearner:
             played = evaluate(labelling(self.net), self.config.task_config, settings.episodes, seed)
             x = torch.as_tensor(np.concatenate(obs_parts))
             p = torch.as_tensor(np.concatenate(label_parts))
-            inputs = torch.as_tensor(np.concatenate(input_parts))
-            obs_parts, label_parts, input_parts = [x.numpy()], [p.numpy()], [inputs.numpy()]
+            inputs = torch.as_tensor(np.concatenate(input_parts)) if scorer else x
+            obs_parts, label_parts, input_parts = [x.numpy()], [p.numpy()], [inputs.numpy()] if scorer else []
             if self.net is None:  # a scorer's standardisation from the first round's states
                 self.net = build_chooser(settings.network, settings.hidden, inputs.float(), p.shape[1])
             net = self.net

@@ -83,3 +83,12 @@ def test_features_without_obstacles_say_every_path_is_safe() -> None:
     features = candidate_features(PLANNER, scene, cand)
     assert features.shape == (1, 2, feature_dim(0)) and np.isfinite(features).all()
     assert (features[0, :, _column("safe", 0)] == 1.0).all()
+
+
+def test_a_robot_on_its_target_has_finite_features() -> None:
+    scene = _scene([(1.0, 0.0, 0.0, 0.0)])
+    scene = Scene(
+        scene.target, scene.target[:, 0:2].copy(), scene.robot_vel, scene.obstacle_pos, scene.obstacle_vel
+    )
+    features = candidate_features(PLANNER, scene, np.array([[2.0 + 0j, 1.0 + 1.0j]]))
+    assert np.isfinite(features).all()

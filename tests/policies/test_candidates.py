@@ -64,15 +64,15 @@ def test_a_scorer_learns_from_fewer_states_than_the_classifier_and_reloads_as_sa
     assert summary["success_rate"] > 0.7 and summary["collision_rate"] < 0.3, summary
     state = torch.load(run / "model.pt")["net"]
     net = chooser_from_state(state)
+    # Rebuilt from the weights alone: the configured layers, loaded strictly.
     assert isinstance(net, Scorer)
+    assert [m.out_features for m in net.body if isinstance(m, torch.nn.Linear)] == [64, 64, 1]
     task = parse_config(SHIPPED).task_config
     planner = make_planner("sampling", task)
     obs = HierarchicalCore(task, 16).reset(5).reshape(16, -1)
-    rebuilt = net(chooser_inputs(net, planner, obs))
-    saved = Scorer(net.mean.shape[0], (64, 64), state["mean"], state["std"])
-    saved.load_state_dict(state)
-    torch.testing.assert_close(rebuilt, saved(chooser_inputs(saved, planner, obs)))
-    assert rebuilt.shape == (16, planner.candidates(planner.read(obs)).shape[1])
+    logits = net(chooser_inputs(net, planner, obs))
+    assert logits.shape == (16, planner.candidates(planner.read(obs)).shape[1])
+    assert torch.isfinite(logits).all() and (logits.std(1) > 0).all()
     played = evaluate(load_policy(run, which="final"), task, 40, seed=20_000)
     assert played["success_rate"] > 0.7, played
 

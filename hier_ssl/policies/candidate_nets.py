@@ -92,11 +92,16 @@ def chooser_inputs(
 
 
 def stored_features(
-    planner: SamplingPlanner, obs: np.ndarray, scene_and_candidates: tuple[Scene, np.ndarray] | None = None
+    planner: SamplingPlanner,
+    obs: np.ndarray,
+    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
+    features: torch.Tensor | None = None,
 ) -> np.ndarray:
-    """What a scorer's DAgger keeps of observations ``obs`` (B, O): their candidates' features, built once
-    per state rather than at every pass, in float16 for half the memory (the fit reads them rounded so,
-    the policy in float32); 2,000 states at a time."""
+    """What a scorer's DAgger keeps of observations ``obs`` (B, O): their candidates' features (built
+    unless given), once per state rather than at every pass, in float16 for half the memory (the fit reads
+    them rounded so, the policy in float32); 2,000 states at a time."""
+    if features is not None:
+        return features.numpy().astype(np.float16)
     if scene_and_candidates is None and len(obs) > 2000:
         parts = np.split(obs, range(2000, len(obs), 2000))
         return np.concatenate([stored_features(planner, part) for part in parts])

@@ -8,9 +8,8 @@ over the observation or a scorer over each candidate's features (``candidate_net
 
 1. DAgger (Ross et al., 2011): round 0 plays the planner, every later round the network; every state met
    is labelled with the planner's soft choice (``soft_choice``) and the network refitted on all of them.
-2. PPO on the categorical policy of the logits, from the DAgger fit, rewarded by outcomes alone
-   (``outcome_reward``: time, success, collision), with a KL penalty towards the DAgger fit and a value
-   function fitted alone for its first iterations. This is what can improve on the planner, not copy it.
+2. PPO on the logits' categorical policy, from the DAgger fit, rewarded by outcomes alone (time, success,
+   collision), a KL penalty towards the fit, a value fitted alone at first: what can pass the planner.
 
 A hybrid: at every decision it runs the planner's candidate geometry (not its rollouts, where the
 planner's time goes), so it needs hier_ssl at run time and does not export.
@@ -61,12 +60,13 @@ def act(
     obs: np.ndarray,
     generator: torch.Generator | None = None,
     scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
+    inputs: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor]:
     """The candidate each row chooses (B,) (highest logit, or drawn from the logits' softmax with
     ``generator``), its log-probability (B,), the action (B, A) naming it and what the network read
-    (``chooser_inputs``); ``obs``'s scene and candidates are built unless given."""
+    (``chooser_inputs``); ``obs``'s scene, candidates and inputs are built unless given."""
     scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
-    inputs = chooser_inputs(net, planner, obs, (scene, cand))
+    inputs = chooser_inputs(net, planner, obs, (scene, cand)) if inputs is None else inputs
     with torch.no_grad():
         logits = net(inputs)
     if logits.shape[1] != cand.shape[1]:
@@ -198,10 +198,11 @@ class CandidateLearner:
                 cand, soft = soft_choice(planner, scene, settings.tau)
                 obs_parts.append(np.asarray(obs, dtype=np.float32))
                 label_parts.append(soft.astype(np.float32))
-                if scorer:
-                    input_parts.append(stored_features(planner, obs, (scene, cand)))
-                if student is not None:  # the scene and candidates soft_choice built, not built again
-                    return act(student, planner, obs, scene_and_candidates=(scene, cand))[2]
+                # The student reads the scene, candidates and features built here, not built again.
+                read = None if student is None else chooser_inputs(student, planner, obs, (scene, cand))
+                input_parts.extend([stored_features(planner, obs, (scene, cand), read)] if scorer else [])
+                if read is not None:
+                    return act(student, planner, obs, None, (scene, cand), read)[2]
                 chosen = cand[np.arange(len(cand)), soft.argmax(1)]
                 return planner.action(scene, planner.subgoals(scene, chosen))
 

@@ -16,13 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from hier_ssl.manager.planners import SamplingPlanner, Scene
+from hier_ssl.world.frames import as_complex
 
 _CAP = 3.0  # m: distances and clearances beyond this say nothing more
 _LATE = 5.0  # s: arrival behind the soonest safe candidate beyond this says nothing more
-
-
-def _complex(xy: np.ndarray) -> np.ndarray:
-    return xy[..., 0] + 1j * xy[..., 1]
 
 
 def closest_approach(
@@ -79,8 +76,8 @@ def two_legs(planner: SamplingPlanner, scene: Scene, cand: np.ndarray) -> dict[s
     per leg "1" (incl. the park) and "2" the closest distance d, its time s and the growing-margin
     clearance c to each obstacle, (N, C, K)."""
     speed = planner.speed
-    p, g = _complex(scene.robot_pos)[:, None, None], _complex(scene.target)[:, None, None]
-    q, u = _complex(scene.obstacle_pos)[:, None, :], _complex(scene.obstacle_vel)[:, None, :]
+    p, g = as_complex(scene.robot_pos)[:, None, None], as_complex(scene.target[..., 0:2])[:, None, None]
+    q, u = as_complex(scene.obstacle_pos)[:, None, :], as_complex(scene.obstacle_vel)[:, None, :]
     c = cand[:, :, None]
     l1, l2 = np.abs(c - p), np.abs(g - c)
     w1 = speed * (c - p) / np.maximum(l1, 1e-9)
@@ -123,8 +120,8 @@ def _line_frame(scene: Scene, cand: np.ndarray) -> np.ndarray:
     """Positions and velocities (N, C, 8 + 7K) in the frame of the robot -> target line: candidate minus
     robot, minus target; target minus robot; robot velocity; per obstacle its position minus the
     candidate's and the robot's, its velocity; then each obstacle's distance to the candidate."""
-    p, g, v = _complex(scene.robot_pos), _complex(scene.target), _complex(scene.robot_vel)
-    q, u = _complex(scene.obstacle_pos), _complex(scene.obstacle_vel)
+    p, g, v = as_complex(scene.robot_pos), as_complex(scene.target[..., 0:2]), as_complex(scene.robot_vel)
+    q, u = as_complex(scene.obstacle_pos), as_complex(scene.obstacle_vel)
     line = g - p
     # A robot on its target has no line: the field's axes then (not a division by zero).
     unit = np.where(np.abs(line) > 1e-9, line / np.maximum(np.abs(line), 1e-9), 1.0)[:, None]

@@ -95,7 +95,9 @@ def test_bad_actions_are_named() -> None:
 def test_the_torch_view_has_one_row_spaces_and_takes_numpy_actions() -> None:
     env, twin = (hier_ssl.vector_env(task="obstacle", num_envs=3, frame_skip=4) for _ in range(2))
     assert env.single_observation_space.shape == (18,) and env.single_action_space.shape == (4,)
-    assert env.single_action_space.low.min() == -1.0 and env.single_observation_space.high.max() == 1.2
+    # float32 against float32: numpy < 2 compares a float32 with a Python 1.2 in float64.
+    assert env.single_action_space.low.min() == -1.0
+    assert env.single_observation_space.high.max() == np.float32(1.2)
     env.reset(seed=4), twin.reset(seed=4)
     actions = np.random.default_rng(1).uniform(-1, 1, (3, 4))
     for _ in range(3):

@@ -131,3 +131,20 @@ def test_workers_are_stateless_and_read_only() -> None:
         worker.dv = 0.2  # type: ignore[misc]
     with pytest.raises(ValueError, match="unknown worker 'pid'"):
         make_worker("pid", SPEC, 0.025)
+
+
+@pytest.mark.parametrize("name", ["paper", "bangbang"])
+def test_the_first_command_heads_for_a_subgoal_in_every_quadrant(name: str) -> None:
+    """From rest, each robot's first velocity points at its sub-goal, whichever quadrant it lies in (numpy
+    before 2.0 took the sign of a complex number from its real part alone: half the field was wrong)."""
+    world = World(1, 8)
+    worker = make_worker(name, world.robot, world.dt)
+    direction = np.linspace(-np.pi, np.pi, 8, endpoint=False) + 0.3
+    line = np.stack([np.cos(direction), np.sin(direction)], axis=-1)
+    subgoal = np.zeros((1, 8, 5))
+    subgoal[0, :, 0:2] = world.state.pos[0] + 1.5 * line
+    command = worker(world.state, subgoal)
+    velocity = to_field_frame(command[0, :, 0:2], world.state.angle[0])
+    speed = np.linalg.norm(velocity, axis=-1)
+    assert (speed > 0).all()
+    np.testing.assert_allclose(velocity / speed[:, None], line, atol=1e-9)

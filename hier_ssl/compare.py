@@ -150,7 +150,9 @@ def compare(
 
     Every manager acts in ``config`` when it is given (runs with their own ``INTERFACE_KEYS``), and in the
     first run's scenario when that run was trained on one. Otherwise runs keep their own environment and
-    planners take the paper ``task`` (default: the first run's, else "proposed"). Figures are per robot.
+    planners act in the first run's (its task, starts, obstacles and decision period, with ``task``,
+    ``frame_skip`` and the worker applied as to the run), so they meet that run's episodes; without a run
+    they take the paper ``task``'s default environment (default "proposed"). Figures are per robot.
     Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
     robots' ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures.
 
@@ -161,16 +163,20 @@ def compare(
     from hier_ssl.figures import label_outcomes
     from hier_ssl.report import make_record
 
-    runs = [run_config(spec).task_config for spec in specs if not is_planner(spec)]
-    if config is None and runs and isinstance(runs[0], ScenarioConfig):
-        config = runs[0]
-    if task is None and config is None:  # planners follow the first run's task: every row, one episode set
-        task = runs[0].scenario_name if runs else None
+    runs = [spec for spec in specs if not is_planner(spec)]
+    first = run_config(runs[0]).task_config if runs else None
+    if config is None and isinstance(first, ScenarioConfig):
+        config = first
+    if task is None and config is None and first is not None:  # every row on the first run's task
+        task = first.scenario_name
+    # Planners act where the first run acts (not in the task's defaults): one episode set for every row.
+    planners_in = config if config is not None or not runs else manager_env(runs[0], task, frame_skip)
     jobs = []
     for spec in specs:
         for worker in workers:
             worker_spec, obj = worker_apart(worker)
-            acting = manager_env(spec, task, frame_skip, worker_spec, given=config)
+            given = planners_in if is_planner(spec) else config
+            acting = manager_env(spec, task, frame_skip, worker_spec, given=given)
             label = acting.worker if obj is None else worker_name(obj)
             policy = load_manager(spec, acting, which, sample, seed, obj)
             labels = ("-", "-") if is_planner(spec) else (which, "sampled" if sample else "mean")

@@ -3,6 +3,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from matplotlib.image import imread
@@ -93,3 +94,32 @@ def test_eval_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
         assert err.count("\n") == 1 and message in err and "Traceback" not in err, err
     with pytest.raises(SystemExit):
         cli.main(["eval", "direct", "--worker", "pid"])
+
+
+def test_planners_play_the_episodes_of_the_run_they_are_compared_with(tmp_path: Path) -> None:
+    """A paper-family Obstacle run (starts 0.2 m from the target, not the task default's 0.6): without
+    --scenario or --set, the planners beside it meet its starts, targets and obstacle draws."""
+    from hier_ssl.compare import compare
+    from hier_ssl.config import ObstacleConfig
+    from hier_ssl.envs import HierarchicalCore
+
+    obstacles = [ObstacleConfig(behaviour="public_code", placement="midpoint")]
+    run = _sac_run(
+        tmp_path / "paper-obstacle",
+        task="obstacle",
+        obstacles=obstacles,
+        min_start_distance=0.2,
+        allow_start_contact=True,
+        frame_skip=16,
+    )
+    evaluations = compare([run, "sampling", "direct"], episodes=2, seed=1)
+    cores = [HierarchicalCore(e.env, 1000, autoreset=False) for e in evaluations]
+    for core in cores:
+        core.reset(seed=1)
+        for _ in range(5):  # robots hold still at their starts; obstacles move by their draws
+            core.control_step(core.active.copy())
+    for core in cores[1:]:
+        assert core.config.min_start_distance == 0.2
+        np.testing.assert_array_equal(core.target, cores[0].target)
+        np.testing.assert_array_equal(core.state.pos, cores[0].state.pos)
+        assert core.rng.bit_generator.state == cores[0].rng.bit_generator.state

@@ -41,7 +41,9 @@ class Worker(Protocol):
     """What the environments call once per 25 ms control step, for every controlled robot of every field.
 
     Optional attributes that planners read when present: ``max_speed`` (m/s, the fastest the worker
-    commands) and ``brake_accel`` (m/s^2, the deceleration it brakes with).
+    commands) and ``brake_accel`` (m/s^2, the deceleration it brakes with). A worker with randomness of
+    its own may have ``seed(seed: int)``: the environments call it on every seeded reset, with the
+    episode seed, so the same seed gives the same episodes through every view.
     """
 
     def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:

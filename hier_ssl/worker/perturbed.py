@@ -18,7 +18,8 @@ accel       velocity changes by at most accel * dt per step (norm, field frame),
 ang_accel   angular velocity changes by at most ang_accel * dt per step                  rad/s^2 > 0
 noise       each component times (1 + noise * N(0, 1)): multiplicative                   fraction >= 0
 noise_add   plus noise_add * (v_max, v_max, w_max) * N(0, 1): additive                   fraction >= 0
-seed        seed of the noise (default 0: an evaluation sees the same noise every run)   int
+seed        seed of the noise, mixed with the episode seed of every seeded reset         int
+            (default 0; the same episode seed, the same noise)
 ==========  ===========================================================================  =================
 
 Per step the order is that of a real robot: the late command arrives, the firmware ramps towards it at
@@ -126,6 +127,14 @@ class PerturbedWorker:
         if name == "worker":
             raise AttributeError(name)
         return getattr(self.worker, name)
+
+    def seed(self, seed: int) -> None:
+        """Restart the noise from ``seed`` (an environment's episode seed) mixed with the spec's ``seed``,
+        and seed the wrapped worker where it takes a seed: a seeded reset replays the same noise."""
+        self.rng = np.random.default_rng((seed, self.perturbation.seed))
+        inner = getattr(self.worker, "seed", None)
+        if inner is not None:
+            inner(seed)
 
     def reset(self, fields: np.ndarray) -> None:
         """Forget the given fields' queued commands and ramp state, then reset the wrapped worker."""

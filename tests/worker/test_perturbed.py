@@ -157,3 +157,33 @@ def test_core_takes_a_perturbed_worker_from_the_config() -> None:
     for _ in range(3):
         result = core.step(np.tile([0.5, 0.5, 0.0, 1.0], (2, 1, 1)))
     assert result.obs.shape == (2, 1, 13)
+
+
+def test_the_episode_seed_seeds_the_noise_through_every_view() -> None:
+    """A seeded reset replays the same noise: twice through Gymnasium's id, through the PettingZoo view
+    alike, and for one worker object handed to two evaluations (its generator is not built once)."""
+    import gymnasium
+
+    import hier_ssl
+    from hier_ssl.evaluate import evaluate
+    from hier_ssl.manager.planners import make_planner
+
+    def first_steps(env: gymnasium.Env) -> list[np.ndarray]:
+        obs = [env.reset(seed=0)[0]]
+        obs += [env.step(np.array([0.3, -0.2, 0.5, 1.0]))[0] for _ in range(3)]
+        return obs
+
+    made = gymnasium.make("hier_ssl/Proposed-v0", frame_skip=16, worker="paper+noise=0.2")
+    np.testing.assert_array_equal(first_steps(made), first_steps(made))
+    other = gymnasium.make("hier_ssl/Proposed-v0", frame_skip=16, worker="paper+noise=0.2+seed=1")
+    assert not np.array_equal(first_steps(made)[1], first_steps(other)[1])
+
+    pz = hier_ssl.parallel_env(task="proposed", frame_skip=16, worker="paper+noise=0.2")
+    pz_obs = [pz.reset(seed=0)[0]["manager_0"]]
+    pz_obs += [pz.step({"manager_0": np.array([0.3, -0.2, 0.5, 1.0])})[0]["manager_0"] for _ in range(3)]
+    np.testing.assert_array_equal(pz_obs, first_steps(made))
+
+    config = EnvConfig(task="proposed", frame_skip=16)
+    worker = make_worker("paper+noise=0.6+latency=1", SPEC, DT)
+    runs = [evaluate(make_planner("direct", config), config, 30, seed=3, worker=worker) for _ in range(2)]
+    np.testing.assert_array_equal(runs[0]["per_robot"]["length"], runs[1]["per_robot"]["length"])

@@ -131,7 +131,11 @@ class HierarchicalCore:
     # -- reset ---------------------------------------------------------------------------------------------
 
     def seed(self, seed: int | None) -> None:
+        """Seed the episodes' draws and, where it takes a seed, the worker (``hier_ssl.worker.Worker``)."""
         self.rng = np.random.default_rng(seed)
+        seed_worker = getattr(self.worker, "seed", None)
+        if seed is not None and seed_worker is not None:
+            seed_worker(seed)
 
     def reset(self, seed: int | None = None) -> np.ndarray:
         """Start a new episode in every field. Returns the observations (N, M, obs_dim)."""
@@ -316,7 +320,7 @@ class HierarchicalCore:
                     np.copyto(reward, r, where=live)
                 ended = succ | hit
                 if np.count_nonzero(ended):  # most control steps nobody leaves
-                    success, collision = success | succ, collision | (hit > succ)
+                    success, collision = success | succ, collision | hit
                     live = live > ended
                 live = live > (self.steps >= self._max_steps)[:, None]
                 if not np.count_nonzero(live):

@@ -184,13 +184,12 @@ class HierarchicalSSLEnv(ParallelEnv):
         except Exception:  # the scripted worker's: the sub-goal set above goes back (step_guard)
             abandon(core, held)
             raise
-        collision = hit & ~success
         timeout = live & ~success & ~hit & (core.steps >= self.config.max_steps)[:, None]
         s = core.state
         pose = np.column_stack([s.pos[0, :m], s.angle[0, :m]])
         d, delta = pose_errors(pose, core.subgoal[0])
         reward = np.where(live, reward, 0.0)
-        result = core.finish(live, reward, success, collision, timeout, live.astype(np.int64), clipped)
+        result = core.finish(live, reward, success, hit, timeout, live.astype(np.int64), clipped)
         result.info["decision"] = bool(decision)
         worker_reward = distance_reward(d, self.config.d_th) + angle_reward(delta, core.theta_th)
         result.info["worker_reward"] = worker_reward[None]

@@ -94,6 +94,8 @@ class Rules:
             success &= robot_settled(self.task, target, pos, vel, self.d_th, self.speed_th)
         # Without another robot in the field there is nothing to hit.
         hit = collided(pos, others, self.collision_distance) | touching if others.shape[-2] else touching
+        # A hit fails the episode, also on the control step that would have been a success.
+        success = success > hit
         nearest = None
         if self.task == "obstacle":
             nearest = obstacle_distance(self.options.obstacle_from, subgoal, pos, others)

@@ -171,8 +171,11 @@ def combine_rewards(
     ``shaping``: the shaping terms (N,) by name, R_d and R_theta ("distance", "angle") or their sum; then
     R_t of success (N,) bool, and with ``nearest`` (N,) and ``hit`` (N,) bool (the Obstacle task) R_obst
     and R_hit, each zeroed as ``options`` say. The total adds the terms in that order, so a sum of the
-    shaping terms made beforehand gives the same bits.
+    shaping terms made beforehand gives the same bits. A hit fails the episode: R_t is not paid on the step
+    of a hit, even where ``success`` holds.
     """
+    if hit is not None:
+        success = success > hit
     terms = dict(shaping)
     if options.success_mode == "replace":
         terms = {name: np.where(success, _ZERO, term) for name, term in terms.items()}

@@ -107,6 +107,42 @@ def test_collision_ends_obstacle_episode_as_failure() -> None:
     assert collisions >= 8
 
 
+def _settled_beside_an_obstacle(m: int, rng: np.random.Generator) -> Layout:
+    """Each robot at rest on its target (heading 0.3 rad), a still obstacle 0.15 m from it: inside the
+    collision distance (0.2 m), so its first control step both reaches the target and hits."""
+    pos = np.tile([[0.5, 0.2], [0.65, 0.2]], (m, 1, 1))
+    target = np.tile([0.5, 0.2, 0.3, 0.0, 0.0], (m, 1, 1))
+    return Layout(pos, np.tile([0.3, 0.0], (m, 1)), target)
+
+
+def test_a_hit_on_the_step_of_a_success_is_a_collision_in_the_core_and_the_pettingzoo_view() -> None:
+    """The paper: hitting an obstacle fails the episode, also on the control step that reaches the target
+    (before: a success, paid +1000 and the hit penalty both)."""
+    from hier_ssl.envs import parallel_env
+
+    settings = {
+        "task": "obstacle",
+        "obstacles": [ObstacleConfig(behaviour="stationary")],
+        "min_start_distance": 0.6,
+        "frame_skip": 16,
+    }
+    core = _core(2, **settings)
+    core.scenario.reset_world_at = _settled_beside_an_obstacle
+    core.reset(seed=0)
+    result = core.step(_direct(core))
+    assert result.info["collision"].all() and not result.info["success"].any()
+    assert result.terminated.all() and (result.info["task"]["collision"] == 1).all()
+    assert (result.reward < -900).all()  # R_hit without R_t
+
+    env = parallel_env(**settings)
+    env.core.scenario.reset_world_at = _settled_beside_an_obstacle
+    env.reset(seed=0)
+    action = _direct(env.core)[0, 0]
+    _, reward, terminated, _, info = env.step({"manager_0": action})
+    assert info["manager_0"]["collision"] and not info["manager_0"]["success"]
+    assert terminated["manager_0"] and reward["manager_0"] < -900
+
+
 def test_bad_config_key_names_it() -> None:
     with pytest.raises(ValueError, match="frame_skp"):
         EnvConfig(frame_skp=4)

@@ -46,6 +46,8 @@ def test_rules_are_the_pure_functions_bit_for_bit(task: str, modes: tuple[str, s
         **thresholds,
     )
     hit = collided(r["pos"], r["others"], config.collision_distance) | touching
+    assert (success & hit).any()
+    success = success > hit  # a hit fails the episode, also on the step that reached the target
     extra = {"obs_pos": r["others"], "hit": hit} if task == "obstacle" else {}
     options = {"success_mode": success_mode, "hit_mode": hit_mode, "obstacle_from": obstacle_from}
     reward, _ = task_reward(

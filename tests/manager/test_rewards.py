@@ -100,6 +100,23 @@ def test_obstacle_terms_per_field_and_hit_modes() -> None:
     np.testing.assert_array_equal(terms["obstacle"], [0.0, 0.0])
 
 
+def test_a_hit_on_the_step_of_a_success_pays_no_success_reward() -> None:
+    # Both fields reach the target this step; field 1 also hits: it gets R_hit and no R_t.
+    scene = {
+        "target": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]] * 2),
+        "robot_pos": np.array([[1.0, 0.0]] * 2),
+        "robot_angle": np.zeros(2),
+        "subgoal": np.array([[1.0, 0.0, 0.0, 0.0, 0.0]] * 2),
+        "success": np.array([True, True]),
+        "obs_pos": np.array([[[1.15, 0.0]]] * 2),
+        "hit": np.array([False, True]),
+    }
+    total, terms = task_reward("obstacle", **scene)
+    np.testing.assert_array_equal(terms["success"], [SUCCESS_REWARD, 0.0])
+    np.testing.assert_array_equal(terms["hit"], [0.0, HIT_REWARD])
+    np.testing.assert_allclose(total - terms["obstacle"], [11.0 + SUCCESS_REWARD, 11.0 + HIT_REWARD])
+
+
 def test_terms_always_sum_to_total() -> None:
     rng = np.random.default_rng(2)
     n = 32

@@ -1,5 +1,5 @@
 """Package layout that pyproject.toml cannot state: the repository's top-level ``configs/`` ships inside
-the package as ``hier_ssl/configs`` (read by ``hier_ssl.config_files.config_dir``), so an installed
+the package as ``hier_ssl/configs`` (read by ``hier_ssl.config.files.config_dir``), so an installed
 ``hier-ssl train proposed/fscaps`` finds its config from any directory. Everything else is in
 pyproject.toml."""
 

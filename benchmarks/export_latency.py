@@ -3,7 +3,7 @@
 Exports RUN_DIR's manager as TorchScript and ONNX into a temporary folder, then times single-state calls
 (after 200 warm-up calls): TorchScript through ``torch.jit.load`` under ``torch.inference_mode``,
 ONNX through an onnxruntime session with one intra-op thread, and, for reference, the Python path that
-``hier_ssl.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``) and the scripted
+``hier_ssl.evaluation.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``) and the scripted
 ``sampling`` planner on the same observation (the manager a learned one has to beat, also at batch 1).
 Prints one line per path: file size, and the median and 90th percentile time per call. An ``algo:
 candidates`` run does not export: its Python path (numpy observation, the planner's candidates, the torch
@@ -22,11 +22,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from hier_ssl.checkpoints.actor import run_config
 from hier_ssl.envs import make_scenario
+from hier_ssl.envs.planners import make_planner
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.manager.planners import make_planner
-from hier_ssl.policies.actor import load_policy, run_config
+from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.export import export_manager
 
 

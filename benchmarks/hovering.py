@@ -26,8 +26,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
-    from hier_ssl.compare import load_manager, run_config
-    from hier_ssl.evaluate import evaluate
+    from hier_ssl.evaluation.compare import load_manager, run_config
+    from hier_ssl.evaluation.evaluate import evaluate
     from hier_ssl.manager import pose_errors
 
     config = run_config(args.run_dir).task_config

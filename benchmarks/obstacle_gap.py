@@ -5,9 +5,9 @@ Two sides, seed 0, of the Obstacle ``--setup`` (fscaps or caps). From our defaul
 (configs/obstacle/SETUP.yaml), each ``no-*`` run puts one group of keys back to the public code's value
 (configs/paper/obstacle/SETUP.yaml). From the public code's config, ``paper`` as it is and
 ``paper-with-interface`` with our obstacle interface alone, both cut to ``--paper-steps``. Trains what is
-missing (resuming killed runs, ``hier_ssl.launch``), plays every run's best and final policy (mean action)
-on the same 1000 episodes of the paper family's Obstacle task (``hier-ssl reproduce``'s), prints a markdown
-table (also ``OUT/table.md``) and writes the selection curves (``OUT/curves.png``).
+missing (resuming killed runs, ``hier_ssl.runs.launch``), plays every run's best and final policy (mean
+action) on the same 1000 episodes of the paper family's Obstacle task (``hier-ssl reproduce``'s), prints a
+markdown table (also ``OUT/table.md``) and writes the selection curves (``OUT/curves.png``).
 
 Run: python benchmarks/obstacle_gap.py [--setup fscaps] [--out runs/obstacle-gap] [--paper-steps 40000]
      [--only no-interface paper ...] [--no-train]   (--out: runs/obstacle-gap-caps with --setup caps)
@@ -58,10 +58,10 @@ def main() -> None:
     args = parser.parse_args()
     out = args.out or Path("runs/obstacle-gap" + ("" if args.setup == "fscaps" else f"-{args.setup}"))
 
-    from hier_ssl.config_files import apply_overrides, config_dir, load_yaml
+    from hier_ssl.config.files import apply_overrides, config_dir, load_yaml
     from hier_ssl.envs import parse_config
-    from hier_ssl.launch import Job, launch, run_state
-    from hier_ssl.reproduce import Planned, episodes_of, evaluate_run, plot_curves
+    from hier_ssl.runs.launch import Job, launch, run_state
+    from hier_ssl.runs.reproduce import Planned, episodes_of, evaluate_run, plot_curves
 
     runs = []
     for name in args.only:

@@ -19,8 +19,8 @@ import time
 import torch
 
 import hier_ssl
-from hier_ssl.evaluate import evaluate
-from hier_ssl.learner_config import PPOConfig
+from hier_ssl.config.learners import PPOConfig
+from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
 
 

@@ -53,8 +53,8 @@ def main() -> None:
     parser.add_argument("--policy", choices=("best", "final"), default="best")
     args = parser.parse_args()
 
-    from hier_ssl.compare import load_manager, run_config
-    from hier_ssl.evaluate import evaluate
+    from hier_ssl.evaluation.compare import load_manager, run_config
+    from hier_ssl.evaluation.evaluate import evaluate
 
     config = run_config(args.run_dir).task_config
     for spec in args.managers or [args.run_dir, "sampling"]:

@@ -15,7 +15,7 @@ import pytest
 import hier_ssl
 from hier_ssl import cli
 from hier_ssl.config import ConfigError
-from hier_ssl.config_files import config_dir, config_names, find_config
+from hier_ssl.config.files import config_dir, config_names, find_config
 from hier_ssl.envs import load_config
 
 ROOT = Path(__file__).parents[1]
@@ -91,7 +91,7 @@ def test_the_wheel_ships_configs_and_py_typed_and_finds_them_installed(tmp_path:
     # Unpacked as pip installs it, away from any checkout: the names resolve inside the package.
     site = tmp_path / "site"
     zipfile.ZipFile(wheel).extractall(site)
-    probe = "from hier_ssl.config_files import *; print(config_dir()); print(find_config('proposed/fscaps'))"
+    probe = "from hier_ssl.config.files import *; print(config_dir()); print(find_config('proposed/fscaps'))"
     done = subprocess.run(
         [sys.executable, "-c", probe],
         cwd=tmp_path,

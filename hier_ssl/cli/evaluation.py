@@ -10,8 +10,8 @@ from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 
 
 def add_eval(subparsers: argparse._SubParsersAction) -> None:
+    from hier_ssl.evaluation.paper_tables import TASKS
     from hier_ssl.manager.planners import PLANNERS
-    from hier_ssl.paper_tables import TASKS
 
     ev = subparsers.add_parser(
         "eval",
@@ -72,10 +72,10 @@ def add_eval(subparsers: argparse._SubParsersAction) -> None:
 def _eval(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hier_ssl.compare import compare, is_planner, run_config
     from hier_ssl.config import ConfigError, ScenarioConfig
     from hier_ssl.envs import task_config
-    from hier_ssl.report import markdown_table, write_evaluation
+    from hier_ssl.evaluation.compare import compare, is_planner, run_config
+    from hier_ssl.evaluation.report import markdown_table, write_evaluation
 
     if args.task is not None and args.scenario is not None:
         raise ConfigError("--task names a paper task and --scenario a scenario: give one of them")

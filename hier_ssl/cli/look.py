@@ -48,7 +48,7 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _bench_view(args: argparse.Namespace) -> int:
-    from hier_ssl import bench
+    from hier_ssl.cli import bench
 
     cpu = bench.pin_to_one_core()
     if not args.json:
@@ -59,7 +59,7 @@ def _bench_view(args: argparse.Namespace) -> int:
 
 
 def _bench_world(args: argparse.Namespace) -> int:
-    from hier_ssl.bench import WORLD_SIZES, bench_world, default_steps, pin_to_one_core
+    from hier_ssl.cli.bench import WORLD_SIZES, bench_world, default_steps, pin_to_one_core
 
     cpu = pin_to_one_core()
     if not args.json:
@@ -99,7 +99,7 @@ def add_demo(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from hier_ssl.demo import run_demo
+    from hier_ssl.cli.demo import run_demo
 
     result = run_demo(args.out, seed=args.seed, worker=args.worker, targets=args.targets)
     print(
@@ -137,10 +137,10 @@ def add_render(subparsers: argparse._SubParsersAction) -> None:
 def _render(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from hier_ssl.compare import compare
     from hier_ssl.config import ConfigError
     from hier_ssl.envs import TASKS, task_config
-    from hier_ssl.figures import episode_video, figure3, panel_title
+    from hier_ssl.evaluation.compare import compare
+    from hier_ssl.evaluation.figures import episode_video, figure3, panel_title
     from hier_ssl.world.field import get_field
 
     out = Path(args.out)
@@ -170,7 +170,7 @@ def add_configs(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _configs(args: argparse.Namespace) -> int:
-    from hier_ssl.config_files import config_dir, config_names
+    from hier_ssl.config.files import config_dir, config_names
 
     print(config_dir() if args.dir else "\n".join(config_names()))
     return 0

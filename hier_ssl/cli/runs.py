@@ -35,9 +35,9 @@ def _train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hier_ssl.config import ConfigError
-    from hier_ssl.config_files import apply_overrides, load_yaml
+    from hier_ssl.config.files import apply_overrides, load_yaml
     from hier_ssl.envs import parse_config
-    from hier_ssl.train import print_summary, resume_config, train
+    from hier_ssl.runs.train import print_summary, resume_config, train
 
     # Everything is validated before the run directory is created, so a bad config writes nothing.
     if args.resume:
@@ -63,7 +63,7 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.launch_options import add_launch_flags
+    from hier_ssl.config.launch_options import add_launch_flags
 
     rep = subparsers.add_parser(
         "reproduce",
@@ -102,8 +102,8 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from hier_ssl.launch_options import LaunchOptions
-    from hier_ssl.reproduce import FAMILIES, reproduce
+    from hier_ssl.config.launch_options import LaunchOptions
+    from hier_ssl.runs.reproduce import FAMILIES, reproduce
 
     report = reproduce(
         families=args.family or tuple(FAMILIES),
@@ -126,7 +126,7 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def add_sweep(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.launch_options import add_launch_flags
+    from hier_ssl.config.launch_options import add_launch_flags
 
     sweep = subparsers.add_parser(
         "sweep", help="train one config over a grid of key values and seeds, tabulate eval.json (resumable)"
@@ -147,8 +147,8 @@ def add_sweep(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from hier_ssl.launch_options import LaunchOptions
-    from hier_ssl.sweep import parse_grid, sweep
+    from hier_ssl.config.launch_options import LaunchOptions
+    from hier_ssl.runs.sweep import parse_grid, sweep
 
     options, progress = LaunchOptions.from_args(args), not args.no_progress
     paths = sweep(args.config, parse_grid(args.grid), args.seeds, args.set, args.out, options, progress)

@@ -22,12 +22,12 @@ import torch
 
 from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig
 from hier_ssl.envs.core import HierarchicalCore, StepResult
+from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
 from hier_ssl.envs.rules import check_action
 from hier_ssl.envs.scenario import Layout, Scenario
 from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
-from hier_ssl.manager.planners import make_planner
 from hier_ssl.worker import Worker, make_worker
 from hier_ssl.worker.observation import WORKER_OBS_DIM, controlled_worker_observation
 from hier_ssl.worker.rewards import gotopoint_reward, pose_potential

@@ -16,7 +16,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from hier_ssl.config import ConfigError, EnvConfig, ScenarioConfig, TaskConfig, TrainConfig, validate_config
-from hier_ssl.config_files import apply_overrides, find_config, load_yaml
+from hier_ssl.config.files import apply_overrides, find_config, load_yaml
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.envs.scenarios import SCENARIOS
 from hier_ssl.envs.tasks import TASKS

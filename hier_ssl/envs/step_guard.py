@@ -10,17 +10,25 @@ back, so the core is marked ``interrupted`` and refuses to step until ``reset()`
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from hier_ssl.envs.core import HierarchicalCore
 
 Held = tuple[np.ndarray, np.ndarray, np.ndarray, int]
 
 
-def hold(core: HierarchicalCore) -> Held:
+class Guarded(Protocol):
+    """What of a core (``hier_ssl.envs.core.HierarchicalCore``) a guard reads and puts back; the core
+    imports this module, so it is named by what it has, not by its class."""
+
+    interrupted: bool
+    subgoal: np.ndarray
+    decisions: np.ndarray
+    ep_cpad: np.ndarray
+    control_steps: int
+
+
+def hold(core: Guarded) -> Held:
     """What a decision changes before its first control step (sub-goals, decisions, CPAD) and the world
     step count; a RuntimeError if an earlier step stopped part-way."""
     if core.interrupted:
@@ -30,7 +38,7 @@ def hold(core: HierarchicalCore) -> Held:
     return core.subgoal.copy(), core.decisions.copy(), core.ep_cpad.copy(), core.control_steps
 
 
-def abandon(core: HierarchicalCore, held: Held) -> None:
+def abandon(core: Guarded, held: Held) -> None:
     """After an exception inside a step: put back what ``hold`` kept if no control step ran since, else
     mark ``core`` interrupted."""
     subgoal, decisions, cpad, control_steps = held
@@ -40,4 +48,4 @@ def abandon(core: HierarchicalCore, held: Held) -> None:
     core.subgoal[...], core.decisions[...], core.ep_cpad[...] = subgoal, decisions, cpad
 
 
-__all__ = ["Held", "abandon", "hold"]
+__all__ = ["Guarded", "Held", "abandon", "hold"]

@@ -311,26 +311,25 @@ class SamplingPlanner:
         )
 
 
-def make_planner(
+def build_planner(
     name: str, config: TaskSettings, worker: object = None, **options: object
 ) -> DirectPlanner | SamplingPlanner:
     """The scripted manager ``name`` ("direct" or "sampling") for environments built from ``config``.
 
     The sampling planner's rollout uses the world's robot limits, its speed capped by the worker's own
     cap where it states one (``max_speed``: the paper's worker stops at 2.2 m/s) and its braking by the
-    worker's braking acceleration where it has one. The worker is ``worker`` (a spec, or an object, class
-    or factory of the worker protocol) where given, else the one ``config`` names. ``options`` override
-    planner settings (e.g. ``margin=0.1``).
+    worker's braking acceleration where it has one. ``worker`` is a ready worker object, which the
+    sampling planner needs (``hier_ssl.envs.planners.make_planner`` resolves one from a spec or the
+    config). ``options`` override planner settings (e.g. ``margin=0.1``).
     """
-    from hier_ssl.worker import resolve_worker
-
     if name not in PLANNERS:
         raise ValueError(f"unknown planner {name!r}; known: {list(PLANNERS)}")
     fld, robot = get_field(config.field), RobotSpec()
     layout = {"observation": config.observation, "action_frame": config.action_frame}
     if name == "direct":
         return DirectPlanner(fld, config.action_form, max_v=robot.max_speed, **layout, **options)
-    worker = resolve_worker(config.worker if worker is None else worker, robot, config.dt)
+    if worker is None:
+        raise ValueError("the sampling planner needs a worker: hier_ssl.envs.planners.make_planner makes one")
     brake = getattr(worker, "brake_accel", None)
     settings = {
         "max_speed": getattr(worker, "max_speed", robot.max_speed),
@@ -344,4 +343,4 @@ def make_planner(
     return SamplingPlanner(fld, robot, config.action_form, **settings)
 
 
-__all__ = ["PLANNERS", "DirectPlanner", "SamplingPlanner", "Scene", "make_planner", "read_scene"]
+__all__ = ["PLANNERS", "DirectPlanner", "SamplingPlanner", "Scene", "build_planner", "read_scene"]

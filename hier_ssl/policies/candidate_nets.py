@@ -14,9 +14,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from hier_ssl.checkpoints.actor import linear_layers, mean_actor
 from hier_ssl.manager.candidate_features import candidate_features
 from hier_ssl.manager.planners import SamplingPlanner, Scene
-from hier_ssl.policies.actor import linear_layers, mean_actor
 from hier_ssl.policies.networks import mlp
 
 NETWORKS = ("classifier", "scorer")

@@ -30,10 +30,12 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from hier_ssl.config import TrainConfig
-from hier_ssl.evaluate import evaluate
-from hier_ssl.learner_config import CandidatePPOConfig
-from hier_ssl.manager.planners import SamplingPlanner, Scene, make_planner
-from hier_ssl.policies.actor import NumpyPolicy
+from hier_ssl.config.learners import CandidatePPOConfig
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.play import play
+from hier_ssl.envs.vector import TorchVectorEnv
+from hier_ssl.manager.planners import SamplingPlanner, Scene
 from hier_ssl.policies.candidate_nets import (
     build_chooser,
     chooser_from_state,
@@ -42,11 +44,12 @@ from hier_ssl.policies.candidate_nets import (
     soft_choice,
     stored_features,
 )
-from hier_ssl.policies.networks import mlp
+from hier_ssl.policies.networks import NumpyPolicy, mlp
+from hier_ssl.policies.sac_runner import MODEL_FILE, atomic_save
 
 Selection = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
 """Model selection: ``(policy, step, transitions, train_time_s, state)``; ``state()`` is what
-``best_actor.pt`` keeps (``hier_ssl.train``)."""
+``best_actor.pt`` keeps (``hier_ssl.runs.train``)."""
 
 
 def candidate_planner(config: TrainConfig) -> SamplingPlanner:
@@ -129,7 +132,7 @@ def advantages(
 
 
 def _seed(config: TrainConfig, phase: int, index: int) -> int:
-    # Far from the selection and evaluation seeds (hier_ssl.train), so no training episode is theirs.
+    # Far from the selection and evaluation seeds (hier_ssl.runs.train), so no training episode is theirs.
     return (config.seed + 1) * 1_000_000 + phase * 100_000 + index
 
 
@@ -210,8 +213,9 @@ class CandidateLearner:
 
         for round_ in range(first, settings.rounds):
             began = time.perf_counter()
-            seed = _seed(self.config, 0, round_)
-            played = evaluate(labelling(self.net), self.config.task_config, settings.episodes, seed)
+            core = HierarchicalCore(self.config.task_config, settings.episodes, autoreset=False)
+            ends = play(core, labelling(self.net), _seed(self.config, 0, round_))
+            played = {"success_rate": ends["success"].mean(), "collision_rate": ends["collision"].mean()}
             x = torch.as_tensor(np.concatenate(obs_parts))
             p = torch.as_tensor(np.concatenate(label_parts))
             inputs = torch.as_tensor(np.concatenate(input_parts)) if scorer else x
@@ -242,8 +246,6 @@ class CandidateLearner:
 
     def ppo(self, saved: dict[str, Any]) -> None:
         """Phase 2: ``ppo.iterations`` PPO iterations from the DAgger fit, from ``saved["iteration"]``."""
-        from hier_ssl.envs.vector import TorchVectorEnv
-
         settings, net = self.settings.ppo, self.net
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
@@ -378,8 +380,6 @@ class CandidateLearner:
         return logs
 
     def save(self, state: dict[str, Any]) -> None:
-        from hier_ssl.policies.sac_runner import MODEL_FILE, atomic_save
-
         extra = {"train_time_s": self.train_time, "torch_rng": torch.get_rng_state()}
         atomic_save({**state, **extra}, self.run_dir / MODEL_FILE)
 

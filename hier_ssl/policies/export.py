@@ -33,10 +33,10 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from hier_ssl.checkpoints.actor import load_actor
 from hier_ssl.config import TrainConfig
 from hier_ssl.envs import Scenario, make_scenario
 from hier_ssl.manager.encounter import ENCOUNTER_DIM, encounter_columns
-from hier_ssl.policies.actor import load_actor
 
 FORMATS = {"torchscript": ".pt", "onnx": ".onnx"}
 STATE_BASE_DIM = 11  # target 5 + robot 6

@@ -1,10 +1,12 @@
-"""Networks for SAC: a tanh-squashed Gaussian actor and twin Q critics batched in one module."""
+"""Networks for SAC: a tanh-squashed Gaussian actor and twin Q critics batched in one module; a SAC actor
+as a numpy policy (``sac_policy``)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -13,6 +15,9 @@ LOG_STD_MIN = -5.0
 LOG_STD_MAX = 2.0
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 _LOG_2 = math.log(2.0)
+
+NumpyPolicy = Callable[[np.ndarray], np.ndarray]
+"""Manager observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1], float32."""
 
 
 def mlp(
@@ -110,3 +115,21 @@ class TwinQ(nn.Module):
             if i < last:
                 x = torch.relu(x)
         return x.squeeze(-1)
+
+
+def sac_policy(actor: SquashedGaussianActor, generator: torch.Generator | None = None) -> NumpyPolicy:
+    """A SAC actor as a numpy policy: tanh(mean), or with ``generator`` a sample of its squashed Gaussian
+    drawn from that generator (which must live on the actor's device).
+
+    A live view: it acts with the actor's current weights, on the device they are on.
+    """
+    device = next(actor.parameters()).device
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            x = torch.as_tensor(obs, dtype=torch.float32, device=device)
+            action = actor.deterministic(x) if generator is None else actor(x, generator)[0]
+            return action.cpu().numpy()
+
+    return policy
+

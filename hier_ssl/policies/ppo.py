@@ -1,5 +1,5 @@
 """PPO through rsl-rl-lib 5.x: our typed ``PPOConfig`` as rsl-rl's nested ``train_cfg``, a runner over the
-batched vector env, and the trained actor as a numpy policy for ``hier_ssl.evaluate``.
+batched vector env, and the trained actor as a numpy policy for ``hier_ssl.evaluation.evaluate``.
 
 rsl-rl owns the loop, the update, logging and checkpoints (``runner.learn``, ``runner.save``). Two of
 its habits matter here:
@@ -22,9 +22,9 @@ import torch
 from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
+from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
-from hier_ssl.learner_config import PPOConfig
-from hier_ssl.policies.actor import NumpyPolicy
+from hier_ssl.policies.networks import NumpyPolicy
 
 
 def ppo_train_cfg(

@@ -28,7 +28,7 @@ from collections.abc import Callable
 
 import torch
 
-from hier_ssl.learner_config import SACConfig
+from hier_ssl.config.learners import SACConfig
 from hier_ssl.policies.networks import SquashedGaussianActor, TwinQ
 from hier_ssl.policies.replay import Batch, ReplayBuffer
 from hier_ssl.policies.teacher import imitation_loss, teacher_weight

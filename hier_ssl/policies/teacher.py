@@ -23,8 +23,8 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from hier_ssl.learner_config import SACConfig
-from hier_ssl.manager.planners import make_planner
+from hier_ssl.config.learners import SACConfig
+from hier_ssl.envs.planners import make_planner
 
 Teacher = Callable[[np.ndarray], np.ndarray]
 """A numpy policy: observations (N, obs_dim) -> actions (N, act_dim) in [-1, 1]."""

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hier_ssl.checkpoints.actor import load_actor
 from hier_ssl.config import ConfigError
 from hier_ssl.worker.observation import WORKER_OBS_DIM, scale_command, worker_observation
 from hier_ssl.world.field import get_field
@@ -78,8 +79,6 @@ class LearnedWorker:
 def load_learned_worker(run_dir: str | Path, robot: RobotSpec, dt: float) -> LearnedWorker:
     """The frozen worker trained in ``run_dir``; ValueErrors name the directory or checkpoint when they
     are not a usable worker run, or when it was trained at another control period than ``dt``."""
-    from hier_ssl.policies.actor import load_actor  # the policies' loader, on first use of a learned worker
-
     actor, config = load_actor(run_dir)
     if config.kind != "worker":
         raise ConfigError(

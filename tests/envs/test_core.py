@@ -154,8 +154,8 @@ def test_neighbour_observation_and_target_frame_keep_the_planners_results() -> N
     """The relative ("neighbours") observation and the target action frame change what a manager reads and
     writes, not the task: a planner that reads and writes either gets the same episodes."""
     from hier_ssl.envs import env_config
-    from hier_ssl.evaluate import evaluate
-    from hier_ssl.manager.planners import make_planner
+    from hier_ssl.envs.planners import make_planner
+    from hier_ssl.evaluation.evaluate import evaluate
 
     results = []
     for layout in ({}, {"observation": "neighbours", "neighbours": 2, "action_frame": "target"}):

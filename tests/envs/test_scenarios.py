@@ -15,7 +15,8 @@ from hier_ssl.envs import (
     make_scenario,
     scenario_config,
 )
-from hier_ssl.evaluate import evaluate
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.manager import HIT_REWARD, SUCCESS_REWARD, encode_subgoal
 from hier_ssl.manager.neighbours import (
     NEIGHBOUR_OBS_SLICES,
@@ -24,7 +25,6 @@ from hier_ssl.manager.neighbours import (
     neighbour_obs_slice,
     neighbour_observation,
 )
-from hier_ssl.manager.planners import make_planner
 
 
 def _build_env(scenario: str = "crossing", **overrides: object) -> HierarchicalSSLEnv:

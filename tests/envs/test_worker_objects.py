@@ -9,12 +9,12 @@ import pytest
 import torch
 
 import hier_ssl
-from hier_ssl.compare import compare, load_manager
 from hier_ssl.config import EnvConfig
 from hier_ssl.envs import HierarchicalCore, env_config
+from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
-from hier_ssl.evaluate import evaluate
-from hier_ssl.manager.planners import make_planner
+from hier_ssl.evaluation.compare import compare, load_manager
+from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.worker import CheckedWorker, PaperGoToPoint, WorkerError, worker_name
 from hier_ssl.world.physics import RobotState
 

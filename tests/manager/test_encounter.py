@@ -6,9 +6,9 @@ import torch
 
 from hier_ssl.envs import make_scenario, parse_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.planners import make_planner
 from hier_ssl.manager.encounter import ENCOUNTER_DIM, encounter_columns
 from hier_ssl.manager.neighbours import drop_encounters, neighbour_obs_dim, neighbour_observation
-from hier_ssl.manager.planners import make_planner
 
 
 def _columns(rel_pos, rel_vel, robot_vel, to_target) -> np.ndarray:

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from hier_ssl.envs import env_config
-from hier_ssl.evaluate import evaluate
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.manager import decode_subgoal, manager_observation
-from hier_ssl.manager.planners import SamplingPlanner, make_planner, read_scene
+from hier_ssl.manager.planners import SamplingPlanner, read_scene
 from hier_ssl.world.field import get_field
 
 FIELD = get_field("hardware_challenge")

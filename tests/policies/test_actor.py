@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from hier_ssl.config import ConfigError, dump_config
+from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs import parse_config, vector_env
-from hier_ssl.learner_config import PPOConfig
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
@@ -94,7 +94,7 @@ def test_a_checkpoint_without_the_std_is_refused_naming_the_file(tmp_path: Path)
 
 
 def test_final_and_best_checkpoints_are_both_readable_and_distinct(sac_run) -> None:
-    from hier_ssl.policies.actor import checkpoint_path, load_actor, run_config
+    from hier_ssl.checkpoints.actor import checkpoint_path, load_actor, run_config
 
     run_dir, best = sac_run
     torch.manual_seed(7)

@@ -7,15 +7,16 @@ import pytest
 import torch
 import yaml
 
+from hier_ssl.checkpoints.actor import load_actor
 from hier_ssl.config import ConfigError
-from hier_ssl.config_files import config_dir, load_yaml
+from hier_ssl.config.files import config_dir, load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.core import HierarchicalCore
-from hier_ssl.evaluate import evaluate
-from hier_ssl.manager.planners import make_planner
-from hier_ssl.policies.actor import load_actor, load_policy
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.evaluation.evaluate import evaluate
+from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.candidate_nets import Scorer, chooser_from_state, chooser_inputs, soft_choice
-from hier_ssl.train import resume_config, train
+from hier_ssl.runs.train import resume_config, train
 
 SHIPPED = load_yaml(config_dir() / "obstacle" / "candidates.yaml")
 
@@ -155,7 +156,7 @@ def test_a_dagger_scenario_run_shares_its_classifier_between_the_robots(tmp_path
 
 
 def test_the_ppo_reward_prices_time_success_and_collisions() -> None:
-    from hier_ssl.learner_config import CandidatePPOConfig
+    from hier_ssl.config.learners import CandidatePPOConfig
     from hier_ssl.policies.candidates import outcome_reward
 
     settings = CandidatePPOConfig(time_cost=2.0, success_reward=10.0, collision_cost=30.0)

@@ -11,8 +11,8 @@ import torch
 
 from hier_ssl import cli
 from hier_ssl.config import TrainConfig, dump_config
+from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs import make_scenario, parse_config, vector_env
-from hier_ssl.learner_config import PPOConfig
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
 from hier_ssl.policies.export import export_manager, layout

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 import hier_ssl
-from hier_ssl.learner_config import PPOConfig
+from hier_ssl.config.learners import PPOConfig
 from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy, ppo_train_cfg
 
 

@@ -8,7 +8,7 @@ import torch
 
 from hier_ssl.config import ConfigError, validate_config
 from hier_ssl.envs import TorchVectorEnv, env_config, scenario_config
-from hier_ssl.manager.planners import make_planner
+from hier_ssl.envs.planners import make_planner
 from hier_ssl.policies import SAC, SACConfig, SACRunner
 from hier_ssl.policies.teacher import LABEL_BOUND, imitation_loss, teacher_labels, teacher_weight
 from hier_ssl.worker import PaperGoToPoint

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from hier_ssl import cli
-from hier_ssl.compare import compare
 from hier_ssl.config import ConfigError, EnvConfig
 from hier_ssl.envs import HierarchicalCore, parse_config
+from hier_ssl.evaluation.compare import compare
 from hier_ssl.worker import (
     CheckedWorker,
     PaperGoToPoint,

@@ -11,7 +11,7 @@ from hier_ssl.config import EnvConfig, GoToPointConfig, TrainConfig, dump_config
 from hier_ssl.envs import HierarchicalCore, parse_config
 from hier_ssl.envs.gotopoint import GoToPointCore, GoToPointEnv
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
-from hier_ssl.train import train
+from hier_ssl.runs.train import train
 from hier_ssl.worker import LearnedWorker, make_worker
 from hier_ssl.world.physics import RobotSpec, RobotState
 
@@ -38,7 +38,7 @@ def _worker_config(**overrides: object) -> TrainConfig:
 
 @pytest.fixture(scope="module")
 def trained_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A worker trained by ``hier_ssl.train`` for 20 short PPO iterations, seed 0."""
+    """A worker trained by ``hier_ssl.runs.train`` for 20 short PPO iterations, seed 0."""
     run_dir = tmp_path_factory.mktemp("worker") / "run"
     train(_worker_config(), run_dir)
     return run_dir

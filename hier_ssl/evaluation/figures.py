@@ -43,7 +43,7 @@ def _panel(
     robot: RobotSpec | None = None,
     robots_at: int | None = None,
 ) -> np.ndarray:
-    """One recorded episode (``hier_ssl.evaluate.Recorder.episode``) drawn up to control step ``step``
+    """One recorded episode (``hier_ssl.envs.play.Recorder.episode``) drawn up to control step ``step``
     (default: its end) as an RGB image (H, W, 3): every controlled robot's target, sub-goals so far as dots
     and path so far as a line, the obstacles' paths, and the robots where they are at step ``robots_at``
     (default: ``step``)."""

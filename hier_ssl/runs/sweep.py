@@ -1,7 +1,7 @@
 """``hier-ssl sweep``: one config trained over a grid of key values and seeds, then tabulated.
 
 Every grid point x seed is one run directory ``out/runs/<name>-<key>=<value>...-s<seed>``, trained
-through ``hier_ssl.launch`` (in turn, as local processes, or as Ray Tune trials with optional ASHA), so
+through ``hier_ssl.runs.launch`` (in turn, as local processes, or as Ray Tune trials with optional ASHA), so
 rerunning the same command skips finished runs and resumes killed ones. ``out/sweep.md`` and
 ``out/sweep.csv`` hold one row per run with its ``eval.json`` figures (held-out episodes).
 """
@@ -19,11 +19,12 @@ from pathlib import Path
 from typing import Any
 
 from hier_ssl.config import ConfigError
-from hier_ssl.config_files import apply_overrides, load_yaml
+from hier_ssl.config.files import apply_overrides, load_yaml
 from hier_ssl.envs import parse_config
-from hier_ssl.launch import STOPPED_FILE, Job, launch, run_state
-from hier_ssl.launch_options import LaunchOptions
-from hier_ssl.train import CURVE_FILE, EVAL_FILE
+from hier_ssl.runs.jobs import STOPPED_FILE, Job, run_state
+from hier_ssl.runs.launch import launch
+from hier_ssl.config.launch_options import LaunchOptions
+from hier_ssl.runs.train import CURVE_FILE, EVAL_FILE
 
 TABLE_MD, TABLE_CSV = "sweep.md", "sweep.csv"
 # (column, eval.json key, scale): rates in %, lengths in control steps, CPAD in m, wall time in s.

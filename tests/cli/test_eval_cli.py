@@ -9,11 +9,11 @@ import torch
 from matplotlib.image import imread
 
 from hier_ssl import cli
-from hier_ssl.compare import load_manager, manager_env
 from hier_ssl.config import EnvConfig, TrainConfig, dump_config
+from hier_ssl.evaluation.compare import load_manager, manager_env
+from hier_ssl.evaluation.report import RECORD_KEYS
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.sac import SACConfig
-from hier_ssl.report import RECORD_KEYS
 
 STATS = {"median", "q1", "q3", "min", "max"}
 

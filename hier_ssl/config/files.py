@@ -11,7 +11,7 @@ from typing import Any
 
 import yaml
 
-from hier_ssl.config import ConfigError
+from hier_ssl.config.schema import ConfigError
 
 
 def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
@@ -35,7 +35,7 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
 def config_dir() -> Path:
     """The shipped configs: ``hier_ssl/configs`` in an installed wheel (setup.py maps the repository's
     ``configs/`` there), else the ``configs/`` beside the package in a checkout or editable install."""
-    package = Path(__file__).resolve().parent
+    package = Path(__file__).resolve().parents[1]
     installed = package / "configs"
     return installed if installed.is_dir() else package.parent / "configs"
 

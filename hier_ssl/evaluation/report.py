@@ -1,5 +1,5 @@
 """Evaluation results in the paper's format: tables (Markdown, CSV, LaTeX), and the files of one
-``hier-ssl eval`` (tables, Fig. 3 and a GIF of one episode from ``hier_ssl.figures``).
+``hier-ssl eval`` (tables, Fig. 3 and a GIF of one episode from ``hier_ssl.evaluation.figures``).
 
 A *record* is one manager's evaluation as ``hier-ssl eval --json`` writes it: manager, worker, task,
 episodes, success_rate, collision_rate, episode_length and cpad (each {median, q1, q3, min, max}),
@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hier_ssl.figures import episode_video, figure3, pick_episode
+from hier_ssl.evaluation.figures import episode_video, figure3, pick_episode
 
 RECORD_KEYS = (
     "manager",
@@ -39,8 +39,8 @@ RECORD_KEYS = (
 
 
 def make_record(manager: str, result: dict[str, Any], **context: Any) -> dict[str, Any]:
-    """The JSON record of one evaluation: ``result`` is ``hier_ssl.evaluate.evaluate``'s dict, ``context``
-    holds worker, task and anything else to keep (frame_skip, seed)."""
+    """The JSON record of one evaluation: ``result`` is ``hier_ssl.evaluation.evaluate.evaluate``'s dict,
+    ``context`` holds worker, task and anything else to keep (frame_skip, seed)."""
     record = {"manager": manager, **context}
     for key in (*RECORD_KEYS[3:], "time_to_target_s_median"):
         if key in result or key in RECORD_KEYS:
@@ -185,10 +185,10 @@ def write_evaluation(
     video: bool = False,
     title: str | None = None,
 ) -> list[Path]:
-    """What ``hier-ssl eval`` writes for ``hier_ssl.compare.compare``'s evaluations: table.md, .csv and
-    .tex, fig3.png (when episodes were recorded: of the recorded episodes in which most managers succeed,
-    the one where their paths differ most), episode.gif with ``video``, and the JSON records at
-    ``json_path``. Returns the paths written."""
+    """What ``hier-ssl eval`` writes for ``hier_ssl.evaluation.compare.compare``'s evaluations: table.md, .csv
+    and .tex, fig3.png (when episodes were recorded: of the recorded episodes in which most managers succeed,
+    the one where their paths differ most), episode.gif with ``video``, and the JSON records at ``json_path``.
+    Returns the paths written."""
     import json
 
     from hier_ssl.world.field import get_field

@@ -14,12 +14,12 @@ import torch
 
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.core import HierarchicalCore
-from hier_ssl.evaluate import evaluate
+from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.manager import decode_subgoal
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE
-from hier_ssl.train import EVALUATION_SEED, train
+from hier_ssl.runs.train import EVALUATION_SEED, train
 
 TINY = {
     "name": "tiny",
@@ -127,7 +127,7 @@ def test_killed_run_resumes_to_the_same_step_with_its_replay(tmp_path: Path) -> 
 def test_bad_config_is_one_line_and_writes_nothing(tmp_path: Path, args: list[str], message: str) -> None:
     out = tmp_path / "run"
     proc = _cli(
-        "train", "configs/proposed/fscaps.yaml", "--out", str(out), *args, cwd=Path(__file__).parents[1]
+        "train", "configs/proposed/fscaps.yaml", "--out", str(out), *args, cwd=Path(__file__).parents[2]
     )
     _, err = proc.communicate(timeout=120)
     assert proc.returncode != 0
@@ -194,7 +194,7 @@ TINY_PPO = {
 
 
 def test_a_ppo_run_keeps_its_best_policy_by_the_selection_curve(tmp_path: Path) -> None:
-    from hier_ssl.policies.actor import load_actor
+    from hier_ssl.checkpoints.actor import load_actor
 
     # 4 iterations of 16 steps; a checkpoint, and a score, every 2 iterations.
     config = {**TINY_PPO, "total_steps": 64, "eval_interval": 32}
@@ -228,7 +228,7 @@ def test_task_settings_errors_name_the_key(data: dict[str, object], message: str
 def test_train_refuses_a_run_directory_that_is_not_empty(tmp_path: Path) -> None:
     (tmp_path / "curve.csv").write_text("step\n")
     proc = _cli(
-        "train", "configs/proposed/fscaps.yaml", "--out", str(tmp_path), cwd=Path(__file__).parents[1]
+        "train", "configs/proposed/fscaps.yaml", "--out", str(tmp_path), cwd=Path(__file__).parents[2]
     )
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 1 and "is not empty: --resume" in err and "Traceback" not in err
@@ -238,7 +238,7 @@ def test_train_refuses_a_run_directory_that_is_not_empty(tmp_path: Path) -> None
 def test_a_resumed_ppo_run_continues_after_its_last_iteration(tmp_path: Path) -> None:
     import yaml
 
-    from hier_ssl.train import resume_config
+    from hier_ssl.runs.train import resume_config
 
     config = {**TINY_PPO, "total_steps": 32, "eval_interval": 16}  # 2 iterations, a checkpoint after each
     run = tmp_path / "run"

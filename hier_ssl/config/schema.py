@@ -16,7 +16,7 @@ from typing import Any, Literal
 import yaml
 from pydantic import BaseModel, Field, ValidationError, model_validator
 
-from hier_ssl.learner_config import CandidatesConfig, PPOConfig, SACConfig, Strict
+from hier_ssl.config.learners import CandidatesConfig, PPOConfig, SACConfig, Strict
 
 
 class ConfigError(ValueError):

@@ -1,6 +1,6 @@
-"""Where and how ``hier_ssl.launch`` runs its jobs, and the command-line flags that say so.
+"""Where and how ``hier_ssl.runs.launch`` runs its jobs, and the command-line flags that say so.
 
-Kept apart from ``hier_ssl.launch`` so that building the command-line parser imports no torch.
+Kept apart from ``hier_ssl.runs.launch`` so that building the command-line parser imports no torch.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from hier_ssl.config import TrainConfig
+    from hier_ssl.config.schema import TrainConfig
 
 
 @dataclass(frozen=True)

@@ -19,11 +19,13 @@ from typing import Any
 import torch
 
 from hier_ssl.config import ConfigError, TrainConfig, dump_config
-from hier_ssl.config_files import load_yaml
+from hier_ssl.config.files import load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.vector import TorchVectorEnv, TorchView
-from hier_ssl.evaluate import Policy, evaluate
-from hier_ssl.policies.actor import BEST_ACTOR_FILE, CONFIG_FILE, load_policy, sac_policy
+from hier_ssl.evaluation.evaluate import Policy, evaluate
+from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
+from hier_ssl.policies.actor import load_policy
+from hier_ssl.policies.networks import sac_policy
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
@@ -173,7 +175,7 @@ def train(
 
 
 def _figures(result: dict[str, Any]) -> dict[str, Any]:
-    """What eval.json keeps of an evaluation (``hier_ssl.evaluate.evaluate``'s dict)."""
+    """What eval.json keeps of an evaluation (``hier_ssl.evaluation.evaluate.evaluate``'s dict)."""
     keys = ("success_rate", "collision_rate", "field_success_rate", "optimal_ratio_median")
     return {
         **{key: result[key] for key in keys},

@@ -3,14 +3,15 @@ same episodes beside the scripted planners, and write the paper's tables with ou
 
 Families (``FAMILIES``): "paper", the public code's settings (``configs/paper/<task>/<setup>.yaml``), and
 "defaults", ours (``configs/<task>/<setup>.yaml``). Runs live in ``out/runs/<name>-s<seed>/`` and train
-through ``hier_ssl.launch`` (in turn, as local processes or as Ray Tune trials), which skips finished runs,
-resumes killed ones and trains the rest; with ``train=False`` only finished runs are evaluated, so the
+through ``hier_ssl.runs.launch`` (in turn, as local processes or as Ray Tune trials), which skips finished
+runs, resumes killed ones and trains the rest; with ``train=False`` only finished runs are evaluated, so the
 tables can be written while long runs go on. Evaluations are cached in ``out/evals/``.
 
-Every manager of a task plays the same ``episodes`` episodes (seed ``eval_seed``) drawn as the paper's
-public code draws them (its family's config: start 0.2 m from the target, the obstacle on the midpoint);
-each run acts with its own interface (observation, action form and frame, frame skip, worker). Writes
-``results/paper-tables.md`` and ``.csv`` (``hier_ssl.paper_tables``) and ``results/fig3-<task>.png``.
+Every manager of a task plays the same ``episodes`` episodes (seed ``eval_seed``) drawn as the paper's public
+code draws them (its family's config: start 0.2 m from the target, the obstacle on the midpoint); each run
+acts with its own interface (observation, action form and frame, frame skip, worker). Writes
+``results/paper-tables.md`` and ``.csv`` (``hier_ssl.evaluation.paper_tables``) and
+``results/fig3-<task>.png``.
 """
 
 from __future__ import annotations
@@ -22,13 +23,14 @@ from pathlib import Path
 from typing import Any
 
 from hier_ssl.config import TaskConfig, TrainConfig
-from hier_ssl.config_files import apply_overrides, load_yaml
-from hier_ssl.config_files import config_dir as shipped_configs
+from hier_ssl.config.files import apply_overrides, load_yaml
+from hier_ssl.config.files import config_dir as shipped_configs
 from hier_ssl.envs import parse_config
-from hier_ssl.launch import Job, launch
-from hier_ssl.launch_options import LaunchOptions
-from hier_ssl.paper_tables import SETUPS, TASKS, Row, csv_text, markdown, paper_record
-from hier_ssl.train import EVAL_FILE
+from hier_ssl.runs.jobs import Job
+from hier_ssl.runs.launch import launch
+from hier_ssl.config.launch_options import LaunchOptions
+from hier_ssl.evaluation.paper_tables import SETUPS, TASKS, Row, csv_text, markdown, paper_record
+from hier_ssl.runs.train import EVAL_FILE
 
 FAMILIES = {"paper": "paper/{task}/{setup}.yaml", "defaults": "{task}/{setup}.yaml"}
 FAMILY_TITLES = {"paper": "paper family", "defaults": "defaults"}
@@ -133,9 +135,9 @@ def evaluate_run(
 ) -> dict[str, Any]:
     """The record of one run evaluated one way, from ``cache`` when it was evaluated so before (a cached
     record older than the run's eval.json is stale)."""
-    from hier_ssl.compare import load_manager
-    from hier_ssl.evaluate import evaluate
-    from hier_ssl.report import make_record
+    from hier_ssl.evaluation.compare import load_manager
+    from hier_ssl.evaluation.evaluate import evaluate
+    from hier_ssl.evaluation.report import make_record
 
     actions = "sampled" if sample else "mean"
     path = cache / f"{run.run_dir.name}-{which}-{actions}-e{count}-s{seed}.json"
@@ -164,9 +166,9 @@ def table_rows(
 ) -> tuple[list[Row], dict[str, float]]:
     """The tables' rows for the finished runs of ``runs`` (others are left out), the paper's own rows and
     the planners'; and per task the share of its episodes that begin in contact."""
-    from hier_ssl.compare import load_manager
-    from hier_ssl.evaluate import evaluate
-    from hier_ssl.report import make_record
+    from hier_ssl.evaluation.compare import load_manager
+    from hier_ssl.evaluation.evaluate import evaluate
+    from hier_ssl.evaluation.report import make_record
 
     rows, contact = [], {}
     for task in dict.fromkeys(run.task for run in runs):
@@ -198,9 +200,9 @@ def write_figures(
     """Fig. 3 per task: one episode (of the recorded ones most managers solve, the one where their paths
     differ most) played by each family's first finished FSCAPS run (paper family: final policy, sampled;
     defaults: best) and by the planners."""
-    from hier_ssl.compare import load_manager
-    from hier_ssl.evaluate import evaluate
-    from hier_ssl.figures import figure3, label_outcomes, pick_episode
+    from hier_ssl.evaluation.compare import load_manager
+    from hier_ssl.evaluation.evaluate import evaluate
+    from hier_ssl.evaluation.figures import figure3, label_outcomes, pick_episode
     from hier_ssl.world.field import get_field
 
     paths = []

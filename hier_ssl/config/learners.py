@@ -1,6 +1,6 @@
 """The learners' config sections: SAC (+ CAPS), PPO and the candidate classifier's two phases.
 
-Data, as ``hier_ssl.config`` (which assembles them into ``TrainConfig``): models that check types and
+Data, as ``hier_ssl.config.schema`` (which assembles them into ``TrainConfig``): models that check types and
 ranges, and nothing from the rest of the package.
 """
 

@@ -1,10 +1,11 @@
 """Managers by name and their comparison on the same seeded episodes.
 
-A manager is a scripted planner ("direct", "sampling") or a training run directory, loaded as a numpy
-policy ``obs (B, O) -> actions (B, A)`` for ``hier_ssl.evaluate``. A run directory (``hier_ssl.train``)
-holds ``config.yaml`` and ``best_actor.pt``, the policy that scored best on the selection episodes (SAC
-always; PPO runs before model selection existed only have rsl-rl's ``model_<iteration>.pt`` files, and
-the latest is used). ``compare`` evaluates several managers on one task's or scenario's episodes.
+A manager is a scripted planner ("direct", "sampling") or a training run directory, loaded as a numpy policy
+``obs (B, O) -> actions (B, A)`` for ``hier_ssl.evaluation.evaluate``. A run directory
+(``hier_ssl.runs.train``) holds ``config.yaml`` and ``best_actor.pt``, the policy that scored best on the
+selection episodes (SAC always; PPO runs before model selection existed only have rsl-rl's
+``model_<iteration>.pt`` files, and the latest is used). ``compare`` evaluates several managers on one task's
+or scenario's episodes.
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ from typing import Any
 
 from hier_ssl.config import ScenarioConfig, TaskConfig, TrainConfig
 from hier_ssl.envs import env_config, make_scenario, task_config
-from hier_ssl.evaluate import Policy, evaluate
-from hier_ssl.manager.planners import PLANNERS, make_planner
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.evaluation.evaluate import Policy, evaluate
+from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import worker_name
 
 
@@ -33,7 +35,7 @@ def manager_name(spec: str | Path) -> str:
 
 def run_config(run_dir: str | Path) -> TrainConfig:
     """The TrainConfig a run was trained with; ValueError if ``run_dir`` is neither a planner nor a run."""
-    from hier_ssl.policies.actor import run_config as saved_config
+    from hier_ssl.checkpoints.actor import run_config as saved_config
 
     if not Path(run_dir).is_dir():
         known = ", ".join(PLANNERS)
@@ -160,8 +162,8 @@ def compare(
     manager's own), or Python objects of the worker protocol (their classes or factories too), labelled
     ``module:Class`` in records and tables (``hier_ssl.worker.worker_name``).
     """
-    from hier_ssl.figures import label_outcomes
-    from hier_ssl.report import make_record
+    from hier_ssl.evaluation.figures import label_outcomes
+    from hier_ssl.evaluation.report import make_record
 
     runs = [spec for spec in specs if not is_planner(spec)]
     first = run_config(runs[0]).task_config if runs else None

@@ -7,16 +7,16 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from hier_ssl import launch as launch_module
-from hier_ssl import reproduce as reproduce_module
-from hier_ssl.compare import compare
 from hier_ssl.envs import env_config
-from hier_ssl.evaluate import evaluate
-from hier_ssl.figures import episode_video, figure3, path_spread, pick_episode
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.evaluation.compare import compare
+from hier_ssl.evaluation.evaluate import evaluate
+from hier_ssl.evaluation.figures import episode_video, figure3, path_spread, pick_episode
+from hier_ssl.evaluation.paper_tables import PAPER_RESULTS, Row, csv_text, markdown, paper_record
+from hier_ssl.evaluation.report import csv_table, latex_table, markdown_table, table_cells
 from hier_ssl.manager import cpad, min_time_to_pose
-from hier_ssl.manager.planners import make_planner
-from hier_ssl.paper_tables import PAPER_RESULTS, Row, csv_text, markdown, paper_record
-from hier_ssl.report import csv_table, latex_table, markdown_table, table_cells
+from hier_ssl.runs import jobs as launch_module
+from hier_ssl.runs import reproduce as reproduce_module
 from hier_ssl.world.field import get_field
 
 # The paper's Proposed FSCAPS row (Table 1) as a record, plus made-up collision, success and ratio.

@@ -1,6 +1,6 @@
-"""The Ray Tune backend of ``hier_ssl.launch``: every job is one Tune trial.
+"""The Ray Tune backend of ``hier_ssl.runs.launch``: every job is one Tune trial.
 
-A trial trains into its run directory exactly as a local run does (``hier_ssl.launch.run_job``), so the
+A trial trains into its run directory exactly as a local run does (``hier_ssl.runs.jobs.run_job``), so the
 run directories must lie on storage every node sees (a shared filesystem). Tune retries a trial whose
 process died; the retry finds the run's ``config.yaml`` and last checkpoint and resumes from them, replay
 buffer included. Each selection evaluation is reported to Tune (``step`` in vector steps, success and
@@ -18,8 +18,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from hier_ssl.launch import Job, mark_stopped, run_job, run_state
-from hier_ssl.launch_options import LaunchOptions
+from hier_ssl.runs.jobs import Job, mark_stopped, run_job, run_state
+from hier_ssl.config.launch_options import LaunchOptions
 
 # Without it a Ray started here would announce this machine's network address; 0 keeps it on 127.0.0.1.
 LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"

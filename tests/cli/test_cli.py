@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from hier_ssl import bench, cli
-from hier_ssl.demo import run_demo
+from hier_ssl import cli
+from hier_ssl.cli import bench
+from hier_ssl.cli.demo import run_demo
 
 
 def test_demo_writes_a_png_of_the_paths(tmp_path: object) -> None:

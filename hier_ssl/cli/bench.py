@@ -26,6 +26,12 @@ from typing import Any
 
 import numpy as np
 
+import hier_ssl
+from hier_ssl.envs import task_config
+from hier_ssl.worker.scripted import PaperGoToPoint
+from hier_ssl.world.obstacles import make_obstacle
+from hier_ssl.world.physics import World
+
 # The timer of the runs: wall-clock time by default; this thread's CPU time (``time.thread_time``) counts
 # only the time the benchmark itself ran, steadier on a machine other processes share.
 Clock = Callable[[], float]
@@ -101,10 +107,6 @@ def bench_world(
     run. Short runs make
     that guard work on a shared machine; on a loaded one every figure is still a lower bound.
     """
-    from hier_ssl.worker.scripted import PaperGoToPoint
-    from hier_ssl.world.obstacles import make_obstacle
-    from hier_ssl.world.physics import World
-
     if not (isinstance(n_fields, int) and n_fields >= 1):
         raise ValueError(f"n_fields must be an integer >= 1, got {n_fields!r}")
     steps = default_steps(n_fields) if steps is None else steps
@@ -184,8 +186,6 @@ def bench_env(
     resetting when the episode ends (resets count in the time, not in the steps). ``decisions`` manager
     steps per timed run (about 4000 control steps if None). ``steps_per_s``: control steps per second;
     ``decisions_per_s``: ``step`` calls per second; ``build_s``: ``build_seconds``."""
-    import hier_ssl
-
     decisions = max(50, 4000 // frame_skip) if decisions is None else decisions
     env = hier_ssl.parallel_env(task=task, frame_skip=frame_skip)
     core = env.core
@@ -227,9 +227,9 @@ def bench_vector(
     ``frame_skip``, uniform random actions drawn beforehand, auto-reset. ``decisions`` vector steps per
     timed run. ``steps_per_s``: control steps per second of all fields; ``decisions_per_s``: rows x vector
     steps per second; ``physics_share``: the part of the time spent in ``World.step``."""
+    # here, not at the top: torch, for the vector bench alone
     import torch
 
-    from hier_ssl.envs import task_config
     from hier_ssl.envs.vector import TorchVectorEnv
 
     env = TorchVectorEnv(task_config(task, frame_skip=frame_skip), n_fields)

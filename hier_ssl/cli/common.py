@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from hier_ssl.worker import check_worker_spec
+
 
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line instead of usage + message
@@ -26,8 +28,6 @@ WORKER_HELP = "paper|bangbang|RUN_DIR|package.module:Name, optionally perturbed:
 def worker_spec(text: str) -> str:
     """A ``make_worker`` spec whose name part is a known worker, an importable class or factory, or an
     existing directory."""
-
-    from hier_ssl.worker import check_worker_spec
 
     try:
         return check_worker_spec(text)

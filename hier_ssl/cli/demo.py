@@ -47,6 +47,7 @@ def run_demo(
 ) -> DemoResult:
     """Drive robot 0 of a one-field world to ``targets`` random targets past obstacle robot 1 and write
     the paths to ``out`` (PNG; parent folders are created)."""
+    # here, not at the top: matplotlib, for drawing alone
     from matplotlib.image import imsave
 
     from hier_ssl.world.render import render_fields

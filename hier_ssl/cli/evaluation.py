@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
+from hier_ssl.config import ConfigError, ScenarioConfig
+from hier_ssl.envs import task_config
+from hier_ssl.evaluation.compare import compare, is_planner, run_config
+from hier_ssl.evaluation.paper_tables import TASKS
+from hier_ssl.evaluation.report import markdown_table, write_evaluation
+from hier_ssl.manager.planners import PLANNERS
 
 # -- eval ----------------------------------------------------------------------------------------------------
 
 
 def add_eval(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.evaluation.paper_tables import TASKS
-    from hier_ssl.manager.planners import PLANNERS
-
     ev = subparsers.add_parser(
         "eval",
         help="evaluate managers (run directories or planners) on the same seeded episodes: tables, Fig. 3",
@@ -70,13 +74,6 @@ def add_eval(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from hier_ssl.config import ConfigError, ScenarioConfig
-    from hier_ssl.envs import task_config
-    from hier_ssl.evaluation.compare import compare, is_planner, run_config
-    from hier_ssl.evaluation.report import markdown_table, write_evaluation
-
     if args.task is not None and args.scenario is not None:
         raise ConfigError("--task names a paper task and --scenario a scenario: give one of them")
     record = range(min(16, args.episodes))
@@ -128,6 +125,7 @@ def add_export(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _export(args: argparse.Namespace) -> int:
+    # here, not at the top: torch, for this command alone
     from hier_ssl.policies.export import export_manager
 
     path = export_manager(args.run_dir, args.fmt, args.out)

@@ -4,9 +4,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from collections.abc import Callable
+from pathlib import Path
 
+from hier_ssl.cli import bench
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
+from hier_ssl.cli.demo import run_demo
+from hier_ssl.config import ConfigError
+from hier_ssl.config.files import config_dir, config_names
+from hier_ssl.envs import TASKS, task_config
+from hier_ssl.evaluation.compare import compare
+from hier_ssl.evaluation.figures import episode_video, figure3, panel_title
+from hier_ssl.manager.planners import PLANNERS
+from hier_ssl.world.field import get_field
 
 # -- bench ---------------------------------------------------------------------------------------------------
 
@@ -15,14 +26,12 @@ CPU_TIME_HELP = "time with this thread's CPU time, not wall-clock time (steadier
 
 
 def _clock(args: argparse.Namespace) -> Callable[[], float]:
-    import time
-
     return time.thread_time if args.cpu_time else time.perf_counter
 
 
 def add_bench(subparsers: argparse._SubParsersAction) -> None:
-    bench = subparsers.add_parser("bench", help="throughput benchmarks, pinned to one core")
-    targets = bench.add_subparsers(dest="target", required=True, metavar="TARGET")
+    parser = subparsers.add_parser("bench", help="throughput benchmarks, pinned to one core")
+    targets = parser.add_subparsers(dest="target", required=True, metavar="TARGET")
     world = targets.add_parser(
         "world",
         help="field-steps/s of the world with the paper worker, 1 robot + 1 random-walk obstacle per field",
@@ -48,8 +57,6 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _bench_view(args: argparse.Namespace) -> int:
-    from hier_ssl.cli import bench
-
     cpu = bench.pin_to_one_core()
     if not args.json:
         where = f"CPU {cpu}" if cpu is not None else "one thread"
@@ -59,18 +66,16 @@ def _bench_view(args: argparse.Namespace) -> int:
 
 
 def _bench_world(args: argparse.Namespace) -> int:
-    from hier_ssl.cli.bench import WORLD_SIZES, bench_world, default_steps, pin_to_one_core
-
-    cpu = pin_to_one_core()
+    cpu = bench.pin_to_one_core()
     if not args.json:
         where = f"CPU {cpu}" if cpu is not None else "one thread (affinity not settable here)"
         print(f"world bench on {where}: best of 5 runs per N, paper worker + random-walk obstacle")
-    for n in WORLD_SIZES:
-        result = bench_world(n, args.steps, clock=_clock(args))
+    for n in bench.WORLD_SIZES:
+        result = bench.bench_world(n, args.steps, clock=_clock(args))
         if args.json:
             print(json.dumps(result.as_dict()), flush=True)
         else:
-            steps = args.steps or default_steps(n)
+            steps = args.steps or bench.default_steps(n)
             print(
                 f"  N = {n:5d} fields x {result.robots_per_field} robots: "
                 f"{result.steps_per_s:12,.0f} field-steps/s  ({steps} steps per run)",
@@ -99,8 +104,6 @@ def add_demo(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from hier_ssl.cli.demo import run_demo
-
     result = run_demo(args.out, seed=args.seed, worker=args.worker, targets=args.targets)
     print(
         f"wrote {result.path} ({args.worker} worker: {result.reached}/{result.targets} targets reached in "
@@ -113,8 +116,6 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def add_render(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.manager.planners import PLANNERS
-
     render = subparsers.add_parser(
         "render", help="one episode of a task or scenario under a manager: GIF or PNG"
     )
@@ -135,14 +136,6 @@ def add_render(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _render(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from hier_ssl.config import ConfigError
-    from hier_ssl.envs import TASKS, task_config
-    from hier_ssl.evaluation.compare import compare
-    from hier_ssl.evaluation.figures import episode_video, figure3, panel_title
-    from hier_ssl.world.field import get_field
-
     out = Path(args.out)
     if out.suffix.lower() not in (".gif", ".png"):
         raise ConfigError(f"--out {str(out)!r}: expected a .gif or .png file")
@@ -170,7 +163,5 @@ def add_configs(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _configs(args: argparse.Namespace) -> int:
-    from hier_ssl.config.files import config_dir, config_names
-
     print(config_dir() if args.dir else "\n".join(config_names()))
     return 0

@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import time
+from pathlib import Path
 
 from hier_ssl.cli.common import positive_int
+from hier_ssl.config import ConfigError
+from hier_ssl.config.files import apply_overrides, load_yaml
+from hier_ssl.config.launch_options import LaunchOptions, add_launch_flags
+from hier_ssl.envs import parse_config
 
 # -- train ---------------------------------------------------------------------------------------------------
 
@@ -31,12 +37,7 @@ def add_train(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _train(args: argparse.Namespace) -> int:
-    import time
-    from pathlib import Path
-
-    from hier_ssl.config import ConfigError
-    from hier_ssl.config.files import apply_overrides, load_yaml
-    from hier_ssl.envs import parse_config
+    # here, not at the top: torch, for this command alone
     from hier_ssl.runs.train import print_summary, resume_config, train
 
     # Everything is validated before the run directory is created, so a bad config writes nothing.
@@ -63,8 +64,6 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.config.launch_options import add_launch_flags
-
     rep = subparsers.add_parser(
         "reproduce",
         help="train the paper's 12 configurations in both families (resumable), evaluate them beside the "
@@ -102,7 +101,7 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from hier_ssl.config.launch_options import LaunchOptions
+    # here, not at the top: torch, for this command alone
     from hier_ssl.runs.reproduce import FAMILIES, reproduce
 
     report = reproduce(
@@ -126,8 +125,6 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def add_sweep(subparsers: argparse._SubParsersAction) -> None:
-    from hier_ssl.config.launch_options import add_launch_flags
-
     sweep = subparsers.add_parser(
         "sweep", help="train one config over a grid of key values and seeds, tabulate eval.json (resumable)"
     )
@@ -147,7 +144,7 @@ def add_sweep(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from hier_ssl.config.launch_options import LaunchOptions
+    # here, not at the top: torch, for this command alone
     from hier_ssl.runs.sweep import parse_grid, sweep
 
     options, progress = LaunchOptions.from_args(args), not args.no_progress

@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from hier_ssl.config.schema import TrainConfig
+from hier_ssl.config.schema import TrainConfig
 
 
 @dataclass(frozen=True)

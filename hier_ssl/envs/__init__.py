@@ -79,6 +79,7 @@ def vector_env(
     **settings: Any,
 ) -> TorchVectorEnv:
     """The batched torch view over ``num_envs`` fields (one row each for a paper task)."""
+    # here, not at the top: torch, for the torch views alone
     from hier_ssl.envs.vector import TorchVectorEnv
 
     settings, worker = _worker_apart(worker, settings)
@@ -130,6 +131,7 @@ def scenario_vector_env(
     **settings: Any,
 ) -> TorchVectorEnv:
     """The batched torch view of a scenario for a shared policy: one row per (field, controlled robot)."""
+    # here, not at the top: torch, for the torch views alone
     from hier_ssl.envs.vector import TorchVectorEnv
 
     settings, worker = _worker_apart(worker, settings)

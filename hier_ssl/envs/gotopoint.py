@@ -15,8 +15,6 @@ theta_th_deg, and slower than speed_th) and ends the episode; ``env.max_steps`` 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import torch
 
@@ -29,13 +27,11 @@ from hier_ssl.envs.scenario import Layout, Scenario
 from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
 from hier_ssl.worker import Worker, make_worker
+from hier_ssl.worker.learned import LearnedWorker, WorkerPolicy
 from hier_ssl.worker.observation import WORKER_OBS_DIM, controlled_worker_observation
 from hier_ssl.worker.rewards import gotopoint_reward, pose_potential
 from hier_ssl.world.frames import to_robot_frame
 from hier_ssl.world.physics import World
-
-if TYPE_CHECKING:
-    from hier_ssl.worker.learned import WorkerPolicy
 
 ACT_DIM = 3
 
@@ -288,8 +284,6 @@ def uniform_task(task: GoToPointConfig) -> GoToPointConfig:
 def worker_summary(policy: WorkerPolicy, config: TrainConfig, seed: int) -> dict[str, object]:
     """A trained worker's policy beside the scripted workers on the same ``config.eval_episodes``
     episodes (``uniform_task``): eval.json of a ``kind: worker`` run."""
-    from hier_ssl.worker.learned import LearnedWorker
-
     env, episodes = config.env, config.eval_episodes
     world = World(1, 1, env.field, dt=env.dt)
     workers = {"learned": LearnedWorker(policy, world.robot, world.field.max_pos)}

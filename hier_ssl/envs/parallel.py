@@ -199,6 +199,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'.")
             return None
+        # here, not at the top: matplotlib, for rendering alone
         from hier_ssl.world.render import render_fields
 
         m, k = self.core.num_agents, self.core.num_obstacles
@@ -217,6 +218,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         return frame
 
     def _show(self, frame: np.ndarray) -> None:
+        # here, not at the top: matplotlib, for rendering alone
         import matplotlib.pyplot as plt
 
         if self._window is None:
@@ -229,6 +231,7 @@ class HierarchicalSSLEnv(ParallelEnv):
 
     def close(self) -> None:
         if self._window is not None:
+            # here, not at the top: matplotlib, for rendering alone
             import matplotlib.pyplot as plt
 
             plt.close(self._window.figure)

@@ -20,6 +20,8 @@ from hier_ssl.config import ScenarioConfig, TaskConfig, TrainConfig
 from hier_ssl.envs import env_config, make_scenario, task_config
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import Policy, evaluate
+from hier_ssl.evaluation.figures import label_outcomes
+from hier_ssl.evaluation.report import make_record
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import worker_name
 
@@ -35,6 +37,7 @@ def manager_name(spec: str | Path) -> str:
 
 def run_config(run_dir: str | Path) -> TrainConfig:
     """The TrainConfig a run was trained with; ValueError if ``run_dir`` is neither a planner nor a run."""
+    # here, not at the top: torch, for run directories alone
     from hier_ssl.checkpoints.actor import run_config as saved_config
 
     if not Path(run_dir).is_dir():
@@ -63,6 +66,7 @@ def load_manager(
     """
     if is_planner(spec):
         return make_planner(str(spec), config, worker)
+    # here, not at the top: torch, for run directories alone
     from hier_ssl.policies.actor import load_policy
 
     run_dir = Path(spec)
@@ -162,9 +166,6 @@ def compare(
     manager's own), or Python objects of the worker protocol (their classes or factories too), labelled
     ``module:Class`` in records and tables (``hier_ssl.worker.worker_name``).
     """
-    from hier_ssl.evaluation.figures import label_outcomes
-    from hier_ssl.evaluation.report import make_record
-
     runs = [spec for spec in specs if not is_planner(spec)]
     first = run_config(runs[0]).task_config if runs else None
     if config is None and isinstance(first, ScenarioConfig):

@@ -47,6 +47,7 @@ def _panel(
     (default: its end) as an RGB image (H, W, 3): every controlled robot's target, sub-goals so far as dots
     and path so far as a line, the obstacles' paths, and the robots where they are at step ``robots_at``
     (default: ``step``)."""
+    # here, not at the top: matplotlib, for drawing alone
     from hier_ssl.world.render import render_fields
 
     robots, m = episode["robots"], episode["controlled"]
@@ -98,6 +99,7 @@ def figure3(
     (from the robot, drawn where it started); the obstacles' paths: yellow lines (from where they
     started, so a still obstacle is a disc without a line).
     """
+    # here, not at the top: matplotlib, for drawing alone
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -136,6 +138,7 @@ def episode_video(
     Frames are every ``stride`` control steps (real time at ``fps`` when stride = 1 / (fps dt)), with at
     most ``max_frames``; a finished episode stays on its last frame.
     """
+    # here, not at the top: imageio and matplotlib, for a video alone
     import imageio.v3 as iio
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from hier_ssl.evaluation.figures import episode_video, figure3, pick_episode
+from hier_ssl.world.field import get_field
 
 RECORD_KEYS = (
     "manager",
@@ -189,10 +191,6 @@ def write_evaluation(
     and .tex, fig3.png (when episodes were recorded: of the recorded episodes in which most managers succeed,
     the one where their paths differ most), episode.gif with ``video``, and the JSON records at ``json_path``.
     Returns the paths written."""
-    import json
-
-    from hier_ssl.world.field import get_field
-
     out_dir = Path(out_dir)
     records = [e.record for e in evaluations]
     paths = write_tables(records, out_dir)

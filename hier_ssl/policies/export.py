@@ -255,6 +255,7 @@ def export_manager(run_dir: str | Path, fmt: str, out: str | Path | None = None)
 
 
 def _export_onnx(module: ExportedManager, example: torch.Tensor, out: Path, meta: str) -> None:
+    # here, not at the top: onnx, for the ONNX format alone
     import onnx
 
     # The exporter logs about optional packages (torchvision) and deprecations that concern it, not us.

@@ -18,8 +18,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from hier_ssl.runs.jobs import Job, mark_stopped, run_job, run_state
 from hier_ssl.config.launch_options import LaunchOptions
+from hier_ssl.runs.jobs import Job, mark_stopped, run_job, run_state
 
 # Without it a Ray started here would announce this machine's network address; 0 keeps it on 127.0.0.1.
 LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
@@ -32,6 +32,7 @@ def import_ray(address: str) -> ModuleType:
     """``ray`` itself; a Ray started by us ("local") listens on loopback only. One-line error without it."""
     if address == "local":
         os.environ.setdefault(LOOPBACK_ENV, "0")
+    # here, not at the top: ray, for --ray alone
     try:
         import ray
         import ray.tune  # noqa: F401  (the extra installs Tune; a bare ray lacks its dependencies)
@@ -54,6 +55,7 @@ def connect(ray: ModuleType, address: str) -> bool:
 
 def _trial(params: dict[str, Any], jobs: dict[str, Job], cwd: str) -> None:
     """One Tune trial: train (or resume) the job its params name, reporting each selection evaluation."""
+    # here, not at the top: ray, for --ray alone
     from ray import tune
 
     if os.path.isdir(cwd):  # Tune starts trials in their own folder; configs may name relative paths
@@ -70,6 +72,7 @@ def asha(jobs: Sequence[Job]) -> Any:
     scheduler's ``stopped`` maps the runs it stopped to the step, so that an interrupted trial is not
     mistaken for one that ASHA stopped.
     """
+    # here, not at the top: ray, for --ray alone
     from ray.tune.schedulers import ASHAScheduler, TrialScheduler
 
     class RecordingASHA(ASHAScheduler):
@@ -112,6 +115,7 @@ def run_trials(jobs: Sequence[Job], options: LaunchOptions, storage: Path) -> di
     trials that failed after their retries. Trials that ASHA stopped are marked so that reruns skip them."""
     assert options.ray is not None
     ray = import_ray(options.ray)
+    # here, not at the top: ray, for --ray alone
     from ray import tune
 
     by_name = {job.name: job for job in jobs}

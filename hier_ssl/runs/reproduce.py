@@ -16,6 +16,7 @@ acts with its own interface (observation, action form and frame, frame skip, wor
 
 from __future__ import annotations
 
+import csv
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -25,12 +26,17 @@ from typing import Any
 from hier_ssl.config import TaskConfig, TrainConfig
 from hier_ssl.config.files import apply_overrides, load_yaml
 from hier_ssl.config.files import config_dir as shipped_configs
+from hier_ssl.config.launch_options import LaunchOptions
 from hier_ssl.envs import parse_config
+from hier_ssl.evaluation.compare import load_manager
+from hier_ssl.evaluation.evaluate import evaluate
+from hier_ssl.evaluation.figures import figure3, label_outcomes, pick_episode
+from hier_ssl.evaluation.paper_tables import SETUPS, TASKS, Row, csv_text, markdown, paper_record
+from hier_ssl.evaluation.report import make_record
 from hier_ssl.runs.jobs import Job
 from hier_ssl.runs.launch import launch
-from hier_ssl.config.launch_options import LaunchOptions
-from hier_ssl.evaluation.paper_tables import SETUPS, TASKS, Row, csv_text, markdown, paper_record
 from hier_ssl.runs.train import EVAL_FILE
+from hier_ssl.world.field import get_field
 
 FAMILIES = {"paper": "paper/{task}/{setup}.yaml", "defaults": "{task}/{setup}.yaml"}
 FAMILY_TITLES = {"paper": "paper family", "defaults": "defaults"}
@@ -135,10 +141,6 @@ def evaluate_run(
 ) -> dict[str, Any]:
     """The record of one run evaluated one way, from ``cache`` when it was evaluated so before (a cached
     record older than the run's eval.json is stale)."""
-    from hier_ssl.evaluation.compare import load_manager
-    from hier_ssl.evaluation.evaluate import evaluate
-    from hier_ssl.evaluation.report import make_record
-
     actions = "sampled" if sample else "mean"
     path = cache / f"{run.run_dir.name}-{which}-{actions}-e{count}-s{seed}.json"
     finished = (run.run_dir / EVAL_FILE).stat().st_mtime
@@ -166,10 +168,6 @@ def table_rows(
 ) -> tuple[list[Row], dict[str, float]]:
     """The tables' rows for the finished runs of ``runs`` (others are left out), the paper's own rows and
     the planners'; and per task the share of its episodes that begin in contact."""
-    from hier_ssl.evaluation.compare import load_manager
-    from hier_ssl.evaluation.evaluate import evaluate
-    from hier_ssl.evaluation.report import make_record
-
     rows, contact = [], {}
     for task in dict.fromkeys(run.task for run in runs):
         episodes = episodes_of(task, config_dir)
@@ -200,11 +198,6 @@ def write_figures(
     """Fig. 3 per task: one episode (of the recorded ones most managers solve, the one where their paths
     differ most) played by each family's first finished FSCAPS run (paper family: final policy, sampled;
     defaults: best) and by the planners."""
-    from hier_ssl.evaluation.compare import load_manager
-    from hier_ssl.evaluation.evaluate import evaluate
-    from hier_ssl.evaluation.figures import figure3, label_outcomes, pick_episode
-    from hier_ssl.world.field import get_field
-
     paths = []
     for task in dict.fromkeys(run.task for run in runs):
         episodes = episodes_of(task, config_dir)
@@ -236,8 +229,7 @@ def write_figures(
 def plot_curves(series: Sequence[tuple[str, str, Path]], title: str, path: Path) -> Path:
     """Selection curves (success and collision rate against transitions, i.e. vector steps x envs) of
     run directories, one line each from its ``curve.csv``; ``series`` is (label, line style, run_dir)."""
-    import csv
-
+    # here, not at the top: matplotlib, for the curves alone
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

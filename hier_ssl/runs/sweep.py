@@ -20,10 +20,10 @@ from typing import Any
 
 from hier_ssl.config import ConfigError
 from hier_ssl.config.files import apply_overrides, load_yaml
+from hier_ssl.config.launch_options import LaunchOptions
 from hier_ssl.envs import parse_config
 from hier_ssl.runs.jobs import STOPPED_FILE, Job, run_state
 from hier_ssl.runs.launch import launch
-from hier_ssl.config.launch_options import LaunchOptions
 from hier_ssl.runs.train import CURVE_FILE, EVAL_FILE
 
 TABLE_MD, TABLE_CSV = "sweep.md", "sweep.csv"

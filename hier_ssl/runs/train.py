@@ -12,20 +12,24 @@ import csv
 import json
 import os
 import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import torch
 
+from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
 from hier_ssl.config import ConfigError, TrainConfig, dump_config
 from hier_ssl.config.files import load_yaml
 from hier_ssl.envs import parse_config
+from hier_ssl.envs.gotopoint import GoToPointEnv, print_worker_summary, worker_summary
 from hier_ssl.envs.vector import TorchVectorEnv, TorchView
 from hier_ssl.evaluation.evaluate import Policy, evaluate
-from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
 from hier_ssl.policies.actor import load_policy
+from hier_ssl.policies.candidates import CandidateLearner, candidate_policy, missing_keys
 from hier_ssl.policies.networks import sac_policy
+from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
 from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
@@ -212,8 +216,6 @@ def _train_sac(
 def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress: bool, on_selection=None):
     """The classifier or scorer over the planner's candidates (``hier_ssl.policies.candidates``): DAgger,
     then PPO."""
-    from hier_ssl.policies.candidates import CandidateLearner, candidate_policy, missing_keys
-
     learner = CandidateLearner(config, run_dir, _Selection(config, run_dir, on_selection).record, progress)
     saved = torch.load(run_dir / MODEL_FILE, weights_only=True) if resume else None
     if saved is not None and (missing := missing_keys(saved)):
@@ -228,10 +230,6 @@ def _train_ppo(
     """PPO through rsl-rl. With ``select`` (managers) the policy is scored on the selection episodes at
     every rsl-rl checkpoint (after the first iteration, then every ``eval_interval`` vector steps, and at
     the end) and the best one is returned, as for SAC; without it checkpoints follow ``save_interval``."""
-    import time
-
-    from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
-
     steps_per_iteration = config.ppo.num_steps_per_env
     every = (config.eval_interval if select else config.save_interval) // steps_per_iteration
     torch.manual_seed(config.seed)  # the networks' initial weights and the policy's exploration noise
@@ -269,8 +267,6 @@ def _train_ppo(
 
 def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str, Any]:
     """``kind: worker``: PPO on the goToPoint task, then the worker beside the scripted ones."""
-    from hier_ssl.envs.gotopoint import GoToPointEnv, worker_summary
-
     env = GoToPointEnv(config.env, config.gotopoint, config.num_envs, config.device, seed=config.seed)
     policy, train_wall_s = _train_ppo(config, env, run_dir, resume, select=False)
     summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)
@@ -281,8 +277,6 @@ def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str,
 
 def print_summary(summary: dict[str, Any]) -> None:
     if summary.get("task") == "gotopoint":
-        from hier_ssl.envs.gotopoint import print_worker_summary
-
         return print_worker_summary(summary)
     length, cpad = summary["episode_length"], summary["cpad"]
     several = summary.get("robots", summary["episodes"]) > summary["episodes"]

@@ -74,6 +74,7 @@ def _base_worker(name: str, robot: RobotSpec, dt: float) -> Worker:
     if is_import_spec(name):
         return build_imported(name, robot, dt)
     if Path(name).is_dir():
+        # here, not at the top: torch, for a learned worker alone
         from hier_ssl.worker.learned import load_learned_worker
 
         return load_learned_worker(name, robot, dt)

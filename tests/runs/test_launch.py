@@ -18,11 +18,11 @@ os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
 
 from hier_ssl.cli import main  # noqa: E402
 from hier_ssl.config import ConfigError  # noqa: E402
+from hier_ssl.config.launch_options import LaunchOptions  # noqa: E402
 from hier_ssl.envs import parse_config  # noqa: E402
+from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE  # noqa: E402
 from hier_ssl.runs.jobs import EXIT_MARKER, EXIT_ONCE_ENV, Job, run_state  # noqa: E402
 from hier_ssl.runs.launch import RunFailed, launch  # noqa: E402
-from hier_ssl.config.launch_options import LaunchOptions  # noqa: E402
-from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE  # noqa: E402
 from hier_ssl.runs.sweep import parse_grid, sweep  # noqa: E402
 from hier_ssl.runs.train import train  # noqa: E402
 

@@ -305,7 +305,8 @@ def _header(episodes: int, seed: int, contact: dict[str, float]) -> str:
     starts = ", ".join(f"{task} {100 * share:.1f} %" for task, share in contact.items())
     return (
         '# "Planning the path with Reinforcement Learning": the paper\'s tables and ours\n\n'
-        "Written by `hier-ssl reproduce` (hier_ssl/reproduce.py). Every manager of a task plays the same "
+        "Written by `hier-ssl reproduce` (hier_ssl/runs/reproduce.py). "
+        "Every manager of a task plays the same "
         f"{episodes} episodes (seed {seed}), drawn as the paper's public code draws them; learned managers "
         "act with their own interface, frame skip and worker; the planners decide every 16 control steps. "
         "*paper*: the paper's published numbers (final models, sampled actions). *paper family*: our runs "

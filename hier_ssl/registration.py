@@ -28,7 +28,7 @@ same decision itself.
 ``gymnasium.make_vec(id, num_envs=N)`` gives the batched ``hier_ssl.envs.ManagerVectorEnv`` (one core
 stepping N fields, same-step autoreset) rather than N copies of the env.
 
-This module imports the environments without learning (no torch).
+This module imports only gymnasium; the environments are imported when one is made.
 """
 
 from __future__ import annotations
@@ -37,8 +37,6 @@ from typing import Any
 
 import gymnasium
 from gymnasium.wrappers import TimeLimit
-
-from hier_ssl.envs import manager_env, manager_vector_env
 
 IDS = {
     "hier_ssl/Baseline-v0": "baseline",
@@ -50,6 +48,9 @@ IDS = {
 
 def make_env(config: Any = None, render_mode: str | None = None, worker: Any = None, **settings: Any):
     """Entry point of the ids: ``hier_ssl.manager_env(...)`` inside a ``TimeLimit`` of its decisions."""
+    # here, not at the top: the environments (pymunk, pettingzoo, pydantic), for a made env alone
+    from hier_ssl.envs import manager_env
+
     env = manager_env(config, render_mode=render_mode, worker=worker, **settings)
     return TimeLimit(env, env.max_episode_steps)
 
@@ -57,6 +58,9 @@ def make_env(config: Any = None, render_mode: str | None = None, worker: Any = N
 def make_vector_env(num_envs: int, config: Any = None, worker: Any = None, **settings: Any):
     """Vector entry point of the ids: ``hier_ssl.manager_vector_env`` over ``num_envs`` fields, one row
     each (a task with several robots a field has more rows than fields: refused, naming them)."""
+    # here, not at the top: the environments (pymunk, pettingzoo, pydantic), for a made env alone
+    from hier_ssl.envs import manager_vector_env
+
     env = manager_vector_env(config, num_envs, worker=worker, **settings)
     if env.num_envs != num_envs:
         raise ValueError(

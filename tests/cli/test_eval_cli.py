@@ -99,9 +99,9 @@ def test_eval_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[
 def test_planners_play_the_episodes_of_the_run_they_are_compared_with(tmp_path: Path) -> None:
     """A paper-family Obstacle run (starts 0.2 m from the target, not the task default's 0.6): without
     --scenario or --set, the planners beside it meet its starts, targets and obstacle draws."""
-    from hier_ssl.compare import compare
     from hier_ssl.config import ObstacleConfig
     from hier_ssl.envs import HierarchicalCore
+    from hier_ssl.evaluation.compare import compare
 
     obstacles = [ObstacleConfig(behaviour="public_code", placement="midpoint")]
     run = _sac_run(

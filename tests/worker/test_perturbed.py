@@ -165,8 +165,8 @@ def test_the_episode_seed_seeds_the_noise_through_every_view() -> None:
     import gymnasium
 
     import hier_ssl
-    from hier_ssl.evaluate import evaluate
-    from hier_ssl.manager.planners import make_planner
+    from hier_ssl.envs.planners import make_planner
+    from hier_ssl.evaluation.evaluate import evaluate
 
     def first_steps(env: gymnasium.Env) -> list[np.ndarray]:
         obs = [env.reset(seed=0)[0]]

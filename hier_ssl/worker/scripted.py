@@ -40,11 +40,14 @@ def _goal_axes(
     """
     delta = (subgoal[..., 0:2] - state.pos).view(_COMPLEX)[..., 0]
     dist = np.abs(delta)
-    # z / |z| written out: numpy's complex sign means that only from numpy 2.0 (before, the sign of the
-    # real part). The 1e-12 m nudge along x makes the axis the field's x axis at the sub-goal itself
-    # instead of 0 / 0, and turns it by at most 1e-12 / dist rad elsewhere.
+    # z / |z| written out, as numpy >= 2 computes its complex sign (hypot, then each part divided: the same
+    # bits); numpy < 2's sign is the sign of the real part. The 1e-12 m nudge along x makes the axis the
+    # field's x axis at the sub-goal itself instead of 0 / 0, and turns it by at most 1e-12 / dist rad
+    # elsewhere.
     nudged = delta + _K.nudge
-    ex = nudged / np.abs(nudged)
+    size = np.hypot(nudged.real, nudged.imag)
+    ex = np.empty_like(nudged)
+    ex.real, ex.imag = nudged.real / size, nudged.imag / size
     # Dividing by a unit complex number rotates by minus its angle: into the (along, across) frame.
     return dist, ex, as_complex(state.vel) / ex, as_complex(subgoal[..., 3:5]) / ex
 

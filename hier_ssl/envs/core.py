@@ -182,10 +182,12 @@ class HierarchicalCore:
 
     # -- observations --------------------------------------------------------------------------------------
 
-    def observe(self, fields: np.ndarray | None = None) -> np.ndarray:
+    def observe(self, fields: np.ndarray | None = None, state: RobotState | None = None) -> np.ndarray:
         """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all), in the scenario's
-        layout; robots that left are observed too."""
-        s = self.world.state if fields is None else self.world.state.fields(fields)
+        layout; robots that left are observed too. ``state`` (N, M + K) replaces the world's: the deploy
+        view observes tracked robots with the same function."""
+        s = self.world.state if state is None else state
+        s = s if fields is None else s.fields(fields)
         target = self.target if fields is None else self.target[fields]
         f, m = target.shape[:2]
         b, limits = f * m, self._limits
@@ -231,6 +233,12 @@ class HierarchicalCore:
         self.decisions = self.decisions + live.astype(np.int64)
         self._hold()
         return clipped
+
+    def hold_subgoal(self, subgoal: np.ndarray) -> None:
+        """Hold ``subgoal`` (N, M, 5) as every robot's sub-goal, for a view whose managers act elsewhere:
+        the deploy field server holds the targets, so its rules score where the robots end up."""
+        np.copyto(self.subgoal, subgoal)
+        self._hold()
 
     def control_step(
         self,

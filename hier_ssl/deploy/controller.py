@@ -1,0 +1,104 @@
+"""One control period of the controlled robots: tracked state -> decisions every ``frame_skip`` periods ->
+worker commands, with the safety rule that a robot not seen lately gets a zero command.
+
+Pure of sockets and clocks: ``tick(now)`` takes the monotonic time and returns the commands to send, so
+the loop (``hier_ssl.deploy.loop``), the tests and the benchmark drive it alike.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from hier_ssl.deploy.tracker import Tracker
+from hier_ssl.deploy.view import DeployView
+from hier_ssl.deploy.wire import Command, DetectionFrame
+
+MAX_AGE = 0.05  # s: a robot unseen for longer is stopped (the loop ticks at most 35 ms apart: < 100 ms)
+OTHERS_AGE = 0.5  # s: an other robot unseen for longer is no longer an obstacle
+
+
+def check_target(robot: object, target: object, robots: Sequence[int], reach: np.ndarray) -> np.ndarray:
+    """``target`` as a float array (5,) x, y, theta, vx, vy for controlled ``robot``; ValueError naming
+    what is wrong: an unknown robot, not 3 or 5 finite numbers, a position outside the walls."""
+    if isinstance(robot, bool) or not isinstance(robot, int) or robot not in robots:
+        raise ValueError(f"robot {robot!r} is not a controlled robot {list(robots)}")
+    if not isinstance(target, (list, tuple)) or len(target) not in (3, 5):
+        raise ValueError(
+            f"target of robot {robot}: expected [x, y, theta] or [x, y, theta, vx, vy], got {target!r}"
+        )
+    if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in target):
+        raise ValueError(f"target of robot {robot}: expected finite numbers, got {target!r}")
+    values = np.zeros(5)
+    values[: len(target)] = target
+    if (np.abs(values[0:2]) > reach).any():
+        raise ValueError(
+            f"target of robot {robot} at {list(values[0:2])} is outside the walls (+-{list(reach)} m)"
+        )
+    return values
+
+
+class Controller:
+    """The controlled ``robots`` (ids) of ``team``, acting through ``view`` on ``tracker``'s state."""
+
+    def __init__(
+        self, view: DeployView, tracker: Tracker, team: str, robots: Sequence[int], max_age: float = MAX_AGE
+    ) -> None:
+        if len(set(robots)) != len(robots) or not robots:
+            raise ValueError(f"robots: expected distinct ids, got {list(robots)}")
+        self.view, self.tracker, self.team = view, tracker, team
+        self.robots, self.max_age = list(robots), max_age
+        self.keys = [(team, robot) for robot in robots]
+        self.has_target = np.zeros(len(robots), dtype=bool)
+        self.was_live = np.zeros(len(robots), dtype=bool)
+        self.since_decision = 0
+        self.decide_now = True
+
+    def set_target(self, robot: object, target: object) -> None:
+        """Give controlled ``robot`` a new target (``check_target``); it decides at the next period."""
+        values = check_target(robot, target, self.robots, self.view.reach)
+        i = self.robots.index(robot)
+        m = self.view.m
+        self.view.target[i // m, i % m] = values
+        self.has_target[i] = True
+        self.decide_now = True
+
+    def on_frame(self, frame: DetectionFrame, arrival: float) -> None:
+        self.tracker.update(frame, arrival)
+
+    def live(self, now: float) -> np.ndarray:
+        """(robots,) bool: seen within ``max_age`` of ``now`` and given a target."""
+        fresh = [self.tracker.fresh(key, now, self.max_age) for key in self.keys]
+        return np.array(fresh) & self.has_target
+
+    def tick(self, now: float) -> list[Command]:
+        """Commands of one control period at monotonic time ``now``: a zero command for every robot that is
+        not live, the worker's command toward the held sub-goal for the others."""
+        live = self.live(now)
+        if not live.any():
+            self.was_live = live
+            return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
+        keys = set(self.keys)
+        others = [
+            key for key in self.tracker.tracks if key not in keys and self.tracker.fresh(key, now, OTHERS_AGE)
+        ]
+        rows = self.tracker.state(self.keys + others, self.tracker.vision_time(now))
+        view = self.view
+        state = view.state(rows, view.fields(rows))
+        grid = live.reshape(view.n, view.m)
+        if self.decide_now or self.since_decision >= view.frame_skip or (live & ~self.was_live).any():
+            view.decide(state, grid)
+            self.since_decision, self.decide_now = 0, False
+        self.since_decision += 1
+        self.was_live = live
+        command = np.where(grid[..., None], view.commands(state), 0.0).reshape(-1, 3)
+        return [(robot, *map(float, command[i])) for i, robot in enumerate(self.robots)]
+
+    def stop(self) -> list[Command]:
+        """A zero command for every controlled robot."""
+        return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
+
+
+__all__ = ["MAX_AGE", "Controller", "check_target"]

@@ -1,0 +1,288 @@
+"""A loopback field server: hier_ssl's own world standing in for grSim or a real field.
+
+One field of a task or scenario (``HierarchicalCore``, its obstacle behaviours and rules) steps every
+25 ms of wall-clock time. Cameras split the walled area along x into strips that overlap, each publishing
+an SSL-Vision detection frame at ``rate`` Hz of what it sees (the latest world step, with Gaussian noise,
+each detection dropped with probability ``drop``, sent ``latency`` s after capture), and a geometry packet
+once a second. The controlled robots are team ``team`` ids 0..M-1, the obstacles the other team's ids
+0..K-1. Commands arrive as grSim packets or simulation-protocol ``RobotControl`` (answered with a
+``RobotControlResponse``) on 127.0.0.1; a robot whose last command is older than ``COMMAND_TIMEOUT`` stops,
+as robot firmware does.
+
+Episodes: after a reset the robots stand for ``settle`` s while the cameras publish, then each controlled
+robot's target goes to the controller's control socket (JSON lines) and the episode runs to success,
+collision or ``max_steps``, scored by the task's rules, one record per robot.
+"""
+
+from __future__ import annotations
+
+import heapq
+import json
+import selectors
+import socket
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hier_ssl.config import TaskConfig
+from hier_ssl.deploy.net import LOOPBACK, receive
+from hier_ssl.deploy.wire import (
+    TEAMS,
+    Detection,
+    DetectionFrame,
+    FieldSize,
+    PacketError,
+    encode_detection,
+    encode_geometry,
+    encode_response,
+    parse_grsim,
+    parse_simulation,
+)
+from hier_ssl.envs.core import HierarchicalCore
+
+STEP = 0.025  # s
+COMMAND_TIMEOUT = 0.1  # s
+
+
+@dataclass(frozen=True)
+class Cameras:
+    """``count`` cameras over strips of the walled area along x, overlapping by ``overlap`` m; ``rate``
+    frames/s each; noise (one standard deviation) ``pos_noise`` m and ``angle_noise`` rad; ``drop`` the
+    probability of missing a detection; ``latency`` s from capture to send."""
+
+    count: int = 2
+    overlap: float = 0.6
+    rate: float = 60.0
+    pos_noise: float = 0.002
+    angle_noise: float = 0.01
+    drop: float = 0.0
+    latency: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.count < 1 or not self.rate > 0 or not 0 <= self.drop < 1:
+            raise ValueError(f"cameras: count >= 1, rate > 0 and drop in [0, 1) expected, got {self}")
+        if min(self.overlap, self.pos_noise, self.angle_noise, self.latency) < 0:
+            raise ValueError(f"cameras: overlap, noise and latency must be >= 0, got {self}")
+
+
+def camera_strips(cameras: Cameras, half_extent: float) -> np.ndarray:
+    """(count, 2) x range each camera sees: equal strips of [-half_extent, half_extent], widened by half
+    the overlap on each inner side."""
+    edges = np.linspace(-half_extent, half_extent, cameras.count + 1)
+    strips = np.stack([edges[:-1], edges[1:]], axis=1)
+    strips[1:, 0] -= cameras.overlap / 2
+    strips[:-1, 1] += cameras.overlap / 2
+    return strips
+
+
+def camera_frames(
+    pos: np.ndarray,
+    angle: np.ndarray,
+    teams: list[tuple[str, int]],
+    cameras: Cameras,
+    strips: np.ndarray,
+    t_capture: float,
+    rng: np.random.Generator,
+) -> list[DetectionFrame]:
+    """One frame per camera of robots at ``pos`` (R, 2) m, ``angle`` (R,) labelled ``teams``: each camera
+    reports the robots inside its strip, with noise and drops. Shapes of the outputs: a tuple per frame."""
+    frames = []
+    for c, (low, high) in enumerate(strips):
+        inside = (pos[:, 0] >= low) & (pos[:, 0] <= high) & (rng.random(len(pos)) >= cameras.drop)
+        noisy = pos + rng.normal(0.0, cameras.pos_noise, pos.shape)
+        turned = angle + rng.normal(0.0, cameras.angle_noise, angle.shape)
+        seen = tuple(
+            Detection(team, robot, float(noisy[i, 0]), float(noisy[i, 1]), float(turned[i]))
+            for i, (team, robot) in enumerate(teams)
+            if inside[i]
+        )
+        frames.append(DetectionFrame(t_capture, t_capture + cameras.latency, c, seen))
+    return frames
+
+
+class FieldServer:
+    """Serves one field of ``config`` over 127.0.0.1 (module docstring). Ports 0 pick free ones, read back
+    as ``grsim_port`` and ``simulation_port``."""
+
+    def __init__(
+        self,
+        config: TaskConfig,
+        vision_port: int,
+        team: str = "blue",
+        cameras: Cameras | None = None,
+        grsim_port: int = 0,
+        simulation_port: int = 0,
+        control_port: int | None = None,
+        seed: int = 0,
+        settle: float = 0.15,
+    ) -> None:
+        if team not in TEAMS:
+            raise ValueError(f"team {team!r}: expected one of {TEAMS}")
+        self.core = HierarchicalCore(config, num_fields=1, autoreset=False)
+        self.team, self.cameras = team, cameras or Cameras()
+        self.m, self.k = self.core.num_agents, self.core.num_obstacles
+        other = TEAMS[1 - TEAMS.index(team)]
+        self.labels = [(team, i) for i in range(self.m)] + [(other, j) for j in range(self.k)]
+        fld = self.core.field
+        self.strips = camera_strips(self.cameras, fld.wall_half_extent[0])
+        self.geometry = encode_geometry(FieldSize(fld.length, fld.width, fld.boundary), fld.goal_width)
+        self.vision_to, self.control_port = (LOOPBACK, vision_port), control_port
+        self.seed, self.settle, self.rng = seed, settle, np.random.default_rng(seed)
+        self.out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.out.bind((LOOPBACK, 0))
+        self.grsim, self.simulation = (self._listen(p) for p in (grsim_port, simulation_port))
+        self.grsim_port, self.simulation_port = (s.getsockname()[1] for s in (self.grsim, self.simulation))
+        limits = self.core.robot
+        self.scale = np.array([limits.max_speed, limits.max_speed, limits.max_ang_speed])
+        self.command = np.zeros((self.m, 3))
+        self.commanded = np.full(self.m, -np.inf)
+        self.dropped = self.frames_sent = 0
+        self.capture_time = time.time()
+
+    @staticmethod
+    def _listen(port: int) -> socket.socket:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.bind((LOOPBACK, port))
+        sock.setblocking(False)
+        return sock
+
+    def close(self) -> None:
+        for sock in (self.out, self.grsim, self.simulation):
+            sock.close()
+
+    def run(self, episodes: int | None, stop: threading.Event) -> list[dict[str, Any]]:
+        """Play ``episodes`` episodes (None: until ``stop``) in real time; one record per robot."""
+        selector = selectors.DefaultSelector()
+        selector.register(self.grsim, selectors.EVENT_READ, self._read_grsim)
+        selector.register(self.simulation, selectors.EVENT_READ, self._read_simulation)
+        control = None
+        if self.control_port is not None:
+            control = socket.create_connection((LOOPBACK, self.control_port), timeout=1.0)
+        records: list[dict[str, Any]] = []
+        pending: list[tuple[float, int, bytes]] = []  # (send time, order, packet)
+        clock, episode, frame = time.monotonic, 0, 0
+        live, start = self._reset(episode), clock()
+        next_step, next_frame, running = start + STEP, start, False
+        try:
+            while not stop.is_set() and (episodes is None or episode < episodes):
+                timeout = max(0.0, min(next_step, next_frame, pending[0][0] if pending else np.inf) - clock())
+                for key, _ in selector.select(timeout):
+                    key.data()
+                now = clock()
+                while pending and pending[0][0] <= now:
+                    self.out.sendto(heapq.heappop(pending)[2], self.vision_to)
+                if now >= next_frame:
+                    frame = self._capture(frame, pending, now)
+                    next_frame += 1.0 / self.cameras.rate
+                if now < next_step:
+                    continue
+                next_step += STEP
+                self.capture_time = time.time()  # the world as it stands now: stepped below, or still
+                if not running and now - start >= self.settle:
+                    self._send_targets(control)
+                    running = True
+                if running:
+                    live, ended = self._step(live, now)
+                    if ended:
+                        records += self._records(episode)
+                        episode += 1
+                        live, start, running = self._reset(episode), now, False
+        finally:
+            selector.close()
+            if control is not None:
+                control.close()
+        return records
+
+    def _reset(self, episode: int) -> np.ndarray:
+        self.core.reset(self.seed + episode)
+        # The managers act in the controller: success is the robot settled on its target.
+        self.core.hold_subgoal(self.core.target)
+        self.command[:] = 0.0
+        self.outcome = {"success": np.zeros(self.m, bool), "collision": np.zeros(self.m, bool)}
+        self.length = np.zeros(self.m, dtype=np.int64)
+        return np.ones((1, self.m), dtype=bool)
+
+    def _step(self, live: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
+        command = np.where((now - self.commanded <= COMMAND_TIMEOUT)[:, None], self.command, 0.0)
+        _, success, hit = self.core.control_step(live, worker_action=(command / self.scale)[None])
+        self.length += live[0]
+        self.outcome["success"] |= success[0]
+        self.outcome["collision"] |= hit[0]
+        live = live & ~(success | hit)
+        timeout = self.core.steps[0] >= self.core.config.max_steps
+        return live, bool(timeout or not live.any())
+
+    def _records(self, episode: int) -> list[dict[str, Any]]:
+        return [
+            {
+                "episode": episode,
+                "robot": i,
+                "success": bool(self.outcome["success"][i]),
+                "collision": bool(self.outcome["collision"][i]),
+                "length": int(self.length[i]),
+            }
+            for i in range(self.m)
+        ]
+
+    def _capture(self, frame: int, pending: list, now: float) -> int:
+        s = self.core.world.state
+        frames = camera_frames(
+            s.pos[0], s.angle[0], self.labels, self.cameras, self.strips, self.capture_time, self.rng
+        )
+        send_at = now + self.cameras.latency
+        for camera in frames:
+            heapq.heappush(pending, (send_at, frame, encode_detection(frame, camera)))
+            frame += 1
+        if frame // self.cameras.count % round(self.cameras.rate) == 0:
+            heapq.heappush(pending, (send_at, frame, self.geometry))
+        self.frames_sent += len(frames)
+        return frame
+
+    def _send_targets(self, control: socket.socket | None) -> None:
+        """Each controlled robot's target to the controller; RuntimeError with its answer if refused."""
+        if control is None:
+            return
+        for i in range(self.m):
+            target = [round(float(v), 6) for v in self.core.target[0, i]]
+            control.sendall(json.dumps({"robot": i, "target": target}).encode() + b"\n")
+        answers = b""
+        while answers.count(b"\n") < self.m:
+            data = control.recv(4096)
+            if not data:
+                raise RuntimeError("the controller closed its control socket")
+            answers += data
+        refused = [a for a in answers.decode().splitlines() if "error" in json.loads(a)]
+        if refused:
+            raise RuntimeError(f"the controller refused a target: {refused[0]}")
+
+    def _apply(self, commands: list, now: float) -> None:
+        for robot, forward, left, angular in commands:
+            if 0 <= robot < self.m:
+                self.command[robot] = (forward, left, angular)
+                self.commanded[robot] = now
+
+    def _read_grsim(self) -> None:
+        while (packet := receive(self.grsim)) is not None:
+            try:
+                yellow, commands = parse_grsim(packet[0])
+            except PacketError:
+                self.dropped += 1
+                continue
+            if yellow == (self.team == "yellow"):
+                self._apply(commands, time.monotonic())
+
+    def _read_simulation(self) -> None:
+        while (packet := receive(self.simulation)) is not None:
+            data, sender = packet
+            try:
+                commands, other = parse_simulation(data)
+            except PacketError as err:
+                self.dropped += 1
+                self.simulation.sendto(encode_response([("INVALID_PACKET", str(err))]), sender)
+                continue
+            self._apply(commands, time.monotonic())
+            errors = [("UNSUPPORTED_MOVE", f"robot {i}: only local velocity is simulated") for i in other]
+            self.simulation.sendto(encode_response(errors), sender)

@@ -1,0 +1,140 @@
+"""The controller's loop: receive vision, tick every control period, send commands, stop safely.
+
+A period's tick waits for the first camera frame at or after its due time (so the command is computed
+from the newest detections, and the time from that frame's arrival to the command's send is the loop's
+own latency), but never more than ``WAIT`` past it: without vision the ticks go on, and the controller
+stops the robots it no longer sees. Every datagram that is not vision from the configured source is
+dropped and counted by reason; none of them reaches the controller. On exit (``stop`` set, e.g. by
+SIGINT or SIGTERM, or ``duration`` over) every controlled robot is sent a zero command.
+"""
+
+from __future__ import annotations
+
+import selectors
+import socket
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from hier_ssl.deploy.controller import Controller
+from hier_ssl.deploy.net import CommandSender, ControlServer, receive
+from hier_ssl.deploy.wire import DetectionFrame, FieldSize, PacketError, parse_response, parse_vision
+
+PERIOD = 0.025  # s, the control period the managers were trained with
+WAIT = 0.010  # s a tick waits past its due time for a camera frame
+STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
+
+
+@dataclass
+class LoopStats:
+    """What the loop saw: frames accepted, datagrams dropped by reason, ticks, commands, the latencies
+    (s) from a frame's arrival to the command sent on it, the field size from geometry, simulator errors."""
+
+    frames: int = 0
+    dropped: Counter = field(default_factory=Counter)
+    ticks: int = 0
+    moving_commands: int = 0
+    latencies: list[float] = field(default_factory=list)
+    field_size: FieldSize | None = None
+    simulator_errors: list[str] = field(default_factory=list)
+
+
+class DeployLoop:
+    """``controller`` fed from ``vision`` (datagrams from ``source`` only), commands out through
+    ``sender``, targets in through ``control`` (optional)."""
+
+    def __init__(
+        self,
+        controller: Controller,
+        vision: socket.socket,
+        source: str,
+        sender: CommandSender,
+        control: ControlServer | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.controller, self.vision, self.source = controller, vision, source
+        self.sender, self.control, self.clock = sender, control, clock
+        self.stats = LoopStats()
+        self.selector = selectors.DefaultSelector()
+        self.selector.register(vision, selectors.EVENT_READ, "vision")
+        self.selector.register(sender.sock, selectors.EVENT_READ, "response")
+        if control is not None:
+            self.selector.register(control.listener, selectors.EVENT_READ, "listener")
+
+    def run(self, stop: threading.Event, duration: float | None = None) -> LoopStats:
+        """Run until ``stop`` is set or ``duration`` seconds pass; then stop every robot."""
+        start = self.clock()
+        due = start + PERIOD
+        try:
+            while not stop.is_set() and (duration is None or self.clock() - start < duration):
+                timeout = max(0.0, due + WAIT - self.clock())
+                arrival = None
+                for key, _ in self.selector.select(timeout):
+                    arrival = self._handle(key) or arrival
+                now = self.clock()
+                if now >= due + WAIT or (now >= due and arrival is not None):
+                    self._send(self.controller.tick(now))
+                    if arrival is not None:
+                        self.stats.latencies.append(self.clock() - arrival)
+                    self.stats.ticks += 1
+                    due = due + PERIOD if due + PERIOD > now else now + PERIOD
+        finally:
+            for _ in range(STOP_COPIES):
+                self._send(self.controller.stop())
+            self.selector.close()
+        return self.stats
+
+    def _handle(self, key: selectors.SelectorKey) -> float | None:
+        """Serve one ready socket; the arrival time of the newest camera frame it brought, if any."""
+        if key.data == "vision":
+            return self._read_vision()
+        if key.data == "response":
+            self._read_responses()
+        elif key.data == "listener":
+            client = self.control.accept()
+            if client is not None:
+                self.selector.register(client, selectors.EVENT_READ, "client")
+        elif not self.control.read(key.fileobj):
+            self.selector.unregister(key.fileobj)
+        return None
+
+    def _read_vision(self) -> float | None:
+        newest = None
+        while (packet := receive(self.vision)) is not None:
+            data, sender = packet
+            arrival = self.clock()
+            if sender[0] != self.source:
+                self.stats.dropped["source"] += 1
+                continue
+            try:
+                parsed = parse_vision(data)
+            except PacketError as err:
+                self.stats.dropped[err.reason] += 1
+                continue
+            if isinstance(parsed, DetectionFrame):
+                self.controller.on_frame(parsed, arrival)
+                self.stats.frames += 1
+                newest = arrival
+            else:
+                self.stats.field_size = parsed
+        return newest
+
+    def _read_responses(self) -> None:
+        while (packet := receive(self.sender.sock)) is not None:
+            try:
+                self.stats.simulator_errors += parse_response(packet[0])
+            except PacketError as err:
+                self.stats.dropped[f"response {err.reason}"] += 1
+
+    def _send(self, commands: list) -> None:
+        try:
+            self.sender.send(commands, time.time())
+        except OSError as err:  # e.g. nobody listening on loopback yet: the next period sends again
+            self.stats.dropped[f"send {type(err).__name__}"] += 1
+            return
+        self.stats.moving_commands += sum(any(c[1:]) for c in commands)
+
+
+__all__ = ["PERIOD", "WAIT", "DeployLoop", "LoopStats"]

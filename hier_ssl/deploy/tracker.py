@@ -1,0 +1,168 @@
+"""Detections from several cameras -> each robot's pose and velocity, predicted to the command's send time.
+
+Every robot (team, id) has a constant-velocity Kalman filter on x, y and the heading, three independent
+axes of (value, rate) with white-noise acceleration. A camera frame updates every robot in it at the
+frame's capture time; a robot seen by two overlapping cameras in one frame is simply measured twice, a
+frame older than a robot's filter is applied at the filter's time (no filter runs backwards). A
+measurement further than ``gate`` from the prediction, or one after ``forget`` seconds unseen, restarts
+that robot's filter where it was seen: a robot carried across the field, or replaced.
+
+Times: filters run on the vision machine's clock (the frames' ``t_capture``). ``vision_time(now)`` maps
+this process's monotonic clock onto it from the newest frame: its ``t_sent`` was read at its arrival, so
+the vision time of ``now`` is ``t_sent + (now - arrival)``; prediction to that time hides the camera's
+processing, the network and this process's own delay, without synchronised clocks. Scalar Python maths:
+a handful of robots costs microseconds, where numpy's per-call overhead would dominate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hier_ssl.deploy.wire import DetectionFrame
+
+PREDICT_HORIZON = 0.2  # s
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """Measurement noise (``pos_noise`` m, ``angle_noise`` rad, one standard deviation), process noise
+    (``accel`` m/s^2 and ``ang_accel`` rad/s^2: how hard a robot may change its velocity), the ``gate``
+    (m) past which a measurement restarts the filter, and ``forget`` (s) after which an unseen robot's
+    filter restarts at its next detection."""
+
+    pos_noise: float = 0.003
+    angle_noise: float = 0.02
+    accel: float = 6.0
+    ang_accel: float = 40.0
+    gate: float = 0.5
+    forget: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("pos_noise", "angle_noise", "accel", "ang_accel", "gate", "forget"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"tracker {name} must be > 0, got {getattr(self, name)}")
+
+
+class _Axis:
+    """One axis' Kalman filter: value p, rate v, covariance [[a, b], [b, c]]."""
+
+    __slots__ = ("p", "v", "a", "b", "c")
+
+    def __init__(self, p: float, var: float) -> None:
+        self.p, self.v = p, 0.0
+        self.a, self.b, self.c = var, 0.0, 25.0  # rate unknown at first: (5 units/s)^2
+
+    def predict(self, dt: float, q: float) -> None:
+        """Move ``dt`` seconds on, with acceleration noise of variance q."""
+        if dt <= 0.0:
+            return
+        self.p += self.v * dt
+        dt2 = dt * dt
+        a, b, c = self.a, self.b, self.c
+        self.a = a + 2 * dt * b + dt2 * c + q * dt2 * dt2 / 4
+        self.b = b + dt * c + q * dt2 * dt / 2
+        self.c = c + q * dt2
+
+    def update(self, innovation: float, r: float) -> None:
+        """Measure the value with ``innovation`` (measured minus predicted) and noise variance r."""
+        s = self.a + r
+        ka, kb = self.a / s, self.b / s
+        self.p += ka * innovation
+        self.v += kb * innovation
+        a, b = self.a, self.b
+        self.a, self.b, self.c = (1 - ka) * a, (1 - ka) * b, self.c - kb * b
+
+    def at(self, dt: float) -> tuple[float, float]:
+        return self.p + self.v * max(dt, 0.0), self.v
+
+
+@dataclass
+class Track:
+    """One robot's filters, the vision time they stand at, and when it was last seen (monotonic s)."""
+
+    x: _Axis
+    y: _Axis
+    angle: _Axis
+    t: float
+    seen: float
+    has_angle: bool = False
+
+    def at(self, t: float) -> tuple[float, float, float, float, float, float]:
+        """(x, y, angle, vx, vy, w) predicted to vision time ``t`` (m, rad in [-pi, pi), m/s, rad/s), at
+        most ``PREDICT_HORIZON`` past the last detection: a robot out of sight is not flown on."""
+        dt = min(t - self.t, PREDICT_HORIZON)
+        x, vx = self.x.at(dt)
+        y, vy = self.y.at(dt)
+        angle, w = self.angle.at(dt)
+        return x, y, (angle + math.pi) % (2 * math.pi) - math.pi, vx, vy, w
+
+
+@dataclass
+class Tracker:
+    """Tracks of every robot seen, by (team, id); ``update`` with camera frames, read with ``state``."""
+
+    settings: TrackerSettings = field(default_factory=TrackerSettings)
+    tracks: dict[tuple[str, int], Track] = field(default_factory=dict)
+    newest_sent: float | None = None
+    newest_arrival: float = 0.0
+
+    def update(self, frame: DetectionFrame, arrival: float) -> None:
+        """Apply one camera frame that arrived at monotonic time ``arrival``."""
+        if self.newest_sent is None or frame.t_sent >= self.newest_sent:
+            self.newest_sent, self.newest_arrival = frame.t_sent, arrival
+        cfg = self.settings
+        r_pos, r_angle = cfg.pos_noise**2, cfg.angle_noise**2
+        q_pos, q_angle = cfg.accel**2, cfg.ang_accel**2
+        for seen in frame.robots:
+            key = (seen.team, seen.robot)
+            track = self.tracks.get(key)
+            if track is not None and frame.t_capture - track.t > cfg.forget:
+                track = None
+            if track is not None:
+                dt = frame.t_capture - track.t
+                for axis in (track.x, track.y):
+                    axis.predict(dt, q_pos)
+                track.angle.predict(dt, q_angle)
+                track.t = max(track.t, frame.t_capture)
+                if math.hypot(seen.x - track.x.p, seen.y - track.y.p) > cfg.gate:
+                    track = None
+            if track is None:
+                track = Track(
+                    _Axis(seen.x, r_pos), _Axis(seen.y, r_pos), _Axis(0.0, 10.0), frame.t_capture, 0.0
+                )
+                self.tracks[key] = track
+            else:
+                track.x.update(seen.x - track.x.p, r_pos)
+                track.y.update(seen.y - track.y.p, r_pos)
+            if seen.angle is not None:
+                if track.has_angle:
+                    turn = (seen.angle - track.angle.p + math.pi) % (2 * math.pi) - math.pi
+                    track.angle.update(turn, r_angle)
+                else:
+                    track.angle.p, track.angle.a, track.has_angle = seen.angle, r_angle, True
+            track.seen = arrival
+
+    def vision_time(self, now: float) -> float:
+        """The vision clock's reading at monotonic time ``now`` (module docstring); 0 before any frame."""
+        return 0.0 if self.newest_sent is None else self.newest_sent + (now - self.newest_arrival)
+
+    def fresh(self, key: tuple[str, int], now: float, max_age: float) -> bool:
+        """Whether robot ``key`` was seen within ``max_age`` s of monotonic time ``now``."""
+        track = self.tracks.get(key)
+        return track is not None and now - track.seen <= max_age
+
+    def state(self, keys: list[tuple[str, int]], t: float) -> np.ndarray:
+        """(len(keys), 6) x, y, angle, vx, vy, w of the robots ``keys`` at vision time ``t``; NaN rows
+        for robots never seen."""
+        out = np.full((len(keys), 6), np.nan)
+        for i, key in enumerate(keys):
+            track = self.tracks.get(key)
+            if track is not None:
+                out[i] = track.at(t)
+        return out
+
+
+__all__ = ["Track", "Tracker", "TrackerSettings"]

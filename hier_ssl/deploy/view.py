@@ -1,0 +1,199 @@
+"""The deploy view of the core: tracked robots in, held sub-goals and robot-frame commands out.
+
+One more view of ``HierarchicalCore``, as the PettingZoo and torch views are: a manager given as a run
+directory or a scripted planner acts through a one-step core of its own task, whose ``observe`` (given
+the tracked state instead of the world's), ``set_subgoal`` (the action decoding) and ``worker`` are the
+functions every evaluation calls; only the state's source differs. An exported TorchScript or ONNX file
+(``hier-ssl export``) carries observation and decoding inside its graph and is called on the raw state
+rows its stored layout names; the worker is the one ``hier_ssl.worker.resolve_worker`` builds for the
+same spec.
+
+Robots: a one-robot manager (the paper's tasks) acts for each controlled robot in a field of its own
+(N = robots, M = 1), a scenario manager for all of them in one field (N = 1, M = robots). Each field
+holds its M controlled robots and the task's K other robots: the tracked robots nearest to the field's
+controlled ones, any team; missing ones stand still in the far corner of the walls.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hier_ssl.config import ScenarioConfig, TaskConfig
+from hier_ssl.envs import make_scenario, task_config
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.manager.planners import PLANNERS, make_planner
+from hier_ssl.worker import Worker, resolve_worker
+from hier_ssl.world.field import get_field
+from hier_ssl.world.physics import RobotSpec, RobotState
+
+EXPORTED = (".pt", ".onnx")
+PLANNER_FRAME_SKIP = 16  # the paper's FSCAPS decision period, as ``hier-ssl eval`` gives planners
+
+
+def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
+    """An exported manager file as ``rows (B, D) float32 -> sub-goals (B, 5)`` and its stored layout.
+    Needs torch (TorchScript) or onnxruntime (ONNX), no hier_ssl policy code."""
+    path = Path(path)
+    if path.suffix == ".pt":
+        import torch
+
+        extra = {"layout.json": ""}
+        module = torch.jit.load(str(path), _extra_files=extra)
+
+        def call(rows: np.ndarray) -> np.ndarray:
+            with torch.no_grad():
+                return module(torch.from_numpy(rows)).numpy()
+
+        return call, json.loads(extra["layout.json"])
+    if path.suffix == ".onnx":
+        import onnxruntime
+
+        session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        meta = session.get_modelmeta().custom_metadata_map
+        return (lambda rows: session.run(None, {"state": rows})[0]), json.loads(meta["layout"])
+    raise ValueError(f"exported manager {str(path)!r}: expected a {' or '.join(EXPORTED)} file")
+
+
+def manager_task(
+    manager: str, task: str | None = None, frame_skip: int | None = None, worker: str | None = None
+) -> TaskConfig:
+    """The task a manager acts in: a run's own, an exported file's stored task, or for a planner the
+    ``task`` (default "obstacle") deciding every ``PLANNER_FRAME_SKIP`` control steps; ``frame_skip`` and
+    ``worker`` override."""
+    overrides: dict[str, Any] = {}
+    if worker is not None:
+        overrides["worker"] = worker
+    if frame_skip is not None:
+        overrides["frame_skip"] = frame_skip
+    if manager in PLANNERS:
+        overrides.setdefault("frame_skip", PLANNER_FRAME_SKIP)
+        return task_config(task or "obstacle", **overrides)
+    if Path(manager).suffix in EXPORTED:
+        layout = load_exported(manager)[1]
+        keys = ("field", "action_form", "observation", "action_frame", "frame_skip")
+        return task_config(layout["task"], **{k: layout[k] for k in keys} | overrides)
+    from hier_ssl.policies.actor import run_config
+
+    if not Path(manager).is_dir():
+        raise ValueError(
+            f"manager {manager!r}: neither a planner {list(PLANNERS)}, an exported file nor a run"
+        )
+    base = run_config(manager).task_config
+    return task_config(base, **overrides) if overrides else base
+
+
+@dataclass
+class Fields:
+    """Which tracked robots fill each field: ``controlled`` (N, M) and ``others`` (N, K) row indices into
+    the tracked state, -1 where a robot is missing."""
+
+    controlled: np.ndarray
+    others: np.ndarray
+
+
+class DeployView:
+    """Sub-goals and commands for ``robots`` controlled robots from tracked states (module docstring)."""
+
+    def __init__(self, manager: str, num_robots: int, config: TaskConfig) -> None:
+        if isinstance(config, ScenarioConfig) and config.num_agents not in (1, num_robots):
+            config = config.model_copy(update={"num_agents": num_robots})
+        scenario = make_scenario(config)
+        m = scenario.num_agents
+        n = num_robots if m == 1 else 1
+        if n * m != num_robots:
+            raise ValueError(f"manager {manager!r} controls {m} robots together, not {num_robots}")
+        self.core = HierarchicalCore(scenario, num_fields=n, autoreset=False)
+        self.exported: Callable[[np.ndarray], np.ndarray] | None = None
+        self.policy: Callable[[np.ndarray], np.ndarray] | None = None
+        k = self.core.num_obstacles
+        if Path(manager).suffix in EXPORTED:
+            self.exported, layout = load_exported(manager)
+            k = layout["obstacles"] + layout["teammates"] + 1 - m
+        elif manager in PLANNERS:
+            self.policy = make_planner(manager, config)
+        else:
+            from hier_ssl.policies.actor import load_policy
+
+            self.policy = load_policy(manager)
+        self.n, self.m, self.k = n, m, k
+        self.frame_skip = config.frame_skip
+        self.worker: Worker = (
+            self.core.worker
+            if self.exported is None
+            else resolve_worker(config.worker, RobotSpec(), config.dt)
+        )
+        self.worker.reset(np.arange(n))
+        self.reach = np.array(get_field(config.field).wall_half_extent) - RobotSpec().radius
+        # The core's arrays: its decoding writes sub-goals there, the observation reads targets there.
+        self.target, self.subgoal = self.core.target, self.core.subgoal
+
+    def fields(self, rows: np.ndarray) -> Fields:
+        """Fill the fields from tracked rows (T, 6) whose first N * M are the controlled robots in order;
+        NaN rows are robots not seen."""
+        n, m, k = self.n, self.m, self.k
+        controlled = np.arange(n * m).reshape(n, m)
+        seen = ~np.isnan(rows[:, 0])
+        candidates = np.flatnonzero(seen[n * m :]) + n * m
+        others = np.full((n, k), -1, dtype=np.int64)
+        if k and len(candidates):
+            own = rows[controlled, 0:2]  # (N, M, 2)
+            gap = np.linalg.norm(own[:, :, None] - rows[None, None, candidates, 0:2], axis=-1)
+            near = np.nan_to_num(gap, nan=np.inf).min(axis=1)  # (N, C): to the nearest controlled robot
+            order = np.argsort(near, axis=1, kind="stable")[:, :k]
+            others[:, : order.shape[1]] = candidates[order]
+        return Fields(controlled, others)
+
+    def state(self, rows: np.ndarray, fields: Fields) -> RobotState:
+        """The fields' robots (N, M + K) as the core's state; missing robots in the far corner, at rest."""
+        index = np.concatenate([fields.controlled, fields.others], axis=1)  # (N, R)
+        picked = rows[np.maximum(index, 0)]  # (N, R, 6)
+        missing = (index < 0) | np.isnan(picked[..., 0])
+        corner = -np.sign(np.nan_to_num(rows[fields.controlled[:, :1], 0:2], nan=1.0)) * self.reach
+        picked = np.where(missing[..., None], 0.0, picked)
+        pos = np.where(missing[..., None], corner, np.clip(picked[..., 0:2], -self.reach, self.reach))
+        return RobotState(pos, picked[..., 2], picked[..., 3:5], picked[..., 5])
+
+    def decide(self, state: RobotState, live: np.ndarray) -> None:
+        """New sub-goals for the ``live`` (N, M) robots, held in ``self.subgoal`` until the next call."""
+        if not live.any():
+            return
+        if self.exported is None:
+            obs = self.core.observe(state=state)
+            action = np.zeros((self.n, self.m, self.core.act_dim))
+            action[live] = self.policy(obs[live])
+            self.core.set_subgoal(action, live)
+            return
+        subgoal = self.exported(self._raw_rows(state)[live.ravel()])
+        self.subgoal[live] = subgoal
+
+    def _raw_rows(self, state: RobotState) -> np.ndarray:
+        """The exported file's input (N * M, 11 + w J) float32: target, robot, then every other robot."""
+        n, m = self.n, self.m
+        r = state.pos.shape[1]
+        own = np.concatenate(
+            [state.pos[:, :m], state.angle[:, :m, None], state.vel[:, :m], state.ang_vel[:, :m, None]], axis=2
+        )
+        motion = np.concatenate([state.pos, state.vel, state.ang_vel[..., None]], axis=2)  # (N, R, 5)
+        blocks = []
+        for i in range(m):
+            others = [j for j in range(r) if j != i]
+            block = motion[:, others]
+            if m > 1:
+                flag = (np.array(others) < m).astype(np.float64)
+                block = np.concatenate([block, np.broadcast_to(flag[None, :, None], (n, r - 1, 1))], axis=2)
+            blocks.append(block.reshape(n, -1))
+        rows = np.concatenate([self.target, own, np.stack(blocks, axis=1)], axis=2)
+        return rows.reshape(n * m, -1).astype(np.float32)
+
+    def commands(self, state: RobotState) -> np.ndarray:
+        """The worker's commands (N, M, 3) toward the held sub-goals: (forward, left, w), robot frame."""
+        return self.worker(state.robots(slice(0, self.m)), self.subgoal)
+
+
+__all__ = ["EXPORTED", "DeployView", "Fields", "load_exported", "manager_task"]

@@ -1,6 +1,6 @@
 """The ``hier-ssl`` command: one small function per subcommand, registered in ``COMMANDS``; the
-subcommands live in ``look`` (bench, demo, render, configs), ``runs`` (train, reproduce, sweep) and
-``evaluation`` (eval, export).
+subcommands live in ``look`` (bench, demo, render, configs), ``runs`` (train, reproduce, sweep),
+``evaluation`` (eval, export) and ``deploy`` (deploy, field).
 
 Heavy imports happen inside the subcommands, so ``hier-ssl --help`` stays fast. Errors end the command
 with one line on stderr and a non-zero exit status, not a traceback.
@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from hier_ssl import __version__
-from hier_ssl.cli import evaluation, look, runs
+from hier_ssl.cli import deploy, evaluation, look, runs
 from hier_ssl.cli.common import Parser
 
 COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
@@ -27,6 +27,8 @@ COMMANDS: tuple[Callable[[argparse._SubParsersAction], None], ...] = (
     evaluation.add_eval,
     runs.add_reproduce,
     runs.add_sweep,
+    deploy.add_deploy,
+    deploy.add_field,
 )
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 from hier_ssl.cli import bench
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 from hier_ssl.cli.demo import run_demo
+from hier_ssl.cli.deploy import add_bench_deploy
 from hier_ssl.config import ConfigError
 from hier_ssl.config.files import config_dir, config_names
 from hier_ssl.envs import TASKS, task_config
@@ -54,6 +55,9 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         view.add_argument("--json", action="store_true", help="one JSON object per line")
         view.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
         view.set_defaults(func=_bench_view)
+    add_bench_deploy(
+        targets.add_parser("deploy", help="deploy chain over 127.0.0.1: tracker error, latency, task success")
+    )
 
 
 def _bench_view(args: argparse.Namespace) -> int:

@@ -35,7 +35,7 @@ def check_target(robot: object, target: object, robots: Sequence[int], reach: np
     values[: len(target)] = target
     if (np.abs(values[0:2]) > reach).any():
         raise ValueError(
-            f"target of robot {robot} at {list(values[0:2])} is outside the walls (+-{list(reach)} m)"
+            f"target of robot {robot} at {list(values[0:2])} is outside the walls (+-{reach.tolist()} m)"
         )
     return values
 

@@ -22,6 +22,7 @@ import selectors
 import socket
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -153,8 +154,11 @@ class FieldServer:
         for sock in (self.out, self.grsim, self.simulation):
             sock.close()
 
-    def run(self, episodes: int | None, stop: threading.Event) -> list[dict[str, Any]]:
-        """Play ``episodes`` episodes (None: until ``stop``) in real time; one record per robot."""
+    def run(
+        self, episodes: int | None, stop: threading.Event, on_record: Callable[[dict], None] | None = None
+    ) -> list[dict[str, Any]]:
+        """Play ``episodes`` episodes (None: until ``stop``) in real time; one record per robot, each also
+        handed to ``on_record`` as its episode ends."""
         selector = selectors.DefaultSelector()
         selector.register(self.grsim, selectors.EVENT_READ, self._read_grsim)
         selector.register(self.simulation, selectors.EVENT_READ, self._read_simulation)
@@ -187,7 +191,10 @@ class FieldServer:
                 if running:
                     live, ended = self._step(live, now)
                     if ended:
-                        records += self._records(episode)
+                        for record in self._records(episode):
+                            records.append(record)
+                            if on_record is not None:
+                                on_record(record)
                         episode += 1
                         live, start, running = self._reset(episode), now, False
         finally:

@@ -24,13 +24,15 @@ from hier_ssl.deploy.wire import DetectionFrame, FieldSize, PacketError, parse_r
 
 PERIOD = 0.025  # s, the control period the managers were trained with
 WAIT = 0.010  # s a tick waits past its due time for a camera frame
+WARMUP_TICKS = 40  # the first second's latencies are not kept: TorchScript's first runs are slower
 STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
 
 
 @dataclass
 class LoopStats:
-    """What the loop saw: frames accepted, datagrams dropped by reason, ticks, commands, the latencies
-    (s) from a frame's arrival to the command sent on it, the field size from geometry, simulator errors."""
+    """What the loop saw: frames accepted, datagrams dropped by reason, ticks, commands that move a robot,
+    the latencies (s) from a frame's arrival to the command sent on it (after ``WARMUP_TICKS``), the field
+    size from geometry, the simulator's errors."""
 
     frames: int = 0
     dropped: Counter = field(default_factory=Counter)
@@ -76,7 +78,7 @@ class DeployLoop:
                 now = self.clock()
                 if now >= due + WAIT or (now >= due and arrival is not None):
                     self._send(self.controller.tick(now))
-                    if arrival is not None:
+                    if arrival is not None and self.stats.ticks >= WARMUP_TICKS:
                         self.stats.latencies.append(self.clock() - arrival)
                     self.stats.ticks += 1
                     due = due + PERIOD if due + PERIOD > now else now + PERIOD

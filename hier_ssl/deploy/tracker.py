@@ -33,7 +33,7 @@ class TrackerSettings:
     (m) past which a measurement restarts the filter, and ``forget`` (s) after which an unseen robot's
     filter restarts at its next detection."""
 
-    pos_noise: float = 0.003
+    pos_noise: float = 0.004
     angle_noise: float = 0.02
     accel: float = 6.0
     ang_accel: float = 40.0

@@ -1,0 +1,175 @@
+"""``hier-ssl deploy`` (a manager on an SSL stack), ``hier-ssl field`` (the loopback field server) and the
+options of ``hier-ssl bench deploy``. The ``deploy`` extra (protobuf) is imported inside the commands."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import threading
+
+from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event that SIGINT and SIGTERM set: the loops stop and send their robots a stop."""
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    return stop
+
+
+def add_deploy(subparsers: argparse._SubParsersAction) -> None:
+    deploy = subparsers.add_parser(
+        "deploy", help="drive SSL robots: SSL-Vision packets in, grSim / simulation-protocol commands out"
+    )
+    deploy.add_argument("manager", help="a run directory, an exported .pt / .onnx file, or direct|sampling")
+    deploy.add_argument(
+        "--vision", required=True, help="HOST:PORT to receive SSL-Vision on (127.0.0.1:10006)"
+    )
+    deploy.add_argument(
+        "--vision-source", default="127.0.0.1", help="the only sender IP whose vision packets are accepted"
+    )
+    deploy.add_argument(
+        "--vision-interface", default=None, help="with a multicast --vision: this machine's interface IP"
+    )
+    deploy.add_argument(
+        "--commands", required=True, help="grsim|simulation[:HOST:PORT] (default ports 20011; 10301 / 10302)"
+    )
+    deploy.add_argument("--team", choices=("blue", "yellow"), required=True)
+    deploy.add_argument("--robots", required=True, help="controlled robot ids, e.g. 0,1")
+    deploy.add_argument(
+        "--targets", default=None, help="ID:x,y,theta[;ID:...] or a YAML file {id: [x, y, theta]}"
+    )
+    deploy.add_argument(
+        "--control",
+        type=int,
+        default=None,
+        metavar="PORT",
+        help="TCP port on 127.0.0.1 for JSON-line targets",
+    )
+    deploy.add_argument("--task", default=None, help="a planner's task or scenario (default obstacle)")
+    deploy.add_argument("--worker", type=worker_spec, default=None, help=WORKER_HELP)
+    deploy.add_argument("--frame-skip", type=positive_int, default=None, help="control periods per decision")
+    deploy.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    deploy.set_defaults(func=_deploy)
+
+
+def _deploy(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hier_ssl.deploy.assemble import DeploySettings, build_loop, parse_robots, parse_targets
+
+    settings = DeploySettings(
+        args.manager,
+        args.vision,
+        args.commands,
+        args.team,
+        parse_robots(args.robots),
+        parse_targets(args.targets),
+        args.vision_source,
+        args.control,
+        args.vision_interface,
+        args.task,
+        args.worker,
+        args.frame_skip,
+    )
+    loop = build_loop(settings)
+    ports = {"vision_port": loop.vision.getsockname()[1], "commands": list(loop.sender.address)}
+    ports["control_port"] = loop.control.port if loop.control is not None else None
+    print(json.dumps(ports), flush=True)
+    stats = loop.run(_stop_on_signals(), args.duration)
+    latency = np.percentile(stats.latencies, [50, 99]) * 1e3 if stats.latencies else [None, None]
+    summary = {
+        "frames": stats.frames,
+        "dropped": dict(stats.dropped),
+        "ticks": stats.ticks,
+        "p50_ms": latency[0],
+        "p99_ms": latency[1],
+        "simulator_errors": len(stats.simulator_errors),
+    }
+    print(json.dumps(summary), flush=True)
+    return 0
+
+
+def add_field(subparsers: argparse._SubParsersAction) -> None:
+    field = subparsers.add_parser(
+        "field", help="a loopback field server: hier_ssl's world as SSL-Vision packets, taking robot commands"
+    )
+    field.add_argument(
+        "task", nargs="?", default="obstacle", help="a paper task or scenario (default obstacle)"
+    )
+    field.add_argument("--vision-port", type=int, default=10006, help="send SSL-Vision to 127.0.0.1:PORT")
+    field.add_argument("--grsim-port", type=int, default=20011, help="take grSim commands on 127.0.0.1:PORT")
+    field.add_argument(
+        "--simulation-port", type=int, default=10301, help="take RobotControl on 127.0.0.1:PORT"
+    )
+    field.add_argument(
+        "--team", choices=("blue", "yellow"), default="blue", help="the controlled robots' team"
+    )
+    field.add_argument(
+        "--control", type=int, default=None, metavar="PORT", help="send targets to 127.0.0.1:PORT"
+    )
+    field.add_argument("--cameras", type=positive_int, default=2)
+    field.add_argument("--rate", type=float, default=60.0, help="frames per second of each camera")
+    field.add_argument("--noise-mm", type=float, default=2.0, help="position noise, one standard deviation")
+    field.add_argument("--noise-deg", type=float, default=0.5, help="heading noise, one standard deviation")
+    field.add_argument("--latency-ms", type=float, default=0.0, help="from capture to send")
+    field.add_argument("--drop", type=float, default=0.0, help="probability of missing a detection")
+    field.add_argument(
+        "--episodes", type=positive_int, default=None, help="stop after so many (default never)"
+    )
+    field.add_argument("--seed", type=int, default=0)
+    field.set_defaults(func=_field)
+
+
+def _field(args: argparse.Namespace) -> int:
+    import math
+
+    from hier_ssl.deploy.field import Cameras, FieldServer
+    from hier_ssl.envs import task_config
+
+    cameras = Cameras(
+        args.cameras,
+        rate=args.rate,
+        pos_noise=args.noise_mm / 1000,
+        angle_noise=math.radians(args.noise_deg),
+        drop=args.drop,
+        latency=args.latency_ms / 1000,
+    )
+    server = FieldServer(
+        task_config(args.task),
+        args.vision_port,
+        args.team,
+        cameras,
+        args.grsim_port,
+        args.simulation_port,
+        args.control,
+        args.seed,
+    )
+    ports = {"vision_port": args.vision_port, "grsim_port": server.grsim_port}
+    print(json.dumps({"task": args.task, **ports, "simulation_port": server.simulation_port}), flush=True)
+    try:
+        server.run(args.episodes, _stop_on_signals(), lambda record: print(json.dumps(record), flush=True))
+    finally:
+        server.close()
+    return 0
+
+
+def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
+    """``hier-ssl bench deploy``'s options."""
+    bench.add_argument("--json", action="store_true", help="one JSON object per line")
+    bench.add_argument("--run", default=None, help="a manager run directory for the network rows")
+    bench.add_argument("--seconds", type=float, default=5.0, help="seconds of each latency row")
+    bench.add_argument("--episodes", type=positive_int, default=10, help="episodes of each task row")
+    bench.set_defaults(func=_bench_deploy)
+
+
+def _bench_deploy(args: argparse.Namespace) -> int:
+    from hier_ssl.deploy.bench import deploy_rows
+
+    for row in deploy_rows(args.run, args.seconds, args.episodes):
+        print(
+            json.dumps(row) if args.json else "  " + ", ".join(f"{k} {v}" for k, v in row.items()), flush=True
+        )
+    return 0

@@ -1,0 +1,231 @@
+"""``hier-ssl bench deploy``: the tracker's error, the loop's latency and the tasks through the wire.
+
+- ``tracking``: a robot driven by the paper worker to random sub-goals in hier_ssl's world, seen by two
+  overlapping 60 Hz cameras (2 mm and 0.5 deg noise, 10 % of detections dropped, 20 ms from capture to
+  send): the tracker's velocity and position error at the time each control period acts, against
+  the truth, and the position error of the newest detection for comparison.
+- ``latency``: a field server in its own process publishing over 127.0.0.1, the controller loop here;
+  from a camera frame's arrival to the command's send, p50 / p99 over ``seconds`` of running, for an
+  exported network manager (TorchScript; a run's, or an untrained one of the same size: the time does not
+  depend on the weights) and the sampling planner, with 1 robot (Obstacle task) and 6 (formation:
+  6 controlled robots, 6 moving obstacles).
+- ``task``: success, collisions and median episode length (control steps) of the Obstacle task and of
+  crossing driven through field server -> packets -> tracker -> manager -> commands -> field server,
+  against the same manager on the same number of episodes of ``hier_ssl.envs.play`` (what ``hier-ssl
+  eval`` runs); ``success_gap_points`` is through the wire minus direct.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hier_ssl.deploy.assemble import DeploySettings, build_loop
+from hier_ssl.deploy.field import STEP, Cameras, camera_frames, camera_strips
+from hier_ssl.deploy.loop import LoopStats
+from hier_ssl.deploy.tracker import Tracker
+from hier_ssl.deploy.view import DeployView, manager_task
+from hier_ssl.envs import make_scenario
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.play import play
+from hier_ssl.envs.scenarios import SCENARIOS
+
+LATENCY_FIELDS = {1: "obstacle", 6: "formation"}  # robots -> the field server's task of a latency row
+# The tracking row's cameras: vision's processing (capture to send) as a real field's SSL-Vision has it.
+NOISY = Cameras(pos_noise=0.002, angle_noise=float(np.deg2rad(0.5)), drop=0.1, latency=0.02)
+
+
+def tracking_error(seconds: float = 60.0, seed: int = 0, cameras: Cameras = NOISY) -> dict[str, float]:
+    """RMS errors of the tracker predicted to each control period's time (velocity m/s, position m) and
+    of the newest detection's position, over ``seconds`` of a robot driving to random sub-goals."""
+    from hier_ssl.worker.scripted import PaperGoToPoint
+    from hier_ssl.world.physics import World
+
+    rng = np.random.default_rng(seed)
+    world = World(1, 1)
+    hx, hy = world.field.half_length - 0.3, world.field.half_width - 0.3
+    worker, tracker, subgoal = PaperGoToPoint(dt=STEP), Tracker(), np.zeros((1, 1, 5))
+    strips = camera_strips(cameras, world.field.wall_half_extent[0])
+    queue: list = []  # (arrival, frame)
+    errors: dict[str, list[float]] = {"vel": [], "pos": [], "detection": []}
+    next_frame, t, newest = 0.0, 0.0, None
+    for k in range(round(seconds / STEP)):
+        if k % 80 == 0:  # a new sub-goal every 2 s: the robot accelerates, brakes and turns
+            subgoal[0, 0] = [*rng.uniform((-hx, -hy), (hx, hy)), rng.uniform(-np.pi, np.pi), 0.0, 0.0]
+        state = world.step(worker(world.state, subgoal))
+        t += STEP
+        while next_frame <= t:  # frames of this step's state, captured at its time
+            queue += [
+                (t + cameras.latency, f)
+                for f in camera_frames(state.pos[0], state.angle[0], [("blue", 0)], cameras, strips, t, rng)
+            ]
+            next_frame += 1.0 / cameras.rate
+        for arrival, frame in [q for q in queue if q[0] <= t]:
+            tracker.update(frame, arrival)
+            newest = frame.robots[0] if frame.robots else newest
+        queue = [q for q in queue if q[0] > t]
+        if k > 40 and newest is not None:  # after the filter's first second
+            x, y, _, vx, vy, _ = tracker.state([("blue", 0)], tracker.vision_time(t))[0]
+            errors["vel"].append(float(np.hypot(vx - state.vel[0, 0, 0], vy - state.vel[0, 0, 1])))
+            errors["pos"].append(float(np.hypot(x - state.pos[0, 0, 0], y - state.pos[0, 0, 1])))
+            errors["detection"].append(
+                float(np.hypot(newest.x - state.pos[0, 0, 0], newest.y - state.pos[0, 0, 1]))
+            )
+    rms = {key: float(np.sqrt(np.mean(np.square(v)))) for key, v in errors.items()}
+    return {
+        "bench": "deploy tracking",
+        "latency_ms": round(cameras.latency * 1e3, 1),
+        "velocity_rmse_m_s": round(rms["vel"], 4),
+        "position_rmse_m": round(rms["pos"], 4),
+        "detection_rmse_m": round(rms["detection"], 4),
+    }
+
+
+def untrained_export(folder: Path, task: str = "obstacle") -> Path:
+    """An exported TorchScript manager for ``task`` (a paper task or a scenario) of the size training gives
+    (SAC, 2 x 256 units), with random weights."""
+    import torch
+
+    from hier_ssl.config import dump_config
+    from hier_ssl.envs import parse_config
+    from hier_ssl.policies.export import export_manager
+    from hier_ssl.policies.networks import SquashedGaussianActor
+
+    section = (
+        {"scenario": {"scenario": task}} if task in SCENARIOS else {"env": {"task": task, "frame_skip": 16}}
+    )
+    config = parse_config({"algo": "sac", **section})
+    scenario = make_scenario(config.task_config)
+    run = folder / f"untrained-{task}"
+    run.mkdir(parents=True, exist_ok=True)
+    (run / "config.yaml").write_text(dump_config(config))
+    actor = SquashedGaussianActor(scenario.obs_dim, scenario.act_dim)
+    torch.save({"actor": actor.state_dict(), "step": 0}, run / "best_actor.pt")
+    return export_manager(run, "torchscript")
+
+
+class WiredRun:
+    """A field server process on ``task`` and the controller loop of ``manager`` here, over 127.0.0.1."""
+
+    def __init__(self, manager: str, task: str, robots: int, episodes: int | None, seed: int = 0) -> None:
+        settings = DeploySettings(
+            manager, "127.0.0.1:0", "grsim:127.0.0.1:9", "blue", list(range(robots)), {}, control_port=0
+        )
+        settings.task = task if manager_task_is_free(manager) else None
+        self.loop = build_loop(settings)
+        command = [
+            sys.executable,
+            "-m",
+            "hier_ssl.cli",
+            "field",
+            task,
+            "--vision-port",
+            str(self.loop.vision.getsockname()[1]),
+            "--control",
+            str(self.loop.control.port),
+            "--grsim-port",
+            "0",
+            "--simulation-port",
+            "0",
+            "--seed",
+            str(seed),
+        ]
+        command += ["--episodes", str(episodes)] if episodes else []
+        self.field = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+        ports = json.loads(self.field.stdout.readline())
+        self.loop.sender.address = ("127.0.0.1", ports["grsim_port"])
+
+    def run(self, seconds: float | None) -> tuple[LoopStats, list[dict[str, Any]]]:
+        """Run for ``seconds`` (None: until the field server's episodes end); stats and its records."""
+        stop = threading.Event()
+        thread = threading.Thread(target=self.loop.run, args=(stop, seconds))
+        thread.start()
+        try:
+            records = [json.loads(line) for line in self.field.stdout] if seconds is None else []
+        finally:
+            if seconds is None:
+                stop.set()
+            thread.join()
+            self.field.terminate()
+            self.field.wait()
+        return self.loop.stats, records
+
+
+def manager_task_is_free(manager: str) -> bool:
+    """Whether the manager takes its task from the command line (a planner) rather than its own files."""
+    return manager in ("direct", "sampling")
+
+
+def latency_row(manager: str, label: str, robots: int, seconds: float) -> dict[str, Any]:
+    task = LATENCY_FIELDS[robots]
+    stats, _ = WiredRun(manager, task, robots, None).run(seconds)
+    p50, p99 = np.percentile(stats.latencies, [50, 99]) * 1e3
+    return {
+        "bench": "deploy latency",
+        "manager": label,
+        "robots": robots,
+        "field": task,
+        "samples": len(stats.latencies),
+        "p50_ms": round(float(p50), 3),
+        "p99_ms": round(float(p99), 3),
+    }
+
+
+def _outcomes(success: np.ndarray, collision: np.ndarray, length: np.ndarray) -> dict[str, float]:
+    return {
+        "success": float(np.mean(success)),
+        "collision": float(np.mean(collision)),
+        "median_length": float(np.median(length)),
+    }
+
+
+def task_row(manager: str, label: str, task: str, episodes: int, seed: int = 0) -> dict[str, Any]:
+    config = manager_task(manager, task if manager_task_is_free(manager) else None)
+    robots = make_scenario(config).num_agents
+    _, records = WiredRun(manager, task, robots, episodes, seed).run(None)
+    wired = _outcomes(*(np.array([r[k] for r in records]) for k in ("success", "collision", "length")))
+    view = DeployView(manager, robots, config)  # the same policy, played directly
+    core = HierarchicalCore(config, num_fields=episodes, autoreset=False)
+    direct = play(core, view.policy, seed)
+    direct_out = _outcomes(direct["success"], direct["collision"], direct["length"])
+    return {
+        "bench": "deploy task",
+        "manager": label,
+        "task": task,
+        "episodes": episodes,
+        **{f"wire_{k}": round(v, 3) for k, v in wired.items()},
+        **{f"eval_{k}": round(v, 3) for k, v in direct_out.items()},
+        "success_gap_points": round(100 * (wired["success"] - direct_out["success"]), 1),
+    }
+
+
+def deploy_rows(run: str | None, seconds: float, episodes: int) -> Iterator[dict[str, Any]]:
+    """Every row of ``hier-ssl bench deploy``, yielded as each finishes."""
+    yield tracking_error()
+    with tempfile.TemporaryDirectory() as folder:
+        for robots, task in LATENCY_FIELDS.items():
+            network = _exported(run, Path(folder)) if run else untrained_export(Path(folder), task)
+            label = f"network ({Path(run).name})" if run else "network (untrained)"
+            yield latency_row(str(network), label, robots, seconds)
+            yield latency_row("sampling", "sampling", robots, seconds)
+    for task in ("obstacle", "crossing"):
+        yield task_row("sampling", "sampling", task, episodes)
+    if run is not None:
+        yield task_row(run, Path(run).name, manager_task(run).scenario_name, episodes)
+
+
+def _exported(run: str, folder: Path) -> Path:
+    from hier_ssl.policies.export import export_manager
+
+    return export_manager(run, "torchscript", folder / "manager.pt")
+
+
+__all__ = ["deploy_rows", "latency_row", "task_row", "tracking_error", "untrained_export"]

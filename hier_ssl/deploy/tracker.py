@@ -3,9 +3,10 @@
 Every robot (team, id) has a constant-velocity Kalman filter on x, y and the heading, three independent
 axes of (value, rate) with white-noise acceleration. A camera frame updates every robot in it at the
 frame's capture time; a robot seen by two overlapping cameras in one frame is simply measured twice, a
-frame older than a robot's filter is applied at the filter's time (no filter runs backwards). A
-measurement further than ``gate`` from the prediction, or one after ``forget`` seconds unseen, restarts
-that robot's filter where it was seen: a robot carried across the field, or replaced.
+frame older than a robot's filter is compared with the filter's estimate back at its capture time and
+corrects the present estimate (no filter runs backwards). A measurement further than ``gate`` from the
+prediction, or one after ``forget`` seconds unseen, restarts that robot's filter where it was seen: a
+robot carried across the field, or replaced.
 
 Times: filters run on the vision machine's clock (the frames' ``t_capture``). ``vision_time(now)`` maps
 this process's monotonic clock onto it from the newest frame: its ``t_sent`` was read at its arrival, so
@@ -75,6 +76,10 @@ class _Axis:
         a, b = self.a, self.b
         self.a, self.b, self.c = (1 - ka) * a, (1 - ka) * b, self.c - kb * b
 
+    def back(self, lag: float) -> float:
+        """The value ``lag`` >= 0 seconds ago."""
+        return self.p - self.v * lag
+
     def at(self, dt: float) -> tuple[float, float]:
         return self.p + self.v * max(dt, 0.0), self.v
 
@@ -135,11 +140,14 @@ class Tracker:
                 )
                 self.tracks[key] = track
             else:
-                track.x.update(seen.x - track.x.p, r_pos)
-                track.y.update(seen.y - track.y.p, r_pos)
+                # A frame older than the filter is compared with the filter's estimate back at its time.
+                lag = track.t - frame.t_capture
+                track.x.update(seen.x - track.x.back(lag), r_pos)
+                track.y.update(seen.y - track.y.back(lag), r_pos)
             if seen.angle is not None:
                 if track.has_angle:
-                    turn = (seen.angle - track.angle.p + math.pi) % (2 * math.pi) - math.pi
+                    turn = seen.angle - track.angle.back(track.t - frame.t_capture)
+                    turn = (turn + math.pi) % (2 * math.pi) - math.pi
                     track.angle.update(turn, r_angle)
                 else:
                     track.angle.p, track.angle.a, track.has_angle = seen.angle, r_angle, True

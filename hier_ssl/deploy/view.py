@@ -17,6 +17,7 @@ controlled ones, any team; missing ones stand still in the far corner of the wal
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +45,9 @@ def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray],
         import torch
 
         extra = {"layout.json": ""}
-        module = torch.jit.load(str(path), _extra_files=extra)
+        with warnings.catch_warnings():  # torch 2.13 deprecates TorchScript, which C++ stacks still load
+            warnings.simplefilter("ignore", DeprecationWarning)
+            module = torch.jit.load(str(path), _extra_files=extra)
 
         def call(rows: np.ndarray) -> np.ndarray:
             with torch.no_grad():
@@ -105,9 +108,7 @@ class DeployView:
             config = config.model_copy(update={"num_agents": num_robots})
         scenario = make_scenario(config)
         m = scenario.num_agents
-        n = num_robots if m == 1 else 1
-        if n * m != num_robots:
-            raise ValueError(f"manager {manager!r} controls {m} robots together, not {num_robots}")
+        n = num_robots // m
         self.core = HierarchicalCore(scenario, num_fields=n, autoreset=False)
         self.exported: Callable[[np.ndarray], np.ndarray] | None = None
         self.policy: Callable[[np.ndarray], np.ndarray] | None = None
@@ -135,18 +136,19 @@ class DeployView:
 
     def fields(self, rows: np.ndarray) -> Fields:
         """Fill the fields from tracked rows (T, 6) whose first N * M are the controlled robots in order;
-        NaN rows are robots not seen."""
+        NaN rows are robots not seen. A field's others are the K seen robots nearest to its own, the
+        other fields' controlled robots included."""
         n, m, k = self.n, self.m, self.k
         controlled = np.arange(n * m).reshape(n, m)
-        seen = ~np.isnan(rows[:, 0])
-        candidates = np.flatnonzero(seen[n * m :]) + n * m
         others = np.full((n, k), -1, dtype=np.int64)
-        if k and len(candidates):
-            own = rows[controlled, 0:2]  # (N, M, 2)
-            gap = np.linalg.norm(own[:, :, None] - rows[None, None, candidates, 0:2], axis=-1)
-            near = np.nan_to_num(gap, nan=np.inf).min(axis=1)  # (N, C): to the nearest controlled robot
-            order = np.argsort(near, axis=1, kind="stable")[:, :k]
-            others[:, : order.shape[1]] = candidates[order]
+        if k:
+            gap = np.linalg.norm(rows[controlled, None, 0:2] - rows[None, None, :, 0:2], axis=-1).min(axis=1)
+            gap = np.where(np.isnan(gap), 1e9, gap)  # a field whose own robot is unseen: any robot will do
+            gap[:, np.isnan(rows[:, 0])] = np.inf
+            gap[np.arange(n)[:, None], controlled] = np.inf  # (N, T): to the field's nearest own robot
+            order = np.argsort(gap, axis=1, kind="stable")[:, :k]
+            found = np.isfinite(np.take_along_axis(gap, order, axis=1))
+            others[:, : order.shape[1]] = np.where(found, order, -1)
         return Fields(controlled, others)
 
     def state(self, rows: np.ndarray, fields: Fields) -> RobotState:

@@ -73,6 +73,9 @@ def _parse(message: type, data: bytes, what: str) -> Any:
         packet.ParseFromString(data)
     except (DecodeError, RuntimeError, ValueError) as err:  # RuntimeError: recursion in nested junk
         raise PacketError("malformed", f"{what} does not parse ({err})") from None
+    if not packet.IsInitialized():  # the parser leaves required fields of nested messages unchecked
+        missing = ", ".join(packet.FindInitializationErrors()[:3])
+        raise PacketError("malformed", f"{what} lacks required fields ({missing})")
     return packet
 
 

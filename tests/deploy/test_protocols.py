@@ -1,0 +1,142 @@
+"""The protocol modules: regenerated from the project's .proto files they are what is checked in, and the
+messages put their fields at the public protocols' numbers and types (bytes built here by hand)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hier_ssl.deploy import wire
+from hier_ssl.deploy.proto import grsim_pb2, ssl_simulation_pb2, ssl_vision_pb2
+
+ROOT = Path(__file__).parents[2]
+PROTO = ROOT / "hier_ssl" / "deploy" / "proto"
+# The generator writes its own version into each module; what it generates from the .proto files is the rest.
+_VERSION = re.compile(
+    r"# Protobuf Python Version: .*\n|_runtime_version\.ValidateProtobufRuntimeVersion\([^)]*\)\n"
+)
+
+
+def _tag(number: int, wire_type: int) -> bytes:
+    return _varint(number << 3 | wire_type)
+
+
+def _varint(value: int) -> bytes:
+    out = b""
+    while True:
+        low, value = value & 0x7F, value >> 7
+        out += bytes([low | (0x80 if value else 0)])
+        if not value:
+            return out
+
+
+def _float(number: int, value: float) -> bytes:
+    return _tag(number, 5) + struct.pack("<f", value)
+
+
+def _double(number: int, value: float) -> bytes:
+    return _tag(number, 1) + struct.pack("<d", value)
+
+
+def _message(number: int, body: bytes) -> bytes:
+    return _tag(number, 2) + _varint(len(body)) + body
+
+
+@pytest.mark.parametrize("name", ["ssl_vision", "grsim", "ssl_simulation"])
+def test_generated_modules_are_what_protoc_makes_of_the_proto_files(tmp_path: Path, name: str) -> None:
+    pytest.importorskip("grpc_tools")
+    shutil.copytree(PROTO, tmp_path / "hier_ssl" / "deploy" / "proto")
+    source = f"hier_ssl/deploy/proto/{name}.proto"
+    command = [sys.executable, "-m", "grpc_tools.protoc", "-I.", "--python_out=.", source]
+    (tmp_path / "hier_ssl" / "deploy" / "proto" / f"{name}_pb2.py").unlink()
+    subprocess.run(command, cwd=tmp_path, check=True)
+    fresh = (tmp_path / source).with_name(f"{name}_pb2.py").read_text()
+    checked_in = (PROTO / f"{name}_pb2.py").read_text()
+    assert _VERSION.sub("", fresh) == _VERSION.sub("", checked_in)
+
+
+def test_a_detection_packet_has_the_ssl_vision_field_numbers() -> None:
+    robot = _float(1, 1.0) + _tag(2, 0) + _varint(3) + _float(3, 1500.0) + _float(4, -250.0)
+    robot += _float(5, 0.5) + _float(6, 0.0) + _float(7, 0.0)
+    frame = _tag(1, 0) + _varint(7) + _double(2, 10.0) + _double(3, 10.02) + _tag(4, 0) + _varint(1)
+    frame += _message(7, robot)  # robots_blue
+    packet = _message(1, frame)
+    parsed = wire.parse_vision(packet)
+    assert parsed == wire.DetectionFrame(10.0, 10.02, 1, (wire.Detection("blue", 3, 1.5, -0.25, 0.5),))
+    ours = wire.encode_detection(7, parsed)
+    assert ssl_vision_pb2.SSL_WrapperPacket.FromString(ours) == ssl_vision_pb2.SSL_WrapperPacket.FromString(
+        packet
+    )
+
+
+def test_a_geometry_packet_gives_the_field_size() -> None:
+    size = b"".join(_tag(n, 0) + _varint(v) for n, v in ((1, 9000), (2, 6000), (3, 1000), (4, 180), (5, 300)))
+    assert wire.parse_vision(_message(2, _message(1, size))) == wire.FieldSize(9.0, 6.0, 0.3)
+    assert wire.parse_vision(wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)) == wire.FieldSize(
+        9.0, 6.0, 0.3
+    )
+
+
+def test_grsim_commands_have_the_grsim_field_numbers() -> None:
+    data = wire.encode_grsim([(2, 1.0, -0.5, 0.25)], yellow=True, timestamp=3.0)
+    robot = _tag(1, 0) + _varint(2) + _float(2, 0.0) + _float(3, 0.0) + _float(4, 1.0) + _float(5, -0.5)
+    robot += _float(6, 0.25) + _tag(7, 0) + _varint(0) + _tag(8, 0) + _varint(0)
+    commands = _double(1, 3.0) + _tag(2, 0) + _varint(1) + _message(3, robot)
+    assert grsim_pb2.grSim_Packet.FromString(_message(1, commands)) == grsim_pb2.grSim_Packet.FromString(data)
+    assert wire.parse_grsim(data) == (True, [(2, 1.0, -0.5, 0.25)])
+
+
+def test_robot_control_has_the_simulation_protocol_field_numbers() -> None:
+    data = wire.encode_simulation([(4, 0.5, 0.25, -1.0)])
+    local = _float(1, 0.5) + _float(2, 0.25) + _float(3, -1.0)
+    command = _tag(1, 0) + _varint(4) + _message(2, _message(2, local))
+    expected = ssl_simulation_pb2.RobotControl.FromString(_message(1, command))
+    assert ssl_simulation_pb2.RobotControl.FromString(data) == expected
+    assert wire.parse_simulation(data) == ([(4, 0.5, 0.25, -1.0)], [])
+    wheels = (
+        _tag(1, 0)
+        + _varint(5)
+        + _message(2, _message(1, _float(1, 1.0) + _float(2, 1.0) + _float(3, 1.0) + _float(4, 1.0)))
+    )
+    assert wire.parse_simulation(_message(1, wheels)) == ([], [5])
+
+
+def test_a_response_carries_the_simulators_errors() -> None:
+    error = _message(1, _tag(1, 2) + _varint(4) + b"CODE" + _tag(3, 2) + _varint(3) + b"bad")
+    assert wire.parse_response(error) == ["CODE: bad"]
+    assert wire.parse_response(wire.encode_response([("X", "y")])) == ["X: y"]
+
+
+@pytest.mark.parametrize(
+    ("data", "reason"),
+    [
+        (b"\xff" * 10, "malformed"),
+        (wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)[:-3], "malformed"),
+        (b"", "empty"),
+        (b"\x00" * (wire.MAX_PACKET + 1), "oversized"),
+        (_message(1, _tag(1, 0) + _varint(1)), "malformed"),  # a frame without its required times
+    ],
+)
+def test_bad_vision_packets_raise_a_packet_error_with_its_reason(data: bytes, reason: str) -> None:
+    with pytest.raises(wire.PacketError) as err:
+        wire.parse_vision(data)
+    assert err.value.reason == reason
+
+
+def test_values_no_camera_reports_are_invalid() -> None:
+    far = wire.DetectionFrame(1.0, 1.0, 0, (wire.Detection("blue", 1, 25.0, 0.0, 0.0),))
+    with pytest.raises(wire.PacketError, match="invalid"):
+        wire.parse_vision(wire.encode_detection(0, far))
+    nan = wire.DetectionFrame(float("nan"), 1.0, 0, ())
+    with pytest.raises(wire.PacketError, match="not finite"):
+        wire.parse_vision(wire.encode_detection(0, nan))
+    with pytest.raises(wire.PacketError, match="robot id"):
+        wire.parse_vision(
+            wire.encode_detection(0, wire.DetectionFrame(1.0, 1.0, 0, (wire.Detection("blue", 16, 0, 0, 0),)))
+        )

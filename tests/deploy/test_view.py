@@ -1,0 +1,117 @@
+"""The deploy view: the core's own observation, decoding and worker on tracked robots, and an exported
+file that decides as the run it came from."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hier_ssl.deploy.bench import untrained_export
+from hier_ssl.deploy.view import DeployView, load_exported, manager_task
+from hier_ssl.envs import task_config
+from hier_ssl.envs.core import HierarchicalCore
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    folder = tmp_path_factory.mktemp("runs")
+    return {task: untrained_export(folder, task) for task in ("obstacle", "crossing")}
+
+
+def _rows(count: int, seed: int = 0) -> np.ndarray:
+    """Tracked rows (count, 6): x, y, angle, vx, vy, w inside the paper field."""
+    rng = np.random.default_rng(seed)
+    return np.concatenate(
+        [
+            rng.uniform((-2.5, -1.5), (2.5, 1.5), (count, 2)),
+            rng.uniform(-np.pi, np.pi, (count, 1)),
+            rng.uniform(-1, 1, (count, 2)),
+            rng.uniform(-2, 2, (count, 1)),
+        ],
+        axis=1,
+    )
+
+
+def test_the_observation_is_the_cores_own_of_the_same_robots() -> None:
+    config = manager_task("sampling", "obstacle")
+    view = DeployView("sampling", 1, config)
+    rows = _rows(1 + view.k)
+    view.target[0, 0] = [1.0, 0.5, 0.3, 0.0, 0.0]
+    state = view.state(rows, view.fields(rows))
+    core = HierarchicalCore(config, num_fields=1, autoreset=False)
+    core.reset(seed=0)
+    core.world.set_state([0], state.pos, state.angle, state.vel, state.ang_vel)
+    core.target[0, 0] = view.target[0, 0]
+    np.testing.assert_array_equal(view.core.observe(state=state), core.observe())
+
+
+def test_each_robot_of_a_one_robot_manager_sees_its_nearest_others() -> None:
+    view = DeployView("sampling", 2, manager_task("sampling", "obstacle"))
+    assert (view.n, view.m) == (2, 1)
+    rows = np.zeros((5, 6))
+    rows[:, 0] = [-2.0, 2.0, -1.5, 1.0, 0.0]  # robots 0 and 1 controlled, 2..4 others, all on y = 0
+    rows[3, :] = np.nan  # an other robot not seen
+    fields = view.fields(rows)
+    # Robot 0 (at -2) has robot 2 (at -1.5) nearest, robot 1 (at 2) robot 4 (at 0); with no other robot
+    # seen, each has its teammate: a teammate is an obstacle to a robot in a field of its own.
+    np.testing.assert_array_equal(fields.others[:, 0], [2, 4])
+    rows[2:, :] = np.nan
+    np.testing.assert_array_equal(view.fields(rows).others[:, 0], [1, 0])
+    state = view.state(rows, view.fields(rows))
+    assert np.isfinite(state.pos).all()
+
+
+def test_missing_robots_stand_in_the_far_corner() -> None:
+    view = DeployView("sampling", 1, manager_task("sampling", "obstacle"))
+    rows = np.array([[1.0, 0.5, 0.0, 0.0, 0.0, 0.0]])  # nobody else seen
+    state = view.state(rows, view.fields(rows))
+    if view.k:
+        np.testing.assert_allclose(state.pos[0, 1], -view.reach)
+        assert (state.vel[0, 1] == 0).all()
+
+
+@pytest.mark.parametrize(("task", "robots"), [("obstacle", 2), ("crossing", 6)])
+def test_an_exported_file_decides_as_its_run(runs: dict[str, Path], task: str, robots: int) -> None:
+    exported = runs[task]
+    run = str(exported.parent)
+    config = manager_task(run)
+    by_run, by_file = (
+        DeployView(run, robots, config),
+        DeployView(str(exported), robots, manager_task(str(exported))),
+    )
+    assert (by_run.n, by_run.m, by_run.k) == (by_file.n, by_file.m, by_file.k)
+    rows = _rows(robots + 3, seed=1)
+    rng = np.random.default_rng(2)
+    for view in (by_run, by_file):
+        view.target[:] = np.concatenate(
+            [rng.uniform((-2, -1.5), (2, 1.5), (robots, 2)), np.zeros((robots, 3))], 1
+        ).reshape(view.target.shape)
+        rng = np.random.default_rng(2)
+        state = view.state(rows, view.fields(rows))
+        view.decide(state, np.ones((view.n, view.m), dtype=bool))
+    np.testing.assert_allclose(by_file.subgoal[..., 0:2], by_run.subgoal[..., 0:2], atol=1e-4)
+    turn = np.angle(np.exp(1j * (by_file.subgoal[..., 2] - by_run.subgoal[..., 2])))
+    np.testing.assert_allclose(turn, 0.0, atol=1e-3)
+    np.testing.assert_allclose(by_file.commands(state), by_run.commands(state), atol=1e-3)
+
+
+def test_only_live_robots_decide() -> None:
+    view = DeployView("direct", 2, manager_task("direct", "proposed"))
+    view.target[:, 0] = [[1.0, 1.0, 0.0, 0, 0], [-1.0, -1.0, 0.0, 0, 0]]
+    rows = _rows(2)
+    before = view.subgoal.copy()
+    view.decide(view.state(rows, view.fields(rows)), np.array([[True], [False]]))
+    np.testing.assert_allclose(view.subgoal[0, 0, 0:2], [1.0, 1.0])
+    np.testing.assert_array_equal(view.subgoal[1], before[1])
+
+
+def test_unknown_managers_and_counts_are_named() -> None:
+    with pytest.raises(ValueError, match="neither a planner"):
+        manager_task("no-such-run")
+    with pytest.raises(ValueError, match=r"\.pt or \.onnx"):
+        load_exported("manager.bin")
+    assert (
+        DeployView("sampling", 4, task_config("formation", num_agents=6)).m == 4
+    )  # a scenario takes any count

@@ -78,7 +78,10 @@ def _deploy(args: argparse.Namespace) -> int:
     ports = {"vision_port": loop.vision.getsockname()[1], "commands": list(loop.sender.address)}
     ports["control_port"] = loop.control.port if loop.control is not None else None
     print(json.dumps(ports), flush=True)
-    stats = loop.run(_stop_on_signals(), args.duration)
+    try:
+        stats = loop.run(_stop_on_signals(), args.duration)
+    finally:
+        loop.close()
     latency = np.percentile(stats.latencies, [50, 99]) * 1e3 if stats.latencies else [None, None]
     summary = {
         "frames": stats.frames,

@@ -156,6 +156,7 @@ class WiredRun:
             thread.join()
             self.field.terminate()
             self.field.wait()
+            self.loop.close()
         return self.loop.stats, records
 
 

@@ -30,11 +30,12 @@ STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a r
 
 @dataclass
 class LoopStats:
-    """What the loop saw: frames accepted, datagrams dropped by reason, ticks, commands that move a robot,
-    the latencies (s) from a frame's arrival to the command sent on it (after ``WARMUP_TICKS``), the field
-    size from geometry, the simulator's errors."""
+    """What the loop saw: camera frames and geometry packets accepted, datagrams dropped by reason,
+    ticks, commands that move a robot, the latencies (s) from a frame's arrival to the command sent on it
+    (after ``WARMUP_TICKS``), the field size from geometry, the simulator's errors."""
 
     frames: int = 0
+    geometry: int = 0
     dropped: Counter = field(default_factory=Counter)
     ticks: int = 0
     moving_commands: int = 0
@@ -88,6 +89,13 @@ class DeployLoop:
             self.selector.close()
         return self.stats
 
+    def close(self) -> None:
+        """Close the loop's sockets (after ``run``)."""
+        self.vision.close()
+        self.sender.close()
+        if self.control is not None:
+            self.control.shutdown()
+
     def _handle(self, key: selectors.SelectorKey) -> float | None:
         """Serve one ready socket; the arrival time of the newest camera frame it brought, if any."""
         if key.data == "vision":
@@ -121,6 +129,7 @@ class DeployLoop:
                 newest = arrival
             else:
                 self.stats.field_size = parsed
+                self.stats.geometry += 1
         return newest
 
     def _read_responses(self) -> None:

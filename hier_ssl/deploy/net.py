@@ -22,6 +22,7 @@ LOOPBACK = "127.0.0.1"
 GRSIM_PORT = 20011
 SIMULATION_PORTS = {"blue": 10301, "yellow": 10302}
 MAX_LINE = 4096  # bytes of one control message
+RECEIVE_BUFFER = 1 << 20  # bytes
 
 
 def parse_address(text: str, default_port: int | None = None, any_port: bool = False) -> tuple[str, int]:
@@ -45,6 +46,8 @@ def open_vision(host: str, port: int, interface: str | None = None) -> socket.so
     multicast group, bound to the group and joined on ``interface`` (required: the address of this
     machine's interface to the vision network)."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    # Room for bursts (four cameras' frames at once, a stalled period) rather than losing them.
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
     try:
         if ipaddress.ip_address(host).is_multicast:
             if interface is None:

@@ -1,0 +1,85 @@
+"""One control period: decisions every frame_skip periods, commands in the robot's frame, and the stop of
+every robot not seen lately or without a target."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hier_ssl.deploy.controller import MAX_AGE, Controller
+from hier_ssl.deploy.tracker import Tracker
+from hier_ssl.deploy.view import DeployView, manager_task
+from hier_ssl.deploy.wire import Detection, DetectionFrame
+
+
+def _controller(robots: tuple[int, ...] = (0,), manager: str = "direct", frame_skip: int = 4) -> Controller:
+    view = DeployView(manager, len(robots), manager_task(manager, "proposed", frame_skip=frame_skip))
+    return Controller(view, Tracker(), "blue", list(robots))
+
+
+def _see(controller: Controller, t: float, *robots: tuple[int, float, float, float]) -> None:
+    seen = tuple(Detection("blue", r, x, y, a) for r, x, y, a in robots)
+    controller.on_frame(DetectionFrame(t, t, 0, seen), arrival=t)
+
+
+def test_a_seen_robot_with_a_target_drives_toward_it_in_its_own_frame() -> None:
+    controller = _controller()
+    controller.set_target(0, [1.0, 0.0, 0.0])
+    _see(controller, 0.0, (0, 0.0, 0.0, np.pi / 2))  # facing +y: the target lies to its right
+    [(robot, forward, left, _)] = controller.tick(0.01)
+    assert robot == 0 and left < 0 and abs(forward) < abs(left)
+
+
+def test_decisions_come_every_frame_skip_periods_and_on_a_new_target() -> None:
+    controller = _controller(frame_skip=4)
+    calls = []
+    decide = controller.view.decide
+    controller.view.decide = lambda state, live: (calls.append(live.copy()), decide(state, live))
+    controller.set_target(0, [1.0, 0.0, 0.0])
+    for k in range(9):
+        _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
+        controller.tick(k * 0.025 + 0.001)
+        if k == 5:
+            controller.set_target(0, [-1.0, 0.0, 0.0])
+    assert len(calls) == 3  # periods 0, 4 (frame skip) and 6 (the target changed after period 5)
+    np.testing.assert_allclose(controller.view.subgoal[0, 0, 0:2], [-1.0, 0.0])
+
+
+def test_unseen_stale_and_targetless_robots_get_zero_commands() -> None:
+    controller = _controller(robots=(0, 1, 2))
+    controller.set_target(0, [1.0, 1.0, 0.0])
+    controller.set_target(1, [-1.0, 1.0, 0.0])  # robot 2 has no target
+    _see(controller, 0.0, (0, 0.0, 0.0, 0.0), (1, 0.5, 0.0, 0.0), (2, -0.5, 0.0, 0.0))
+    commands = {robot: rest for robot, *rest in controller.tick(0.01)}
+    assert any(commands[0]) and any(commands[1]) and not any(commands[2])
+    _see(controller, 0.03, (0, 0.0, 0.0, 0.0))  # robot 1 drops out of sight
+    commands = {robot: rest for robot, *rest in controller.tick(MAX_AGE * 0.9)}
+    assert any(commands[0]) and any(commands[1])  # robot 1 seen 45 ms ago: still fresh
+    commands = {robot: rest for robot, *rest in controller.tick(MAX_AGE * 1.1)}
+    assert any(commands[0]) and not any(commands[1])
+    assert controller.tick(10.0) == [(0, 0.0, 0.0, 0.0), (1, 0.0, 0.0, 0.0), (2, 0.0, 0.0, 0.0)]
+    assert controller.stop() == [(0, 0.0, 0.0, 0.0), (1, 0.0, 0.0, 0.0), (2, 0.0, 0.0, 0.0)]
+
+
+@pytest.mark.parametrize(
+    ("robot", "target", "message"),
+    [
+        (3, [0, 0, 0], "robot 3 is not a controlled robot"),
+        (True, [0, 0, 0], "robot True is not a controlled robot"),
+        ("0", [0, 0, 0], "robot '0' is not a controlled robot"),
+        (0, [0, 0], r"expected \[x, y, theta\]"),
+        (0, "1,2,3", r"expected \[x, y, theta\]"),
+        (0, [0, float("nan"), 0], "finite numbers"),
+        (0, [0, True, 0], "finite numbers"),
+        (0, [9.0, 0, 0], "outside the walls"),
+    ],
+)
+def test_bad_targets_are_refused_by_name(robot: object, target: object, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        _controller().set_target(robot, target)
+
+
+def test_robots_must_be_distinct() -> None:
+    view = DeployView("direct", 2, manager_task("direct", "proposed"))
+    with pytest.raises(ValueError, match="distinct ids"):
+        Controller(view, Tracker(), "blue", [1, 1])

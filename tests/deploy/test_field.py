@@ -1,0 +1,107 @@
+"""The loopback field server: cameras, commands of both protocols, and whole episodes through the wire
+(field server -> packets -> tracker -> manager -> commands -> field server) over 127.0.0.1."""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+import numpy as np
+import pytest
+
+from hier_ssl.deploy import wire
+from hier_ssl.deploy.assemble import DeploySettings, build_loop
+from hier_ssl.deploy.field import Cameras, FieldServer, camera_frames, camera_strips
+from hier_ssl.deploy.proto import ssl_simulation_pb2
+from hier_ssl.envs import task_config
+
+
+def test_cameras_overlap_drop_and_blur_what_they_see() -> None:
+    cameras = Cameras(count=2, overlap=0.6, pos_noise=0.002, drop=0.0)
+    strips = camera_strips(cameras, 3.3)
+    np.testing.assert_allclose(strips, [[-3.3, 0.3], [-0.3, 3.3]])
+    pos = np.array([[0.1, 0.0], [-2.0, 1.0], [2.0, -1.0]])
+    labels = [("blue", 0), ("yellow", 0), ("yellow", 1)]
+    frames = camera_frames(pos, np.zeros(3), labels, cameras, strips, 5.0, np.random.default_rng(0))
+    assert [sorted((d.team, d.robot) for d in f.robots) for f in frames] == [
+        [("blue", 0), ("yellow", 0)],
+        [("blue", 0), ("yellow", 1)],  # robot 0 stands in the overlap: both cameras see it
+    ]
+    assert all(f.t_capture == 5.0 for f in frames)
+    seen = frames[0].robots[0]
+    assert abs(seen.x - 0.1) < 0.01 and seen.x != 0.1
+    lossy = Cameras(count=1, drop=0.5)
+    many = np.zeros((1000, 2))
+    [frame] = camera_frames(
+        many,
+        np.zeros(1000),
+        [("blue", 0)] * 1000,
+        lossy,
+        camera_strips(lossy, 3.3),
+        0.0,
+        np.random.default_rng(0),
+    )
+    assert 400 < len(frame.robots) < 600
+    with pytest.raises(ValueError, match="drop in"):
+        Cameras(drop=1.0)
+
+
+def test_the_simulation_port_answers_with_the_simulators_errors() -> None:
+    server = FieldServer(task_config("proposed"), vision_port=9, seed=0)  # 127.0.0.1:9, the discard port
+    stop = threading.Event()
+    thread = threading.Thread(target=server.run, args=(None, stop))
+    thread.start()
+    client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    client.bind(("127.0.0.1", 0))
+    client.settimeout(2.0)
+    try:
+        wheels = ssl_simulation_pb2.RobotControl()
+        command = wheels.robot_commands.add()
+        command.id = 0
+        move = command.move_command
+        move.local_velocity.forward = move.local_velocity.left = move.local_velocity.angular = 0.0
+        client.sendto(wheels.SerializeToString(), ("127.0.0.1", server.simulation_port))
+        assert wire.parse_response(client.recv(4096)) == []
+        client.sendto(
+            wire.encode_simulation([(0, 0.5, 0.0, 0.0)])[:-2], ("127.0.0.1", server.simulation_port)
+        )
+        [error] = wire.parse_response(client.recv(4096))
+        assert error.startswith("INVALID_PACKET: malformed")
+        unsupported = b"\x0a\x06\x08\x01\x12\x02\x0a\x00"  # robot 1, an (empty) wheel-velocity move
+        client.sendto(unsupported, ("127.0.0.1", server.simulation_port))
+        assert wire.parse_response(client.recv(4096)) == [
+            "UNSUPPORTED_MOVE: robot 1: only local velocity is simulated"
+        ]
+    finally:
+        stop.set()
+        thread.join()
+        client.close()
+        server.close()
+    assert server.dropped == 1
+
+
+@pytest.mark.parametrize("kind", ["grsim", "simulation"])
+def test_an_episode_through_the_wire_ends_on_its_target(kind: str) -> None:
+    settings = DeploySettings(
+        "direct", "127.0.0.1:0", f"{kind}:127.0.0.1:9", "blue", [0], {}, control_port=0, task="proposed"
+    )
+    loop = build_loop(settings)
+    server = FieldServer(
+        task_config("proposed"), loop.vision.getsockname()[1], control_port=loop.control.port, seed=4
+    )
+    loop.sender.address = ("127.0.0.1", server.grsim_port if kind == "grsim" else server.simulation_port)
+    stop = threading.Event()
+    thread = threading.Thread(target=loop.run, args=(stop,))
+    thread.start()
+    try:
+        [record] = server.run(1, threading.Event())
+    finally:
+        stop.set()
+        thread.join()
+        server.close()
+        loop.close()
+    assert record["success"] and not record["collision"]
+    assert 20 < record["length"] < 400  # control steps of 25 ms
+    stats = loop.stats
+    assert stats.frames > 100 and not stats.dropped and not stats.simulator_errors
+    assert stats.field_size == wire.FieldSize(6.0, 4.0, 0.3)

@@ -1,0 +1,201 @@
+"""The controller loop over 127.0.0.1: fuzzed and foreign packets never move a robot, lost vision stops
+it within 100 ms, and the control socket takes well-formed targets only."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from hier_ssl.deploy import wire
+from hier_ssl.deploy.assemble import DeploySettings, build_loop
+from hier_ssl.deploy.loop import DeployLoop
+from hier_ssl.deploy.net import MAX_LINE
+
+FUZZED = 10_000
+
+
+class Robots:
+    """The commands' receiving end: a UDP socket on 127.0.0.1 collecting (time, commands) of grSim."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.port = self.sock.getsockname()[1]
+        self.received: list[tuple[float, list]] = []
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._collect)
+        self.thread.start()
+
+    def _collect(self) -> None:
+        while not self.stop.is_set():
+            try:
+                data = self.sock.recv(65536)
+            except TimeoutError:
+                continue
+            self.received.append((time.monotonic(), wire.parse_grsim(data)[1]))
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+        self.sock.close()
+
+    def moving(self) -> list[tuple[float, list]]:
+        return [(t, c) for t, c in self.received if any(any(cmd[1:]) for cmd in c)]
+
+
+@pytest.fixture
+def robots() -> Iterator[Robots]:
+    receiver = Robots()
+    yield receiver
+    receiver.close()
+
+
+def _loop(robots: Robots, source: str = "127.0.0.1") -> DeployLoop:
+    settings = DeploySettings(
+        "direct",
+        "127.0.0.1:0",
+        f"grsim:127.0.0.1:{robots.port}",
+        "blue",
+        [0],
+        {0: [1.0, 0.5, 0.0]},
+        source=source,
+        control_port=0,
+        task="proposed",
+    )
+    return build_loop(settings)
+
+
+class Running:
+    """The loop in a thread, and a vision socket on 127.0.0.1 to feed it."""
+
+    def __init__(self, loop: DeployLoop) -> None:
+        self.loop, self.stop = loop, threading.Event()
+        self.thread = threading.Thread(target=loop.run, args=(self.stop,))
+        self.thread.start()
+        self.vision = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.vision.bind(("127.0.0.1", 0))
+        self.to = ("127.0.0.1", loop.vision.getsockname()[1])
+
+    def send(self, data: bytes) -> None:
+        self.vision.sendto(data, self.to)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+        self.vision.close()
+        self.loop.close()
+
+
+def _frame(t: float, team: str = "blue", robot: int = 0) -> bytes:
+    seen = (wire.Detection(team, robot, 0.0, 0.0, 0.0),)
+    return wire.encode_detection(int(t * 60), wire.DetectionFrame(t, t, 0, seen))
+
+
+def _fuzz(rng: np.random.Generator) -> Iterator[bytes]:
+    """Random bytes, truncated and corrupted valid packets (one byte changed: of other robots only, so
+    no change can name the controlled one), oversized ones, and valid ones of other teams' robots."""
+    bases = [_frame(1.0 + k, "yellow", 5 + k % 5) for k in range(20)]
+    bases.append(wire.encode_geometry(wire.FieldSize(6.0, 4.0, 0.3), 0.7))
+    for k in range(FUZZED):
+        base = bases[k % len(bases)]
+        kind = k % 5
+        if kind == 0:
+            yield rng.bytes(int(rng.integers(0, 300)))
+        elif kind == 1:
+            yield base[: int(rng.integers(0, len(base)))]
+        elif kind in (2, 3):
+            data = bytearray(base)
+            data[int(rng.integers(len(data)))] = int(rng.integers(256))
+            yield bytes(data)
+        elif k % 100 == 4:
+            yield rng.bytes(wire.MAX_PACKET + 1 + int(rng.integers(1000)))
+        else:
+            yield base
+
+
+def test_ten_thousand_fuzzed_packets_neither_crash_the_loop_nor_move_a_robot(robots: Robots) -> None:
+    running = Running(_loop(robots))
+    try:
+        for k, data in enumerate(_fuzz(np.random.default_rng(0))):
+            running.send(data)
+            if k % 200 == 199:
+                time.sleep(0.003)  # the loop reads as fast as this sends, a burst at a time
+        time.sleep(0.2)
+        assert running.thread.is_alive()
+    finally:
+        running.close()
+    stats = running.loop.stats
+    assert stats.frames + stats.geometry + sum(stats.dropped.values()) == FUZZED  # every one accounted for
+    assert stats.dropped["malformed"] > 4000 and stats.dropped["oversized"] == 100
+    assert stats.moving_commands == 0 and not robots.moving()
+    assert robots.received  # the loop kept sending its stops
+
+
+def test_packets_from_another_source_are_dropped_and_move_nothing(robots: Robots) -> None:
+    running = Running(_loop(robots, source="10.0.0.7"))  # only compared, never contacted
+    try:
+        for k in range(30):
+            running.send(_frame(k / 60))
+            time.sleep(1 / 60)
+    finally:
+        running.close()
+    assert running.loop.stats.dropped["source"] == 30 and running.loop.stats.frames == 0
+    assert not robots.moving()
+
+
+def test_a_robot_out_of_sight_is_stopped_within_100_ms(robots: Robots) -> None:
+    running = Running(_loop(robots))
+    try:
+        start = time.monotonic()
+        while time.monotonic() - start < 0.5:
+            running.send(_frame(time.monotonic()))
+            time.sleep(1 / 60)
+        lost = time.monotonic()
+        time.sleep(0.3)
+    finally:
+        running.close()
+    assert robots.moving(), "the robot never drove"
+    after = [(t, c) for t, c in robots.received if t > lost]
+    first_stop = next(t for t, c in after if not any(c[0][1:]))
+    assert first_stop - lost < 0.1
+    assert all(not any(c[0][1:]) for t, c in after if t >= first_stop)
+
+
+def _ask(client: socket.socket, line: bytes) -> dict:
+    client.sendall(line + b"\n")
+    return json.loads(client.makefile().readline())
+
+
+def test_the_control_socket_listens_on_loopback_and_takes_only_target_messages(robots: Robots) -> None:
+    running = Running(_loop(robots))
+    control = running.loop.control
+    try:
+        assert control.listener.getsockname()[0] == "127.0.0.1"
+        with socket.create_connection(("127.0.0.1", control.port), timeout=2) as client:
+            assert _ask(client, b'{"robot": 0, "target": [-1.0, 0.25, 1.5]}') == {"ok": True}
+            for bad in (
+                b"not json",
+                b"[0, [1, 2, 3]]",
+                b'{"robot": 0}',
+                b'{"robot": 0, "target": [1, 2, 3], "extra": 1}',
+                b'{"robot": 7, "target": [1, 2, 3]}',
+                b'{"robot": 0, "target": [1e9, 0, 0]}',
+                b"\xff\xfe",
+            ):
+                assert "error" in _ask(client, bad), bad
+        np.testing.assert_allclose(running.loop.controller.view.target[0, 0, 0:3], [-1.0, 0.25, 1.5])
+        with socket.create_connection(("127.0.0.1", control.port), timeout=2) as client:
+            client.sendall(b"x" * (2 * MAX_LINE))
+            answer = client.makefile().readline()
+            assert "longer than" in answer
+            assert client.recv(10) == b""  # closed by the loop
+    finally:
+        running.close()
+    assert (control.accepted, control.refused) == (1, 8)

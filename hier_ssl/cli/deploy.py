@@ -51,6 +51,12 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
     deploy.add_argument("--task", default=None, help="a planner's task or scenario (default obstacle)")
     deploy.add_argument("--worker", type=worker_spec, default=None, help=WORKER_HELP)
     deploy.add_argument("--frame-skip", type=positive_int, default=None, help="control periods per decision")
+    deploy.add_argument(
+        "--worker-feedback",
+        choices=("command", "tracked"),
+        default="command",
+        help="the velocity the worker steers from: the last command (as in training) or the tracked one",
+    )
     deploy.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     deploy.set_defaults(func=_deploy)
 
@@ -73,6 +79,7 @@ def _deploy(args: argparse.Namespace) -> int:
         args.task,
         args.worker,
         args.frame_skip,
+        args.worker_feedback,
     )
     loop = build_loop(settings)
     ports = {"vision_port": loop.vision.getsockname()[1], "commands": list(loop.sender.address)}

@@ -64,13 +64,14 @@ class DeploySettings:
     task: str | None = None
     worker: str | None = None
     frame_skip: int | None = None
+    feedback: str = "command"
 
 
 def build_loop(settings: DeploySettings) -> DeployLoop:
     """The controller loop, its sockets open (vision bound, control socket listening on 127.0.0.1)."""
     config = manager_task(settings.manager, settings.task, settings.frame_skip, settings.worker)
     view = DeployView(settings.manager, len(settings.robots), config)
-    controller = Controller(view, Tracker(), settings.team, settings.robots)
+    controller = Controller(view, Tracker(), settings.team, settings.robots, feedback=settings.feedback)
     for robot, target in settings.targets.items():
         controller.set_target(robot, target)
     kind, address = command_target(settings.commands, settings.team)

@@ -193,6 +193,17 @@ class DeployView:
         rows = np.concatenate([self.target, own, np.stack(blocks, axis=1)], axis=2)
         return rows.reshape(n * m, -1).astype(np.float32)
 
+    def commanded(self, state: RobotState, sent: np.ndarray) -> RobotState:
+        """``state`` with the controlled robots moving as ``sent`` (N, M, 3) commands them: (forward, left,
+        w) in each robot's frame, turned into the field frame."""
+        m = self.m
+        heading = np.exp(1j * state.angle[:, :m])
+        field = (sent[..., 0] + 1j * sent[..., 1]) * heading
+        vel, spin = state.vel.copy(), state.ang_vel.copy()
+        vel[:, :m] = np.stack([field.real, field.imag], axis=-1)
+        spin[:, :m] = sent[..., 2]
+        return RobotState(state.pos, state.angle, vel, spin)
+
     def commands(self, state: RobotState) -> np.ndarray:
         """The worker's commands (N, M, 3) toward the held sub-goals: (forward, left, w), robot frame."""
         return self.worker(state.robots(slice(0, self.m)), self.subgoal)

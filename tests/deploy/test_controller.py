@@ -12,9 +12,12 @@ from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.deploy.wire import Detection, DetectionFrame
 
 
-def _controller(robots: tuple[int, ...] = (0,), manager: str = "direct", frame_skip: int = 4) -> Controller:
-    view = DeployView(manager, len(robots), manager_task(manager, "proposed", frame_skip=frame_skip))
-    return Controller(view, Tracker(), "blue", list(robots))
+def _controller(
+    robots: tuple[int, ...] = (0,), manager: str = "direct", frame_skip: int = 4, feedback: str = "command"
+) -> Controller:
+    config = manager_task(manager, "proposed", frame_skip=frame_skip, worker="paper")
+    view = DeployView(manager, len(robots), config)
+    return Controller(view, Tracker(), "blue", list(robots), feedback=feedback)
 
 
 def _see(controller: Controller, t: float, *robots: tuple[int, float, float, float]) -> None:
@@ -79,7 +82,21 @@ def test_bad_targets_are_refused_by_name(robot: object, target: object, message:
         _controller().set_target(robot, target)
 
 
+@pytest.mark.parametrize(("feedback", "speeds"), [("command", [0.1, 0.2, 0.3]), ("tracked", [0.1, 0.1, 0.1])])
+def test_the_worker_steers_from_the_last_command_or_the_tracked_velocity(feedback: str, speeds: list) -> None:
+    # The paper worker adds 0.1 m/s a period to the velocity it steers from; the robot is seen standing.
+    controller = _controller(feedback=feedback)
+    controller.set_target(0, [2.0, 0.0, 0.0])
+    got = []
+    for k in range(3):
+        _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
+        got.append(controller.tick(k * 0.025 + 0.001)[0][1])
+    np.testing.assert_allclose(got, speeds, atol=1e-9)
+
+
 def test_robots_must_be_distinct() -> None:
     view = DeployView("direct", 2, manager_task("direct", "proposed"))
     with pytest.raises(ValueError, match="distinct ids"):
         Controller(view, Tracker(), "blue", [1, 1])
+    with pytest.raises(ValueError, match="worker feedback 'odometry'"):
+        Controller(view, Tracker(), "blue", [1, 2], feedback="odometry")

@@ -11,6 +11,15 @@ import threading
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 
 
+def _one_thread(manager: str) -> None:
+    """One torch thread for a TorchScript manager: it is called on a few rows, and waking a thread pool
+    costs milliseconds on a busy machine."""
+    if manager.endswith(".pt"):
+        import torch
+
+        torch.set_num_threads(1)
+
+
 def _stop_on_signals() -> threading.Event:
     """An event that SIGINT and SIGTERM set: the loops stop and send their robots a stop."""
     stop = threading.Event()
@@ -81,6 +90,7 @@ def _deploy(args: argparse.Namespace) -> int:
         args.frame_skip,
         args.worker_feedback,
     )
+    _one_thread(args.manager)
     loop = build_loop(settings)
     ports = {"vision_port": loop.vision.getsockname()[1], "commands": list(loop.sender.address)}
     ports["control_port"] = loop.control.port if loop.control is not None else None
@@ -178,6 +188,7 @@ def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
 def _bench_deploy(args: argparse.Namespace) -> int:
     from hier_ssl.deploy.bench import deploy_rows
 
+    _one_thread(".pt")
     for row in deploy_rows(args.run, args.seconds, args.episodes):
         print(
             json.dumps(row) if args.json else "  " + ", ".join(f"{k} {v}" for k, v in row.items()), flush=True

@@ -39,7 +39,8 @@ PLANNER_FRAME_SKIP = 16  # the paper's FSCAPS decision period, as ``hier-ssl eva
 
 def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray], dict[str, Any]]:
     """An exported manager file as ``rows (B, D) float32 -> sub-goals (B, 5)`` and its stored layout.
-    Needs torch (TorchScript) or onnxruntime (ONNX), no hier_ssl policy code."""
+    Needs torch (TorchScript) or onnxruntime (ONNX), no hier_ssl policy code. A TorchScript file runs on
+    torch's threads: a controller process sets ``torch.set_num_threads(1)`` (``hier-ssl deploy`` does)."""
     path = Path(path)
     if path.suffix == ".pt":
         import torch
@@ -57,7 +58,9 @@ def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray],
     if path.suffix == ".onnx":
         import onnxruntime
 
-        session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = 1  # a few rows a call: a thread pool's wake-ups cost more than they save
+        session = onnxruntime.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         meta = session.get_modelmeta().custom_metadata_map
         return (lambda rows: session.run(None, {"state": rows})[0]), json.loads(meta["layout"])
     raise ValueError(f"exported manager {str(path)!r}: expected a {' or '.join(EXPORTED)} file")
@@ -116,6 +119,8 @@ class DeployView:
         if Path(manager).suffix in EXPORTED:
             self.exported, layout = load_exported(manager)
             k = layout["obstacles"] + layout["teammates"] + 1 - m
+            for _ in range(2):  # TorchScript optimises its graph on the first calls (0.1 s): not in a period
+                self.exported(np.zeros((n * m, layout["input_shape"][1]), dtype=np.float32))
         elif manager in PLANNERS:
             self.policy = make_planner(manager, config)
         else:

@@ -179,7 +179,7 @@ def _field(args: argparse.Namespace) -> int:
 def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
     """``hier-ssl bench deploy``'s options."""
     bench.add_argument("--json", action="store_true", help="one JSON object per line")
-    bench.add_argument("--run", default=None, help="a manager run directory for the network rows")
+    bench.add_argument("--run", default=None, help="a manager run directory: a task row of its own task")
     bench.add_argument("--seconds", type=float, default=5.0, help="seconds of each latency row")
     bench.add_argument("--episodes", type=positive_int, default=10, help="episodes of each task row")
     bench.set_defaults(func=_bench_deploy)

@@ -6,13 +6,13 @@
   the truth, and the position error of the newest detection for comparison.
 - ``latency``: a field server in its own process publishing over 127.0.0.1, the controller loop here;
   from a camera frame's arrival to the command's send, p50 / p99 over ``seconds`` of running, for an
-  exported network manager (TorchScript; a run's, or an untrained one of the same size: the time does not
-  depend on the weights) and the sampling planner, with 1 robot (Obstacle task) and 6 (formation:
-  6 controlled robots, 6 moving obstacles).
+  exported network manager (TorchScript, untrained: the time does not depend on the weights) and the
+  sampling planner, with 1 robot (Obstacle task) and 6 (formation: 6 controlled robots, 6 moving
+  obstacles).
 - ``task``: success, collisions and median episode length (control steps) of the Obstacle task and of
   crossing driven through field server -> packets -> tracker -> manager -> commands -> field server,
   against the same manager on the same number of episodes of ``hier_ssl.envs.play`` (what ``hier-ssl
-  eval`` runs); ``success_gap_points`` is through the wire minus direct.
+  eval`` runs), and a run's own task for ``run``; ``success_gap_points`` is through the wire minus direct.
 """
 
 from __future__ import annotations
@@ -213,20 +213,13 @@ def deploy_rows(run: str | None, seconds: float, episodes: int) -> Iterator[dict
     yield tracking_error()
     with tempfile.TemporaryDirectory() as folder:
         for robots, task in LATENCY_FIELDS.items():
-            network = _exported(run, Path(folder)) if run else untrained_export(Path(folder), task)
-            label = f"network ({Path(run).name})" if run else "network (untrained)"
-            yield latency_row(str(network), label, robots, seconds)
+            network = str(untrained_export(Path(folder), task))
+            yield latency_row(network, "network (untrained)", robots, seconds)
             yield latency_row("sampling", "sampling", robots, seconds)
     for task in ("obstacle", "crossing"):
         yield task_row("sampling", "sampling", task, episodes)
     if run is not None:
         yield task_row(run, Path(run).name, manager_task(run).scenario_name, episodes)
-
-
-def _exported(run: str, folder: Path) -> Path:
-    from hier_ssl.policies.export import export_manager
-
-    return export_manager(run, "torchscript", folder / "manager.pt")
 
 
 __all__ = ["deploy_rows", "latency_row", "task_row", "tracking_error", "untrained_export"]

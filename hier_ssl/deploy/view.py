@@ -59,7 +59,7 @@ def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray],
         import onnxruntime
 
         options = onnxruntime.SessionOptions()
-        options.intra_op_num_threads = 1  # a few rows a call: a thread pool's wake-ups cost more than they save
+        options.intra_op_num_threads = 1  # a few rows a call: a pool's wake-ups cost more than they save
         session = onnxruntime.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         meta = session.get_modelmeta().custom_metadata_map
         return (lambda rows: session.run(None, {"state": rows})[0]), json.loads(meta["layout"])

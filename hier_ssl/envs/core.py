@@ -183,9 +183,8 @@ class HierarchicalCore:
     # -- observations --------------------------------------------------------------------------------------
 
     def observe(self, fields: np.ndarray | None = None, state: RobotState | None = None) -> np.ndarray:
-        """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all), in the scenario's
-        layout; robots that left are observed too. ``state`` (N, M + K) replaces the world's: the deploy
-        view observes tracked robots with the same function."""
+        """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all) in the scenario's layout,
+        of the world's robots or of ``state`` (N, M + K: the deploy view's tracked ones); left ones too."""
         s = self.world.state if state is None else state
         s = s if fields is None else s.fields(fields)
         target = self.target if fields is None else self.target[fields]
@@ -235,8 +234,7 @@ class HierarchicalCore:
         return clipped
 
     def hold_subgoal(self, subgoal: np.ndarray) -> None:
-        """Hold ``subgoal`` (N, M, 5) as every robot's sub-goal, for a view whose managers act elsewhere:
-        the deploy field server holds the targets, so its rules score where the robots end up."""
+        """Hold ``subgoal`` (N, M, 5) as if decoded (the deploy field server's managers act elsewhere)."""
         np.copyto(self.subgoal, subgoal)
         self._hold()
 

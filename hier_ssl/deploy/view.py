@@ -28,7 +28,8 @@ import numpy as np
 from hier_ssl.config import ScenarioConfig, TaskConfig
 from hier_ssl.envs import make_scenario, task_config
 from hier_ssl.envs.core import HierarchicalCore
-from hier_ssl.manager.planners import PLANNERS, make_planner
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.world.field import get_field
 from hier_ssl.world.physics import RobotSpec, RobotState
@@ -84,7 +85,7 @@ def manager_task(
         layout = load_exported(manager)[1]
         keys = ("field", "action_form", "observation", "action_frame", "frame_skip")
         return task_config(layout["task"], **{k: layout[k] for k in keys} | overrides)
-    from hier_ssl.policies.actor import run_config
+    from hier_ssl.checkpoints.actor import run_config
 
     if not Path(manager).is_dir():
         raise ValueError(

@@ -37,6 +37,7 @@ from hier_ssl.envs import make_scenario
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import play
 from hier_ssl.envs.scenarios import SCENARIOS
+from hier_ssl.manager.planners import PLANNERS
 
 LATENCY_FIELDS = {1: "obstacle", 6: "formation"}  # robots -> the field server's task of a latency row
 # The tracking row's cameras: vision's processing (capture to send) as a real field's SSL-Vision has it.
@@ -119,7 +120,7 @@ class WiredRun:
         settings = DeploySettings(
             manager, "127.0.0.1:0", "grsim:127.0.0.1:9", "blue", list(range(robots)), {}, control_port=0
         )
-        settings.task = task if manager_task_is_free(manager) else None
+        settings.task = task if _takes_task(manager) else None
         self.loop = build_loop(settings)
         command = [
             sys.executable,
@@ -160,9 +161,9 @@ class WiredRun:
         return self.loop.stats, records
 
 
-def manager_task_is_free(manager: str) -> bool:
+def _takes_task(manager: str) -> bool:
     """Whether the manager takes its task from the command line (a planner) rather than its own files."""
-    return manager in ("direct", "sampling")
+    return manager in PLANNERS
 
 
 def latency_row(manager: str, label: str, robots: int, seconds: float) -> dict[str, Any]:
@@ -189,7 +190,7 @@ def _outcomes(success: np.ndarray, collision: np.ndarray, length: np.ndarray) ->
 
 
 def task_row(manager: str, label: str, task: str, episodes: int, seed: int = 0) -> dict[str, Any]:
-    config = manager_task(manager, task if manager_task_is_free(manager) else None)
+    config = manager_task(manager, task if _takes_task(manager) else None)
     robots = make_scenario(config).num_agents
     _, records = WiredRun(manager, task, robots, episodes, seed).run(None)
     wired = _outcomes(*(np.array([r[k] for r in records]) for k in ("success", "collision", "length")))

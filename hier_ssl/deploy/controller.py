@@ -99,8 +99,8 @@ class Controller:
         not live, the worker's command toward the held sub-goal for the others."""
         live = self.live(now)
         if not live.any():
-            self.was_live = live
-            return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
+            self.was_live, self.sent = live, np.zeros_like(self.sent)
+            return self.stop()
         keys = set(self.keys)
         others = [
             key for key in self.tracker.tracks if key not in keys and self.tracker.fresh(key, now, OTHERS_AGE)

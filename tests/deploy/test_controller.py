@@ -92,6 +92,9 @@ def test_the_worker_steers_from_the_last_command_or_the_tracked_velocity(feedbac
         _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
         got.append(controller.tick(k * 0.025 + 0.001)[0][1])
     np.testing.assert_allclose(got, speeds, atol=1e-9)
+    assert controller.tick(1.0) == [(0, 0.0, 0.0, 0.0)]  # out of sight: stopped, and steered from rest
+    _see(controller, 1.01, (0, 0.0, 0.0, 0.0))
+    assert controller.tick(1.011)[0][1] == pytest.approx(0.1)
 
 
 def test_robots_must_be_distinct() -> None:

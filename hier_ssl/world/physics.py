@@ -14,77 +14,28 @@ layout of the hot path (``FastSpace``, ``World._prepare``) is about.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import pymunk
 import pymunk.batch as pb
 
 from hier_ssl.world.field import Field, get_field
-from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, cap_speed, heading, wrap_angle
-from hier_ssl.world.space import FastSpace
+from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, cap_speed, wrap_angle
+from hier_ssl.world.robot import RobotSpec, RobotState
+from hier_ssl.world.space import FastSpace, joint_impulses, set_joint_impulses
 
 _ROBOT, _WALL = 1, 2
 # Wall segments are centred this far outside the wall line, so their surface lies on it.
 _WALL_RADIUS = 0.01
 _VELOCITY = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY
 _STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | _VELOCITY
+# What ``World._prepare`` makes: cffi call data and views of pymunk's memory, made again for a copy.
+_PREPARED = set(
+    "_fast _raw_pos _raw_angle _raw_vel _raw_spin _write_velocity _write_state _robot_vel _robot_spin "
+    "_control_vel _control_spin".split()
+)
 # At one field numpy's per-call overhead is the whole cost of an operation, and it doubles when an operand
 # is a Python scalar, of another dtype, strided or broadcast from a non-0-d array: the hot path keeps to
 # contiguous arrays of one shape and dtype, and 0-d constants.
-
-
-@dataclass(frozen=True)
-class RobotSpec:
-    """An SSL robot (SPEC.md "World"); speeds in m/s and rad/s, accelerations in m/s^2 and rad/s^2."""
-
-    radius: float = 0.09
-    mass: float = 2.2
-    max_speed: float = 2.5
-    max_accel: float = 3.0
-    max_ang_speed: float = 10.0
-    max_ang_accel: float = 60.0
-
-    def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not value > 0:
-                raise ValueError(f"RobotSpec.{name} must be > 0, got {value!r}")
-
-
-@dataclass
-class RobotState:
-    """Poses and velocities of every robot, field frame.
-
-    Shapes: pos (N, R, 2) m, angle (N, R) rad in [-pi, pi), vel (N, R, 2) m/s, ang_vel (N, R) rad/s.
-    A state is replaced, never changed: ``heading`` is computed once (the world passes the one it made).
-    """
-
-    pos: np.ndarray
-    angle: np.ndarray
-    vel: np.ndarray
-    ang_vel: np.ndarray
-    _heading: np.ndarray | None = field(default=None, repr=False, compare=False)
-
-    @property
-    def heading(self) -> np.ndarray:
-        """exp(i angle) (N, R) complex (``hier_ssl.world.frames.heading``)."""
-        if self._heading is None:
-            self._heading = heading(self.angle)
-        return self._heading
-
-    def robots(self, index: slice | np.ndarray | list[int]) -> RobotState:
-        """The same fields, a subset of robots (a view for slices)."""
-        h = None if self._heading is None else self._heading[:, index]
-        return RobotState(
-            self.pos[:, index], self.angle[:, index], self.vel[:, index], self.ang_vel[:, index], h
-        )
-
-    def fields(self, index: np.ndarray) -> RobotState:
-        h = None if self._heading is None else self._heading[index]
-        return RobotState(self.pos[index], self.angle[index], self.vel[index], self.ang_vel[index], h)
-
-    def copy(self) -> RobotState:
-        return RobotState(self.pos.copy(), self.angle.copy(), self.vel.copy(), self.ang_vel.copy())
 
 
 class World:
@@ -94,6 +45,11 @@ class World:
     indices are the caller's: which robots are controlled and which are obstacles is not the world's
     business. ``state`` is replaced, never modified, by ``step`` and ``set_state``: a state a caller keeps
     stays as it was. Bodies must not be added to or removed from ``space``.
+
+    A world pickles and copies: the copy has the same bodies, contacts and joint impulses and steps bit
+    for bit as the original while no robot touches two bodies at once. When one does, Chipmunk's broad
+    phase (which nothing pickles) may list those contacts in another order, and the two differ by the
+    solver's rounding (1e-8 m measured), which later contacts can grow.
     """
 
     def __init__(
@@ -134,6 +90,7 @@ class World:
         self.offsets = np.stack([(idx % cols) * pitch, (idx // cols) * pitch], axis=-1).astype(np.float64)
 
         self._shape_owner: dict[pymunk.Shape, tuple[int, int]] = {}
+        self._joints: list[pymunk.Constraint] = []
         robots, controls = self._build(hx, hy)
         self._check_body_order(robots, controls)
         self._prepare(hx, hy)
@@ -175,6 +132,7 @@ class World:
                 gear = pymunk.GearJoint(control, body, 0.0, 1.0)
                 gear.max_bias, gear.max_force = 0.0, moment * spec.max_ang_accel
                 self.space.add(body, disc, control, pivot, gear)
+                self._joints += [pivot, gear]
                 self._shape_owner[disc] = (f, i)
                 robots.append(body)
                 controls.append(control)
@@ -235,6 +193,21 @@ class World:
         self._max_speed = np.array(spec.max_speed)
         self._max_spin, self._min_spin = np.array(spec.max_ang_speed), np.array(-spec.max_ang_speed)
         self._zero, self._dt = np.array(0.0), np.array(self.dt)
+
+    # -- pickling and copying -----------------------------------------------------------------------------
+
+    def __getstate__(self) -> dict[str, object]:
+        # All but what ``_prepare`` makes; pymunk pickles the space, contact cache and handlers included.
+        state = {k: v for k, v in self.__dict__.items() if k not in _PREPARED}
+        return {**state, "_joints": (self._joints, joint_impulses(self._joints))}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self._joints, impulses = self._joints
+        set_joint_impulses(self._joints, impulses)
+        self._prepare(*self.field.wall_half_extent)
+        if not np.array_equal(self._read_state().pos, self.state.pos):  # the same bodies in the same rows
+            raise RuntimeError(f"pymunk {pymunk.version}: a copied space lists its bodies in another order")
 
     # -- contacts -----------------------------------------------------------------------------------------
 

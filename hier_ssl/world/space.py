@@ -3,6 +3,10 @@
 ``pymunk.batch`` builds its cffi call data, and the caller a numpy view of the result, on every call,
 and ``Space.step`` runs bookkeeping for objects added or removed during a step; at one field each costs as
 much as the work itself. ``FastSpace`` makes the call data and views once.
+
+A step starts each joint from the impulse it applied in the last one (Chipmunk's warm starting), which
+pymunk neither exposes nor pickles: ``joint_impulses`` reads it and ``set_joint_impulses`` writes it, so
+that a copied space steps exactly as its original.
 """
 
 from __future__ import annotations
@@ -10,6 +14,10 @@ from __future__ import annotations
 import numpy as np
 import pymunk
 import pymunk.batch as pb
+
+# Where Chipmunk keeps a joint's accumulated impulse (``jAcc`` of cpPivotJoint, cpGearJoint), counted in
+# doubles from the start of the struct; every read and write is checked against pymunk's ``impulse``.
+_PIVOT_IMPULSE, _GEAR_IMPULSE = slice(25, 27), 18
 
 
 class FastSpace:
@@ -83,3 +91,32 @@ class BodyWriter:
             raise RuntimeError("bodies were added to or removed from the World's pymunk space")
         self._array.num = 0
         fast._each_body(self._space, *self._set)
+
+
+def _impulse_memory(joint: pymunk.Constraint) -> np.ndarray:
+    """The joint's accumulated impulse, as a numpy view of Chipmunk's memory: (2,) pivot, (1,) gear."""
+    doubles = pb.ffi.cast("double *", joint._constraint)
+    at = _PIVOT_IMPULSE if isinstance(joint, pymunk.PivotJoint) else slice(_GEAR_IMPULSE, _GEAR_IMPULSE + 1)
+    buffer = pb.ffi.buffer(doubles + at.start, 8 * (at.stop - at.start))
+    view = np.frombuffer(buffer, dtype=np.float64)
+    # pymunk's impulse is the vector's length, as C rounds it: equal to numpy's within an ulp or two.
+    if not abs(np.sqrt(view @ view) - joint.impulse) <= 1e-12 * joint.impulse:
+        raise RuntimeError(f"pymunk {pymunk.version} keeps a joint's impulse elsewhere than this World reads")
+    return view
+
+
+def joint_impulses(joints: list[pymunk.PivotJoint | pymunk.GearJoint]) -> np.ndarray:
+    """Each joint's impulse of the last step, (J, 2) (a gear's in column 0, column 1 zero)."""
+    out = np.zeros((len(joints), 2))
+    for row, joint in zip(out, joints, strict=True):
+        memory = _impulse_memory(joint)
+        row[: len(memory)] = memory
+    return out
+
+
+def set_joint_impulses(joints: list[pymunk.PivotJoint | pymunk.GearJoint], impulses: np.ndarray) -> None:
+    """Give each joint the impulse ``impulses`` (J, 2) holds for it (``joint_impulses``' layout)."""
+    for joint, value in zip(joints, impulses, strict=True):
+        memory = _impulse_memory(joint)
+        memory[...] = value[: len(memory)]
+        _impulse_memory(joint)

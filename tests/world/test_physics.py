@@ -1,6 +1,8 @@
 from __future__ import annotations
 
+import copy
 import math
+import pickle
 
 import numpy as np
 import pymunk
@@ -10,6 +12,7 @@ from hier_ssl.worker.scripted import PaperGoToPoint
 from hier_ssl.world.frames import as_complex, heading, to_field_frame, to_robot_frame, wrap_angle
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotSpec, RobotState, World
+from hier_ssl.world.space import joint_impulses
 
 SPEC = RobotSpec()
 DT = 0.025
@@ -298,3 +301,34 @@ def test_the_state_carries_the_heading_the_world_computed_bit_for_bit() -> None:
     # A state made by hand computes it on first use.
     made = RobotState(state.pos, state.angle, state.vel, state.ang_vel)
     np.testing.assert_array_equal(made.heading, state.heading)
+
+
+# -- pickling and copying -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("copy_world", [lambda w: pickle.loads(pickle.dumps(w)), copy.deepcopy])
+def test_a_copied_world_steps_bit_for_bit_as_its_original(copy_world) -> None:
+    # Field 0: two robots pushing into each other; field 1: one robot pressing into a wall. The copy is
+    # taken mid-contact, joints at their force limit: contact cache and joint impulses both matter.
+    world = _world(2, 2)
+    _place(world, [[[-0.3, 0.0], [0.3, 0.0]], [[0.0, 0.0], [-_limit(world)[0] + 0.3, 1.0]]])
+    command = np.zeros((2, 2, 3))
+    command[0, :, 0] = SPEC.max_speed
+    command[0, 1, 2] = SPEC.max_ang_speed
+    command[1, 1, 0] = -SPEC.max_speed
+    world.set_state([0], world.state.pos[:1], np.array([[0.0, np.pi]]))
+    for _ in range(20):
+        world.step(command)
+    assert world.robot_contacts[0, 0, 1] and world.wall_contacts[1, 1]
+    copied = copy_world(world)
+    np.testing.assert_array_equal(joint_impulses(copied._joints), joint_impulses(world._joints))
+    np.testing.assert_array_equal(copied.robot_contacts, world.robot_contacts)
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        step = command + rng.uniform(-0.5, 0.5, command.shape)
+        a, b = world.step(step), copied.step(step)
+        for name in ("pos", "angle", "vel", "ang_vel"):
+            np.testing.assert_array_equal(getattr(b, name), getattr(a, name))
+        np.testing.assert_array_equal(copied.robot_contacts, world.robot_contacts)
+        np.testing.assert_array_equal(copied.wall_contacts, world.wall_contacts)
+    assert not np.shares_memory(copied.state.pos, world.state.pos)

@@ -21,8 +21,10 @@ from typing import Any
 from hier_ssl.config.launch_options import LaunchOptions
 from hier_ssl.runs.jobs import Job, mark_stopped, run_job, run_state
 
-# Without it a Ray started here would announce this machine's network address; 0 keeps it on 127.0.0.1.
+# Without them a Ray started here would look up this machine's network address (Ray's address discovery
+# reaches out to a public address) and announce it; both keep every address on 127.0.0.1.
 LOOPBACK_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+LOOPBACK = "127.0.0.1"
 RAY_MISSING = '--ray needs Ray, which is not installed: pip install -e ".[ray]" (or pip install "ray[tune]")'
 MAX_RETRIES = 3  # per trial, on top of its first attempt
 ASHA_METRIC = "success_rate"
@@ -31,7 +33,7 @@ ASHA_METRIC = "success_rate"
 def import_ray(address: str) -> ModuleType:
     """``ray`` itself; a Ray started by us ("local") listens on loopback only. One-line error without it."""
     if address == "local":
-        os.environ.setdefault(LOOPBACK_ENV, "0")
+        os.environ[LOOPBACK_ENV] = "0"
     # here, not at the top: ray, for --ray alone
     try:
         import ray
@@ -47,7 +49,7 @@ def connect(ray: ModuleType, address: str) -> bool:
     if ray.is_initialized():
         return False
     if address == "local":
-        ray.init(address="local", include_dashboard=False)
+        ray.init(address="local", include_dashboard=False, _node_ip_address=LOOPBACK)
     else:
         ray.init(address=address)
     return True

@@ -23,6 +23,7 @@ from hier_ssl.envs import parse_config  # noqa: E402
 from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE  # noqa: E402
 from hier_ssl.runs.jobs import EXIT_MARKER, EXIT_ONCE_ENV, Job, run_state  # noqa: E402
 from hier_ssl.runs.launch import RunFailed, launch  # noqa: E402
+from hier_ssl.runs.ray_tune import LOOPBACK, LOOPBACK_ENV, connect, import_ray  # noqa: E402
 from hier_ssl.runs.sweep import parse_grid, sweep  # noqa: E402
 from hier_ssl.runs.train import train  # noqa: E402
 
@@ -103,6 +104,18 @@ def test_ray_flag_without_ray_installed_is_one_line_naming_the_extra(
     assert not (out / "runs").exists()
 
 
+def test_a_local_ray_is_started_on_loopback_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    started: list[dict] = []
+    fake = type(sys)("ray")
+    fake.is_initialized = lambda: False
+    fake.init = lambda **kwargs: started.append(kwargs)
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    monkeypatch.setitem(sys.modules, "ray.tune", type(sys)("ray.tune"))
+    monkeypatch.setenv(LOOPBACK_ENV, "1")
+    assert connect(import_ray("local"), "local")
+    assert started[0]["_node_ip_address"] == "127.0.0.1" and os.environ[LOOPBACK_ENV] == "0"
+
+
 def test_asha_needs_ray() -> None:
     with pytest.raises(ValueError, match="--asha"):
         LaunchOptions(asha=True)
@@ -117,6 +130,7 @@ def ray_instance():
     pytest.importorskip("ray.tune", reason='Ray Tune is not installed (pip install -e ".[ray]")')
     ray.init(
         num_cpus=2,
+        _node_ip_address=LOOPBACK,
         include_dashboard=False,
         object_store_memory=100 * 2**20,
         runtime_env={"env_vars": {EXIT_ONCE_ENV: f"{KILLED}@40"}},

@@ -8,17 +8,19 @@ vector convention, an array over the rows per key and a boolean ``_key`` array s
 one:
 
 - ``final_obs`` (rows, O), ``_final_obs`` the rows whose episode ended (terminated or truncated);
-- ``task`` (the task statistics: return, length in control steps, decisions, success, collision, cpad,
-  each (rows,) float64), ``_task`` the rows whose robot left its episode this step;
+- ``task_return``, ``task_length`` (control steps), ``task_decisions``, ``task_success``,
+  ``task_collision``, ``task_cpad``: the task statistics, each (rows,) float64, its ``_task_...`` mask the
+  rows whose robot left its episode this step. Flat keys, not one nested dict: clients that stack infos
+  into tensors (TorchRL) take arrays, not dicts of them;
 - ``live`` (rows,) bool, the rows whose transition is real; ``control_steps``, ``action_clipped``
   (rows,) ints; each with a ``_key`` array that is all True.
 
 With M > 1 controlled robots a field (a multi-robot scenario) the rows of robots that have left while
 their field plays on are absorbing (zero observation and reward, terminated every step, ``live``
-False, no ``task`` entry) until the field resets: per-row episode trackers such as
+False, no ``task_...`` entry) until the field resets: per-row episode trackers such as
 ``gymnasium.wrappers.vector.RecordEpisodeStatistics`` count each such step as an episode of its own,
-so read ``task`` (or mask with ``live``) there. The paper's tasks and one-robot scenarios (M = 1) have
-none.
+so read the ``task_...`` keys (or mask with ``live``) there. The paper's tasks and one-robot scenarios
+(M = 1) have none.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ class ManagerVectorEnv(VectorEnv):
     rows. ``step(actions (rows, A) in [-1, 1])``; see the module docstring for the infos."""
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    # Gymnasium's own vector envs also carry the mode as an attribute, and clients (TorchRL) read that.
+    autoreset_mode = AutoresetMode.SAME_STEP
 
     def __init__(self, config: TaskConfig, num_fields: int, worker: Any = None) -> None:
         core = HierarchicalCore(config, num_fields, autoreset=True, worker=worker)
@@ -70,18 +74,12 @@ class ManagerVectorEnv(VectorEnv):
         obs, reward, terminated, truncated, info = self.rows.step_rows(actions)
         n, every = self.num_envs, np.ones(self.num_envs, dtype=bool)
         rows = info["task_rows"]
-        task = {}
-        for key, values in info["task"].items():
-            task[key] = np.zeros(n)
-            task[key][rows] = values
         ended = np.zeros(n, dtype=bool)
         ended[rows] = True
-        out: dict[str, Any] = {
-            "final_obs": info["final_obs"],
-            "_final_obs": terminated | truncated,
-            "task": task,
-            "_task": ended,
-        }
+        out: dict[str, Any] = {"final_obs": info["final_obs"], "_final_obs": terminated | truncated}
+        for key, values in info["task"].items():
+            out[f"task_{key}"], out[f"_task_{key}"] = np.zeros(n), ended
+            out[f"task_{key}"][rows] = values
         for key in ("live", *RowView.PER_ROW):
             if key in info:
                 out[key], out[f"_{key}"] = info[key], every

@@ -69,6 +69,7 @@ class HierarchicalSSLEnv(ParallelEnv):
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
         self.state_space = box(-CLIP, CLIP, (state_dim(m, k),))
         self.agents: list[str] = []
+        self._started = False  # reset() was called: an empty ``agents`` means the episode is over
         self._trail: list[np.ndarray] = []  # the controlled robots' positions (M, 2) after each step
         self._window = None
 
@@ -102,20 +103,26 @@ class HierarchicalSSLEnv(ParallelEnv):
             for i, agent in enumerate(self.possible_agents):
                 self._act_spaces[agent].seed(seed + i)
         obs = self.core.reset(seed)[0]
-        self.agents = list(self.possible_agents)
+        self.agents, self._started = list(self.possible_agents), True
         # The world replaces its state, never changes it: views of it stay as they were.
         self._trail = [self.core.state.pos[0, : self.core.num_agents]]
         return self._observations(obs), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]) -> tuple[dict, dict, dict, dict, dict]:
+        """Actions for agents that have left are ignored, as PettingZoo's converted envs do (TorchRL's
+        wrapper sends one for every agent); once every agent has left, a step returns five empty dicts."""
+        if not self._started:
+            raise RuntimeError("step() before reset(): call reset() first")
+        unknown = set(actions) - set(self.possible_agents)
+        if unknown:
+            raise ValueError(
+                f"actions for agents this env does not have: {sorted(unknown)}; agents: "
+                f"{self.possible_agents}"
+            )
         if not self.agents:
-            raise RuntimeError("step() after the episode ended: call reset() first")
-        if actions.keys() != set(self.agents):
-            unknown, missing = set(actions) - set(self.agents), set(self.agents) - set(actions)
-            if unknown:
-                raise ValueError(
-                    f"actions for agents that are not live: {sorted(unknown)}; live: {self.agents}"
-                )
+            return {}, {}, {}, {}, {}
+        missing = set(self.agents) - set(actions)
+        if missing:
             raise ValueError(f"no action for live agents {sorted(missing)}")
         checked = {a: check_action(a, actions[a], self._act_spaces[a].shape) for a in self.agents}
         batch = np.zeros((1, self.core.num_agents, self.core.act_dim))
@@ -271,6 +278,8 @@ class ManagerEnv(gymnasium.Env):
         return obs[MANAGER], infos[MANAGER]
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if not self.env.agents:
+            raise RuntimeError("step() after the episode ended: call reset() first")
         obs, rewards, terms, truncs, infos = self.env.step({MANAGER: action})
         return obs[MANAGER], rewards[MANAGER], terms[MANAGER], truncs[MANAGER], infos[MANAGER]
 

@@ -15,7 +15,7 @@ import hier_ssl
 
 def test_a_short_loop_autoresets_in_the_same_step() -> None:
     env = hier_ssl.manager_vector_env(task="proposed", num_fields=4, frame_skip=16, max_steps=64)
-    assert env.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
+    assert env.metadata["autoreset_mode"] is env.autoreset_mode is AutoresetMode.SAME_STEP
     assert env.observation_space.shape == (4, 13) and env.action_space.shape == (4, 4)
     obs, info = env.reset(seed=0)
     assert info == {} and obs.dtype == np.float32 and env.observation_space.contains(obs)
@@ -25,11 +25,11 @@ def test_a_short_loop_autoresets_in_the_same_step() -> None:
         assert env.observation_space.contains(obs) and reward.dtype == np.float32
         assert info["_control_steps"].all() and info["live"].all()
         if step < 4:
-            assert not truncated.any() and not info["_task"].any()
+            assert not truncated.any() and not info["_task_length"].any()
     # 64 control steps in decisions of 16: the 4th truncates every field, which starts anew at once.
-    assert truncated.all() and info["_final_obs"].all() and info["_task"].all()
-    np.testing.assert_array_equal(info["task"]["length"], 64)
-    np.testing.assert_array_equal(info["task"]["decisions"], 4)
+    assert truncated.all() and info["_final_obs"].all() and info["_task_length"].all()
+    np.testing.assert_array_equal(info["task_length"], 64)
+    np.testing.assert_array_equal(info["task_decisions"], 4)
     assert not np.array_equal(info["final_obs"], obs)  # the old episodes' last observations, kept apart
     assert not np.array_equal(obs, first)  # new starts, not a replay of the seeded ones
 
@@ -47,7 +47,8 @@ def test_the_task_statistics_land_on_the_rows_that_ended() -> None:
         if terminated.any():
             break
     assert terminated.tolist() == [False, True, False] and not truncated.any()
-    assert info["_task"].tolist() == [False, True, False] and info["task"]["success"].tolist() == [0, 1, 0]
+    assert info["_task_success"].tolist() == [False, True, False]
+    assert info["task_success"].tolist() == [0, 1, 0]
     assert info["_final_obs"].tolist() == [False, True, False]
 
 
@@ -61,9 +62,9 @@ def test_gymnasium_vector_wrappers_and_benchmark_run_on_it() -> None:
         _, _, terminated, truncated, info = env.step(env.action_space.sample())
         done = terminated | truncated
         if done.any():  # the wrapper's episode and the task's, on the same rows
-            assert (info["_episode"] == done).all() and (info["_task"] == done).all()
-            np.testing.assert_allclose(info["episode"]["r"][done], info["task"]["return"][done], rtol=1e-5)
-            np.testing.assert_array_equal(info["episode"]["l"][done], info["task"]["decisions"][done])
+            assert (info["_episode"] == done).all() and (info["_task_length"] == done).all()
+            np.testing.assert_allclose(info["episode"]["r"][done], info["task_return"][done], rtol=1e-5)
+            np.testing.assert_array_equal(info["episode"]["l"][done], info["task_decisions"][done])
     assert env.episode_count >= 6
     steps_per_s = benchmark_vector_step(hier_ssl.manager_vector_env(task="proposed", num_fields=2), 0.2)
     assert steps_per_s > 0

@@ -69,7 +69,7 @@ def test_bad_actions_raise_naming_the_agent() -> None:
         env.step({"manager_0": np.zeros(3)})
     with pytest.raises(ValueError, match="manager_0.*NaN"):
         env.step({"manager_0": np.array([np.nan, 0, 0, 1])})
-    with pytest.raises(ValueError, match="not live.*worker_0"):
+    with pytest.raises(ValueError, match="does not have.*worker_0"):
         env.step({"manager_0": np.zeros(4), "worker_0": np.zeros(3)})
     # The rejected steps changed nothing: the same seed still gives the same first step.
     obs_a = env.step({"manager_0": np.array([0.5, 0.5, 0.0, 1.0])})[0]
@@ -86,13 +86,41 @@ def test_out_of_range_actions_are_clipped_and_counted() -> None:
     np.testing.assert_allclose(infos["manager_0"]["subgoal"][:2], [3.0, -2.0])
 
 
-def test_step_after_end_raises() -> None:
+def test_a_step_after_the_last_agent_left_returns_five_empty_dicts() -> None:
     env = hier_ssl.parallel_env(task="proposed", max_steps=2)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step({"manager_0": np.zeros(4)})
     env.reset(seed=0)
     while env.agents:
         env.step({"manager_0": np.zeros(4)})
+    # As PettingZoo's converted envs answer (SuperSuit's black_death_v3 and RLlib rely on it).
+    assert env.step({}) == ({}, {}, {}, {}, {})
+    assert env.step({"manager_0": np.zeros(4)}) == ({}, {}, {}, {}, {})
+    gym_env = hier_ssl.manager_env(task="proposed", max_steps=2, frame_skip=2)
+    gym_env.reset(seed=0)
+    gym_env.step(np.zeros(4))
     with pytest.raises(RuntimeError, match="reset"):
-        env.step({"manager_0": np.zeros(4)})
+        gym_env.step(np.zeros(4))
+
+
+def test_actions_for_agents_that_have_left_are_ignored() -> None:
+    # One env is sent an action for every agent each step, as TorchRL's wrapper does; its twin only the
+    # live agents'. Robots leave one by one, and the two play the same episode.
+    env, twin = (hier_ssl.scenario_env("crossing", num_agents=3) for _ in range(2))
+    env.reset(seed=0)
+    twin.reset(seed=0)
+    rng = np.random.default_rng(0)
+    live_counts = []
+    while env.agents:
+        every = {a: rng.uniform(-1, 1, 4).astype(np.float32) for a in env.possible_agents}
+        obs, rewards, terms, truncs, infos = env.step(every)
+        want = twin.step({a: every[a] for a in twin.agents})
+        for got, expected in zip((obs, rewards, terms, truncs), want[:4], strict=True):
+            assert got.keys() == expected.keys()
+            for agent in expected:
+                np.testing.assert_array_equal(got[agent], expected[agent])
+        live_counts.append(len(env.agents))
+    assert len(set(live_counts)) > 1  # some agents left before others
 
 
 def test_render_rgb_array() -> None:

@@ -37,7 +37,8 @@ def add_eval(subparsers: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="override a key of the task or scenario (repeatable); a run still acts with its own "
+        help="override a key of the task or scenario, spelt as train takes it (env.frame_skip=4, "
+        "scenario.num_agents=4) or alone (frame_skip=4); repeatable; a run still acts with its own "
         "action_form, action_frame, observation and neighbours",
     )
     ev.add_argument("--episodes", type=positive_int, default=1000, help="episodes (default: %(default)s)")

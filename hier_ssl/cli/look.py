@@ -130,7 +130,11 @@ def add_render(subparsers: argparse._SubParsersAction) -> None:
         help=f"a planner {PLANNERS} or a run directory (default: %(default)s)",
     )
     render.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="override a task key (repeatable)"
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a task key: env.frame_skip=4 as train takes it, or frame_skip=4 (repeatable)",
     )
     render.add_argument("--seed", type=int, default=0, help="episode seed (default: %(default)s)")
     render.add_argument(

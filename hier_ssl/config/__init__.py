@@ -19,6 +19,8 @@ from hier_ssl.config.schema import (
     TaskConfig,
     TaskSettings,
     TrainConfig,
+    UnknownSettingError,
+    did_you_mean,
     dump_config,
     validate_config,
 )
@@ -34,6 +36,8 @@ __all__ = [
     "TaskConfig",
     "TaskSettings",
     "TrainConfig",
+    "UnknownSettingError",
+    "did_you_mean",
     "dump_config",
     "validate_config",
 ]

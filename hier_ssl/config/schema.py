@@ -10,7 +10,9 @@ unknown, mistyped or out-of-range key is a ``ConfigError`` whose message names t
 from __future__ import annotations
 
 import copy
+import difflib
 import re
+import typing
 from typing import Any, Literal
 
 import yaml
@@ -21,6 +23,12 @@ from hier_ssl.config.learners import CandidatesConfig, PPOConfig, SACConfig, Str
 
 class ConfigError(ValueError):
     """A config that cannot be used; the message names the offending key."""
+
+
+class UnknownSettingError(ConfigError, TypeError):
+    """An env constructor's keyword argument that is no key of the task: a ``TypeError``, as Python raises
+    for an unexpected keyword argument and clients expect (TorchRL retries without ``frameskip`` on one),
+    and still a ``ConfigError``."""
 
 
 class ObstacleConfig(Strict):
@@ -219,9 +227,42 @@ class TrainConfig(Strict):
         return self
 
 
-def _format(err: ValidationError, root: str) -> str:
+def _section_model(annotation: Any) -> type[BaseModel] | None:
+    """The model a field's annotation holds (``EnvConfig``, ``ScenarioConfig | None``,
+    ``list[ObstacleConfig]``), or None."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    return next(filter(None, map(_section_model, typing.get_args(annotation))), None)
+
+
+def did_you_mean(model: type[BaseModel], key: str) -> str:
+    """A hint for an unknown ``key`` of ``model``: a key of it spelt alike, else the section of it that
+    has the key (``; did you mean 'env.frame_skip'?``); empty when nothing fits."""
+    fields = model.model_fields
+    close = difflib.get_close_matches(key, fields, n=1)
+    if close:
+        return f"; did you mean {close[0]!r}?"
+    for name, info in fields.items():
+        section = _section_model(info.annotation)
+        if section is not None and key in section.model_fields:
+            return f"; did you mean '{name}.{key}'?"
+    return ""
+
+
+def _hint(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+    """``did_you_mean`` for the unknown key at ``loc``, the model it was meant for found along the path."""
+    section: type[BaseModel] | None = model
+    for part in loc[:-1]:
+        if isinstance(part, str) and section is not None:
+            field = section.model_fields.get(part)
+            section = None if field is None else _section_model(field.annotation)
+    return "" if section is None else did_you_mean(section, str(loc[-1]))
+
+
+def _format(err: ValidationError, root: str, model: type[BaseModel]) -> str:
     first = err.errors()[0]
     path = ".".join(str(p) for p in (root, *first["loc"]) if p != "")
+    hint = _hint(model, first["loc"]) if first["type"] == "extra_forbidden" else ""
     extra = "" if len(err.errors()) == 1 else f" (+{len(err.errors()) - 1} more)"
     # Our validators' messages start with the key they are about ("field: unknown preset ..."): that key
     # joins the path. Pydantic's "Value error, " prefix adds nothing.
@@ -229,7 +270,7 @@ def _format(err: ValidationError, root: str) -> str:
     if match := re.match(r"([A-Za-z_][\w.]*): (.*)", msg, re.DOTALL):
         path = ".".join(p for p in (path, match.group(1)) if p)
         msg = match.group(2)
-    return f"{path}: {msg}{extra}" if path else f"{msg}{extra}"
+    return f"{path}: {msg}{hint}{extra}" if path else f"{msg}{hint}{extra}"
 
 
 def validate_config(data: dict[str, Any], model: type[BaseModel] = TrainConfig, root: str = "") -> Any:
@@ -238,7 +279,7 @@ def validate_config(data: dict[str, Any], model: type[BaseModel] = TrainConfig, 
     try:
         return model.model_validate(copy.deepcopy(data))
     except ValidationError as err:
-        raise ConfigError(_format(err, root)) from None
+        raise ConfigError(_format(err, root, model)) from None
 
 
 def dump_config(config: BaseModel) -> str:

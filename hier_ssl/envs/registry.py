@@ -15,7 +15,16 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from hier_ssl.config import ConfigError, EnvConfig, ScenarioConfig, TaskConfig, TrainConfig, validate_config
+from hier_ssl.config import (
+    ConfigError,
+    EnvConfig,
+    ScenarioConfig,
+    TaskConfig,
+    TrainConfig,
+    UnknownSettingError,
+    did_you_mean,
+    validate_config,
+)
 from hier_ssl.config.files import apply_overrides, find_config, load_yaml
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.envs.scenarios import SCENARIOS
@@ -113,10 +122,30 @@ def load_config(path: str | Path, overrides: Sequence[str] = ()) -> TrainConfig:
     return parse_config(apply_overrides(load_yaml(path), list(overrides)))
 
 
+def _check_settings(settings: dict[str, Any], model: type[TaskConfig], root: str) -> None:
+    """Keyword settings must be keys of the task section: an UnknownSettingError (a TypeError) names the
+    first that is not, in the words Python uses for an unexpected keyword argument."""
+    for key in settings:
+        if key not in model.model_fields:
+            hint = did_you_mean(model, key)
+            raise UnknownSettingError(f"{root}: got an unexpected keyword argument {key!r}{hint}")
+
+
+def _task_overrides(overrides: Sequence[str]) -> list[str]:
+    """``--set`` items for a task section: a key spelt as in a training config (``env.frame_skip``,
+    ``scenario.num_agents``) loses its section, so every command takes the spelling ``train`` takes."""
+    out = []
+    for item in overrides:
+        section, dot, rest = item.partition(".")
+        out.append(rest if dot and section in ("env", "scenario") and "=" not in section else item)
+    return out
+
+
 def env_config(config: str | Path | EnvConfig | None = None, **settings: Any) -> EnvConfig:
     """An EnvConfig from a YAML file (its ``env`` section if it is a training config), an EnvConfig, or
     keyword settings; settings override what the file gives. Naming another task than the file's starts
     from that task's defaults: ``env_config(run_env, task="obstacle")`` gets the Obstacle task's obstacle."""
+    _check_settings(settings, EnvConfig, "env")
     if isinstance(config, EnvConfig):
         data = config.model_dump()
     elif config is not None:
@@ -155,6 +184,8 @@ def scenario_config(
     ``scenario_config("crossing", num_agents=4)``; ``scenario_config("configs/scenarios/crowd.yaml")``.
     Errors are ConfigErrors naming the key (``scenario.options.radius: ...``).
     """
+    _check_settings(settings, ScenarioConfig, "scenario")
+    overrides = _task_overrides(overrides)
     if isinstance(config, ScenarioConfig):
         data = config.model_dump(exclude_unset=True)
     elif isinstance(config, str) and config in SCENARIOS:
@@ -186,7 +217,12 @@ def task_config(
         spec = _config_file(spec)
         if "scenario" in load_yaml(spec):
             return scenario_config(spec, overrides, **settings)
-    settings = {**settings, **apply_overrides({}, list(overrides))}
+    _check_settings(settings, EnvConfig, "env")
+    keys = apply_overrides({}, _task_overrides(overrides))
+    for key in keys:  # --set items, not keyword arguments: a ConfigError in a config's words
+        if key not in EnvConfig.model_fields:
+            raise ConfigError(f"env.{key}: not a key of the task{did_you_mean(EnvConfig, key)}")
+    settings = {**settings, **keys}
     return env_config(spec, **settings)
 
 

@@ -83,6 +83,11 @@ def test_the_gymnasium_section_examples_run_as_written(tmp_path: Path) -> None:
         assert words[0] == "field" and 0 <= int(words[1].rstrip(":")) < 8 and words[-1] == "m"
 
 
+def test_the_subproc_vec_env_example_runs_as_written(tmp_path: Path) -> None:
+    (snippet,) = _blocks("Processes, SuperSuit, TorchRL")["python"]
+    assert _run(snippet, tmp_path) == [["(2,", "13)", "(2,)"]]
+
+
 def test_the_multi_agent_example_runs_as_written(tmp_path: Path) -> None:
     (snippet,) = _blocks("Multi-agent learners: the global state")["python"]
     ((space, *states, steps),) = _run(snippet, tmp_path)

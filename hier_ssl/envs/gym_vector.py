@@ -11,7 +11,8 @@ one:
 - ``task_return``, ``task_length`` (control steps), ``task_decisions``, ``task_success``,
   ``task_collision``, ``task_cpad``: the task statistics, each (rows,) float64, its ``_task_...`` mask the
   rows whose robot left its episode this step. Flat keys, not one nested dict: clients that stack infos
-  into tensors (TorchRL) take arrays, not dicts of them;
+  into tensors (TorchRL) take arrays, not dicts of them. ``final_info`` holds them again (``_final_info``
+  as ``_final_obs``), where Gymnasium's own vector envs put a finished episode's last infos;
 - ``live`` (rows,) bool, the rows whose transition is real; ``control_steps``, ``action_clipped``
   (rows,) ints; each with a ``_key`` array that is all True.
 
@@ -76,10 +77,15 @@ class ManagerVectorEnv(VectorEnv):
         rows = info["task_rows"]
         ended = np.zeros(n, dtype=bool)
         ended[rows] = True
-        out: dict[str, Any] = {"final_obs": info["final_obs"], "_final_obs": terminated | truncated}
+        over = terminated | truncated
+        out: dict[str, Any] = {"final_obs": info["final_obs"], "_final_obs": over}
         for key, values in info["task"].items():
             out[f"task_{key}"], out[f"_task_{key}"] = np.zeros(n), ended
             out[f"task_{key}"][rows] = values
+        # Gymnasium's place for the last step's infos of the episodes that ended, where clients that treat
+        # an ended row's infos as the new episode's (TorchRL) look for them.
+        out["final_info"] = {k: v for k, v in out.items() if k.lstrip("_").startswith("task_")}
+        out["_final_info"] = over
         for key in ("live", *RowView.PER_ROW):
             if key in info:
                 out[key], out[f"_{key}"] = info[key], every

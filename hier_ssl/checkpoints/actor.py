@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import pickle
 import re
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -28,6 +29,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig, validate_config
 from hier_ssl.config.files import load_yaml
 
@@ -99,6 +101,11 @@ def checkpoint_path(run_dir: str | Path, config: TrainConfig, which: str = "best
     best = run_dir / BEST_ACTOR_FILE
     if config.algo in ("sac", "candidates"):
         path = best if which == "best" else run_dir / FINAL_SAC_FILE
+        if which == "best" and not path.is_file() and (run_dir / FINAL_SAC_FILE).is_file():
+            # Killed before its first selection: the final policy is the only one there is (as for PPO).
+            message = f"{run_dir}: no {BEST_ACTOR_FILE} yet; using the final policy, {FINAL_SAC_FILE}"
+            warnings.warn(message, stacklevel=2)
+            path = run_dir / FINAL_SAC_FILE
         if not path.is_file():
             raise ConfigError(f"{run_dir}: no {which} checkpoint ({path.name} missing)")
         return path
@@ -117,9 +124,12 @@ def sac_actor_state(saved: dict, path: Path) -> dict[str, torch.Tensor]:
 
 @contextmanager
 def reading(path: Path, algo: str) -> Iterator[None]:
-    """Turns what a malformed checkpoint raises into a ``ConfigError`` naming the file."""
+    """Turns what a malformed checkpoint raises into a ``ConfigError`` naming the file (a ConfigError, such
+    as an unsafe file's, already names it)."""
     try:
         yield
+    except ConfigError:
+        raise
     except (KeyError, IndexError, RuntimeError, ValueError, EOFError, pickle.UnpicklingError) as err:
         raise ConfigError(f"{path}: not a usable {algo} checkpoint ({type(err).__name__}: {err})") from None
 
@@ -147,7 +157,7 @@ def load_actor(run_dir: str | Path, which: str = "best") -> tuple[nn.Sequential,
         )
     path = checkpoint_path(run_dir, config, which)
     with reading(path, config.algo):
-        saved = torch.load(path, map_location="cpu", weights_only=True)
+        saved = load_checkpoint(path, "cpu")
         if config.algo == "sac":
             state = sac_actor_state(saved, path)
             act_dim = linear_layers(state, "net.")[-1][0].shape[0] // 2

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import shlex
+import sys
 import time
 from pathlib import Path
 
@@ -54,10 +56,26 @@ def _train(args: argparse.Namespace) -> int:
         if run_dir.exists() and any(run_dir.iterdir()):  # its curve and best actor would mix with ours
             raise ConfigError(f"run directory {run_dir} is not empty: --resume {run_dir}, or another --out")
     print(f"run directory: {run_dir}", flush=True)
-    summary = train(config, run_dir, resume=bool(args.resume), progress=not args.no_progress)
+    try:
+        summary = train(config, run_dir, resume=bool(args.resume), progress=not args.no_progress)
+    except KeyboardInterrupt:
+        print(_resume_hint(run_dir, config.save_interval), file=sys.stderr)
+        raise
     print_summary(summary)
     print(f"wrote {run_dir / 'eval.json'}")
     return 0
+
+
+def _resume_hint(run_dir: Path, save_interval: int) -> str:
+    """What to run after an interrupted ``train``: the ``--resume`` command, or why there is none."""
+    from hier_ssl.runs.jobs import run_state
+
+    if run_state(run_dir) == "resumable":
+        return f"interrupted; continue the run with: hier-ssl train --resume {shlex.quote(str(run_dir))}"
+    return (
+        f"interrupted before the first checkpoint (one every {save_interval} steps): nothing in {run_dir} "
+        "to resume; start the run again"
+    )
 
 
 # -- reproduce -----------------------------------------------------------------------------------------------

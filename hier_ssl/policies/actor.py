@@ -26,6 +26,7 @@ from hier_ssl.checkpoints.actor import (
     run_config,
     sac_actor_state,
 )
+from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.config import TrainConfig
 from hier_ssl.policies.candidate_nets import chooser_from_state
 from hier_ssl.policies.candidates import candidate_planner, candidate_policy
@@ -70,7 +71,7 @@ def _candidate_policy(
     "net"."""
     path = checkpoint_path(run_dir, config, which)
     with reading(path, config.algo):
-        net = chooser_from_state(torch.load(path, map_location="cpu", weights_only=True)["net"])
+        net = chooser_from_state(load_checkpoint(path, "cpu")["net"])
     return candidate_policy(freeze(net), candidate_planner(config), generator)
 
 
@@ -98,7 +99,7 @@ def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which:
     path = checkpoint_path(run_dir, config, which)
     generator = torch.Generator().manual_seed(seed)
     with reading(path, config.algo):
-        saved = torch.load(path, map_location="cpu", weights_only=True)
+        saved = load_checkpoint(path, "cpu")
         if config.algo == "sac":
             return _sampling_sac_policy(sac_actor_state(saved, path), generator)
         return _sampling_ppo_policy(ppo_actor_state(saved), generator)

@@ -22,6 +22,7 @@ import torch
 from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
+from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
 from hier_ssl.policies.networks import NumpyPolicy
@@ -161,7 +162,7 @@ def load_ppo(runner: OnPolicyRunner, path: str | Path, map_location: str | None 
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"PPO checkpoint not found: {path}")
-    loaded = torch.load(path, weights_only=True, map_location=map_location)
+    loaded = load_checkpoint(path, map_location)
     if runner.alg.load(loaded, None, strict=True):
         runner.current_learning_iteration = loaded["iter"]
 

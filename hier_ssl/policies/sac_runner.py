@@ -14,6 +14,7 @@ import torch
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
+from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.policies.sac import SAC, SACConfig
 from hier_ssl.policies.teacher import Teacher, make_teacher, teacher_labels, teacher_weight
 
@@ -239,6 +240,9 @@ class SACRunner:
                     self._evaluate()
                 if self.step % self.save_interval == 0:
                     self.save()
+            # The final policy is scored too: a run shorter than eval_interval still has a curve and a best.
+            if self.eval_interval is not None and self.step % self.eval_interval:
+                self._evaluate()
             self.save()
         finally:
             bar.close()
@@ -325,13 +329,11 @@ class SACRunner:
         """
         run_dir = Path(run_dir)
         # On CPU: the generator state must stay there; load_state_dict moves the rest to the learner's device.
-        model = torch.load(run_dir / MODEL_FILE, weights_only=True, map_location="cpu")
+        model = load_checkpoint(run_dir / MODEL_FILE, "cpu")
         if SACConfig(**model["config"]) != self.sac.config:
             raise ValueError(f"config in {run_dir / MODEL_FILE} differs from this runner's config")
         self.sac.load_state_dict(model["sac"])
-        self.sac.replay.load_state_dict(
-            torch.load(run_dir / REPLAY_FILE, weights_only=True, map_location="cpu")
-        )
+        self.sac.replay.load_state_dict(load_checkpoint(run_dir / REPLAY_FILE, "cpu"))
         self.step = int(model["step"])
         self.train_time_s = float(model["train_time_s"])
         self._update_debt = float(model["update_debt"])

@@ -13,6 +13,7 @@ import json
 import os
 import tempfile
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from typing import Any
 import torch
 
 from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
+from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig, dump_config
 from hier_ssl.config.files import load_yaml
 from hier_ssl.envs import parse_config
@@ -114,7 +116,9 @@ class _Selection:
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
 
     def __call__(self, runner: SACRunner) -> dict[str, float]:
-        """SACRunner's evaluation callback."""
+        """SACRunner's evaluation callback (nothing for a step already scored: a finished run resumed)."""
+        if runner.step == self.last_step:
+            return {}
         actor = runner.sac.actor
         return self.record(
             sac_policy(actor),
@@ -194,6 +198,14 @@ def _figures(result: dict[str, Any]) -> dict[str, Any]:
 def _train_sac(
     config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, progress: bool, on_selection=None
 ):
+    transitions = config.total_steps * config.num_envs
+    if transitions < config.sac.learning_starts:
+        warnings.warn(
+            f"this run collects total_steps {config.total_steps} x num_envs {config.num_envs} = "
+            f"{transitions} transitions, fewer than sac.learning_starts = {config.sac.learning_starts}: it only takes "
+            "warm-up actions and never updates the policy; raise total_steps or lower sac.learning_starts",
+            stacklevel=3,
+        )
     selection = _Selection(config, run_dir, on_selection)
     runner = SACRunner(
         env,
@@ -217,7 +229,7 @@ def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress
     """The classifier or scorer over the planner's candidates (``hier_ssl.policies.candidates``): DAgger,
     then PPO."""
     learner = CandidateLearner(config, run_dir, _Selection(config, run_dir, on_selection).record, progress)
-    saved = torch.load(run_dir / MODEL_FILE, weights_only=True) if resume else None
+    saved = load_checkpoint(run_dir / MODEL_FILE) if resume else None
     if saved is not None and (missing := missing_keys(saved)):
         raise ConfigError(f"cannot resume {run_dir}: {run_dir / MODEL_FILE} lacks {missing}")
     net = learner.learn(saved)

@@ -107,7 +107,8 @@ def test_runner_checkpoints_resume_and_calls_back(tmp_path: Path) -> None:
     )
     runner.learn(total_steps=32)
     # Warm-up is 64 transitions = 16 vector steps; then half an update per step.
-    assert runner.step == 32 and runner.sac.num_updates == 8 and calls == [15, 30]
+    # Scored every eval_interval steps, and the final policy.
+    assert runner.step == 32 and runner.sac.num_updates == 8 and calls == [15, 30, 32]
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("events")) == [
         MODEL_FILE,
         REPLAY_FILE,

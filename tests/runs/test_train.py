@@ -270,3 +270,70 @@ def test_ppo_runs_with_one_seed_give_the_same_curve_and_weights(tmp_path: Path) 
     assert weights_a.keys() == weights_b.keys()
     for key, value in weights_a.items():
         assert torch.equal(value, weights_b[key]), key
+
+
+# -- a first run that cannot go wrong ------------------------------------------------------------------------
+
+
+SHORT = {
+    **TINY,
+    "num_envs": 2,
+    "total_steps": 12,
+    "eval_episodes": 2,
+    "sac": {**TINY["sac"], "learning_starts": 8},
+}
+
+
+def test_a_run_shorter_than_eval_interval_scores_its_final_policy(tmp_path: Path) -> None:
+    from hier_ssl.policies.export import export_manager
+
+    assert SHORT["total_steps"] < SHORT["eval_interval"]
+    summary = train(parse_config(SHORT), tmp_path, progress=False)
+    rows = (tmp_path / "curve.csv").read_text().splitlines()
+    assert len(rows) == 2 and rows[1].startswith("12,")  # header, and the final policy's score
+    assert (tmp_path / "best_actor.pt").is_file() and summary["policy"] == "best"
+    assert export_manager(tmp_path, "torchscript").is_file()
+    # Resumed once finished, nothing is scored twice.
+    train(parse_config(SHORT), tmp_path, resume=True, progress=False)
+    assert len((tmp_path / "curve.csv").read_text().splitlines()) == 2
+
+
+def test_a_run_shorter_than_its_warm_up_says_so(tmp_path: Path) -> None:
+    config = parse_config({**SHORT, "sac": {**SHORT["sac"], "learning_starts": 25}})
+    with pytest.warns(
+        UserWarning, match=r"= 24 transitions, fewer than sac.learning_starts = 25.*never updates"
+    ):
+        train(config, tmp_path, progress=False)
+
+
+def test_eval_and_export_fall_back_to_the_final_policy_without_a_best_one(tmp_path: Path) -> None:
+    from hier_ssl.policies.actor import load_actor
+    from hier_ssl.policies.export import export_manager
+
+    train(parse_config(SHORT), tmp_path, progress=False)
+    # As a run killed before its first selection leaves it.
+    (tmp_path / "best_actor.pt").unlink(missing_ok=True)
+    with pytest.warns(UserWarning, match="no best_actor.pt yet; using the final policy, model.pt"):
+        actor, _ = load_actor(tmp_path)
+    final, _ = load_actor(tmp_path, which="final")
+    obs = torch.zeros(1, 13)
+    torch.testing.assert_close(actor(obs), final(obs))
+    with pytest.warns(UserWarning, match="final policy"):
+        assert export_manager(tmp_path, "torchscript").is_file()
+
+
+def test_an_interrupted_run_prints_the_resume_command(tmp_path: Path) -> None:
+    from hier_ssl.cli.runs import _resume_hint
+
+    config = tmp_path / "tiny.yaml"
+    config.write_text(json.dumps({**TINY, "total_steps": 100_000, "save_interval": 20}))
+    run = tmp_path / "run"
+    proc = _cli("train", str(config), "--out", str(run), "--no-progress")
+    deadline = time.time() + 120
+    while not (run / MODEL_FILE).is_file() and time.time() < deadline:
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    assert f"continue the run with: hier-ssl train --resume {run}" in err
+    assert "nothing in" in _resume_hint(tmp_path / "empty", 5000)

@@ -202,8 +202,9 @@ def _train_sac(
     if transitions < config.sac.learning_starts:
         warnings.warn(
             f"this run collects total_steps {config.total_steps} x num_envs {config.num_envs} = "
-            f"{transitions} transitions, fewer than sac.learning_starts = {config.sac.learning_starts}: it only takes "
-            "warm-up actions and never updates the policy; raise total_steps or lower sac.learning_starts",
+            f"{transitions} transitions, fewer than sac.learning_starts = {config.sac.learning_starts}: it "
+            "only takes warm-up actions and never updates the policy; raise total_steps or lower "
+            "sac.learning_starts",
             stacklevel=3,
         )
     selection = _Selection(config, run_dir, on_selection)

@@ -6,7 +6,7 @@ much as the work itself. ``FastSpace`` makes the call data and views once.
 
 A step starts each joint from the impulse it applied in the last one (Chipmunk's warm starting), which
 pymunk neither exposes nor pickles: ``joint_impulses`` reads it and ``set_joint_impulses`` writes it, so
-that a copied space steps exactly as its original.
+that a copied space starts its next step from the same impulses as its original.
 """
 
 from __future__ import annotations
@@ -119,4 +119,4 @@ def set_joint_impulses(joints: list[pymunk.PivotJoint | pymunk.GearJoint], impul
     for joint, value in zip(joints, impulses, strict=True):
         memory = _impulse_memory(joint)
         memory[...] = value[: len(memory)]
-        _impulse_memory(joint)
+        _impulse_memory(joint)  # read back through pymunk's getter: the write landed where it reads

@@ -194,6 +194,7 @@ class SACRunner:
             self._writer = SummaryWriter(self.run_dir, purge_step=self.step)
         if self._obs is None:
             self._obs = self.env.reset(seed=self.seed + self.step).to(self.device)
+        start = self.step
         update_stats: dict[str, list[float]] = defaultdict(list)
         episode_stats: dict[str, list[torch.Tensor]] = defaultdict(list)
         bar = tqdm(
@@ -240,8 +241,9 @@ class SACRunner:
                     self._evaluate()
                 if self.step % self.save_interval == 0:
                     self.save()
-            # The final policy is scored too: a run shorter than eval_interval still has a curve and a best.
-            if self.eval_interval is not None and self.step % self.eval_interval:
+            # The final policy is scored too (a run shorter than eval_interval still has a curve and a best),
+            # once: not again by a finished run resumed.
+            if self.eval_interval is not None and self.step % self.eval_interval and self.step > start:
                 self._evaluate()
             self.save()
         finally:

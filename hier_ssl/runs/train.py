@@ -116,9 +116,7 @@ class _Selection:
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
 
     def __call__(self, runner: SACRunner) -> dict[str, float]:
-        """SACRunner's evaluation callback (nothing for a step already scored: a finished run resumed)."""
-        if runner.step == self.last_step:
-            return {}
+        """SACRunner's evaluation callback."""
         actor = runner.sac.actor
         return self.record(
             sac_policy(actor),

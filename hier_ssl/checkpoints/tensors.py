@@ -23,17 +23,24 @@ class UnsafeCheckpointError(ConfigError):
 
 
 def load_checkpoint(path: str | Path, map_location: str | torch.device | None = None) -> Any:
-    """The tensors (state dicts, in nested dicts and lists) saved in ``path``; UnsafeCheckpointError when
-    it holds anything else."""
+    """The tensors (state dicts, in nested dicts and lists) saved in ``path``. UnsafeCheckpointError when
+    it holds pickled objects; a ``pickle.UnpicklingError`` saying what the unpickler met when it is no
+    checkpoint at all (the loaders name the file)."""
     try:
         return torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as err:
-        names = sorted(set(re.findall(r"GLOBAL ([\w.]+)", str(err))))
-        what = f"pickled Python objects ({', '.join(names)})" if names else "pickled Python objects"
-        raise UnsafeCheckpointError(
-            f"{path}: not a checkpoint of plain tensors: it holds {what}, which run code when they are "
-            "loaded. hier_ssl reads tensors only and will not load this file."
-        ) from None
+        message = str(err)
+        names = sorted(set(re.findall(r"GLOBAL ([\w.]+)", message)))
+        if names:
+            raise UnsafeCheckpointError(
+                f"{path}: not a checkpoint of plain tensors: it holds pickled Python objects "
+                f"({', '.join(names)}), which run code when they are loaded. hier_ssl reads tensors only "
+                "and will not load this file."
+            ) from None
+        # Not a pickle torch can read at all (a damaged or foreign file): what the unpickler met, only.
+        found = re.search(r"WeightsUnpickler error:(.*?)(?:Check the documentation|$)", message, re.DOTALL)
+        detail = " ".join(found.group(1).split()) if found else type(err).__name__
+        raise pickle.UnpicklingError(f"not a file of plain tensors ({detail})") from None
 
 
 __all__ = ["UnsafeCheckpointError", "load_checkpoint"]

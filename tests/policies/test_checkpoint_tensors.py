@@ -3,6 +3,7 @@ error suggests nothing unsafe."""
 
 from __future__ import annotations
 
+import pickle
 from pathlib import Path
 
 import pytest
@@ -32,6 +33,15 @@ def test_a_checkpoint_of_pickled_objects_is_refused_saying_what_it_holds(tmp_pat
     assert "will not load this file" in message
     assert "weights_only" not in message and "safe_globals" not in message  # no unsafe advice passed on
     assert isinstance(caught.value, ConfigError)
+
+
+def test_a_file_that_is_no_checkpoint_says_what_the_unpickler_met(tmp_path: Path) -> None:
+    (tmp_path / "model.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(
+        pickle.UnpicklingError, match=r"^not a file of plain tensors \(Unsupported operand"
+    ) as caught:
+        load_checkpoint(tmp_path / "model.pt")
+    assert "weights_only" not in str(caught.value)
 
 
 def test_eval_of_a_run_with_an_unsafe_checkpoint_is_one_line_without_unsafe_advice(

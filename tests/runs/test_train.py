@@ -307,7 +307,7 @@ def test_a_run_shorter_than_its_warm_up_says_so(tmp_path: Path) -> None:
 
 
 def test_eval_and_export_fall_back_to_the_final_policy_without_a_best_one(tmp_path: Path) -> None:
-    from hier_ssl.policies.actor import load_actor
+    from hier_ssl.checkpoints.actor import load_actor
     from hier_ssl.policies.export import export_manager
 
     train(parse_config(SHORT), tmp_path, progress=False)

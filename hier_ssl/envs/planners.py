@@ -1,24 +1,25 @@
 """The scripted managers with their worker: ``make_planner`` resolves the worker a sampling planner rolls
-out with (a spec, a worker object, class or factory, or the one the config names) and hands it to
-``hier_ssl.manager.planners.build_planner``, so the manager layer never builds a worker itself."""
+out with and a trajectory planner reads the limits of (a spec, a worker object, class or factory, or the
+one the config names) and hands it to ``hier_ssl.manager.planners.build_planner``, so the manager layer
+never builds a worker itself."""
 
 from __future__ import annotations
 
 from hier_ssl.config import TaskSettings
-from hier_ssl.manager.planners import DirectPlanner, SamplingPlanner, build_planner
+from hier_ssl.manager.planners import DirectPlanner, SamplingPlanner, TrajectoryPlanner, build_planner
 from hier_ssl.worker import resolve_worker
 from hier_ssl.world.physics import RobotSpec
 
 
 def make_planner(
     name: str, config: TaskSettings, worker: object = None, **options: object
-) -> DirectPlanner | SamplingPlanner:
-    """The scripted manager ``name`` ("direct" or "sampling") for environments built from ``config``,
-    driven by ``worker`` (a spec, or an object, class or factory of the worker protocol) where given, else
-    by the worker ``config`` names. The direct planner reads no worker, so none is built for it.
-    ``options`` override planner settings (e.g. ``margin=0.1``)."""
+) -> DirectPlanner | SamplingPlanner | TrajectoryPlanner:
+    """The scripted manager ``name`` ("direct", "sampling" or "trajectory") for environments built from
+    ``config``, driven by ``worker`` (a spec, or an object, class or factory of the worker protocol) where
+    given, else by the worker ``config`` names. The direct planner reads no worker, so none is built for
+    it. ``options`` override planner settings (e.g. ``margin=0.1``)."""
     ready = None
-    if name == "sampling":
+    if name in ("sampling", "trajectory"):
         ready = resolve_worker(config.worker if worker is None else worker, RobotSpec(), config.dt)
     return build_planner(name, config, ready, **options)
 

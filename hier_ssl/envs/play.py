@@ -28,6 +28,10 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     "trajectories": the ``record`` fields' episodes (``Recorder.episode``). ``cpad`` is the paper's
     definition (the sum of the sub-goal's moves); ``cpad_public`` what the paper's public code computed for
     its tables, the square root of the sum of the squared moves (``hier_ssl.manager.metrics.cpad``).
+
+    A policy with a ``forget(count)`` method keeps a memory per robot: it is told to forget at the reset
+    (``count`` = N * M robots) and called as ``policy(obs, rows=...)``, the rows' robot indices
+    (field * M + robot), so that each robot's memory follows it and starts empty with its episode.
     """
     record = check_record(record, core.num_fields)
     obs = core.reset(seed)
@@ -49,9 +53,17 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     }
     action = np.zeros(shape + (core.act_dim,))
     squared_moves = np.zeros(shape)
+    # A policy with a memory per robot (the ``trajectory`` planner) starts afresh and learns which robots
+    # its rows are: row field * M + robot.
+    remembers = callable(getattr(policy, "forget", None))
+    if remembers:
+        policy.forget(int(np.prod(shape)))
     while core.active.any():
         live = core.active
-        action[live] = policy(obs[live])
+        if remembers:
+            action[live] = policy(obs[live], rows=np.flatnonzero(live))
+        else:
+            action[live] = policy(obs[live])
         # The first decision's move away from the reset sub-goal (the robot's own pose) is no move.
         moving, before = live & (core.decisions > 0), core.subgoal[..., 0:2].copy()
         result = core.step(action)

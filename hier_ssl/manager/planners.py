@@ -25,75 +25,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hier_ssl.manager.actions import action_dim, encode_subgoal
-from hier_ssl.manager.neighbours import as_obstacle_observation, drop_encounters
-from hier_ssl.manager.observation import (
-    MANAGER_OBS_BASE_DIM,
-    MANAGER_OBS_SLICES,
-    OBSTACLE_OBS_DIM,
-    OBSTACLE_OBS_SLICES,
-    check_array,
-)
+from hier_ssl.manager.scene import Scene, read_scene, subgoal_poses
+from hier_ssl.manager.trajectory import TrajectoryParams, TrajectoryPlanner
 from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.physics import RobotSpec
 
 if TYPE_CHECKING:
     from hier_ssl.config import TaskSettings
 
-PLANNERS = ("direct", "sampling")
-OBSERVATIONS = ("paper", "neighbours", "encounters")
-
-
-@dataclass(frozen=True)
-class Scene:
-    """A manager observation in physical units, fields on the leading axis.
-
-    Shapes: target (N, 5) x, y, theta, vx, vy; robot_pos, robot_vel (N, 2); obstacle_pos, obstacle_vel
-    (N, K, 2). Metres, radians, m/s, field frame.
-    """
-
-    target: np.ndarray
-    robot_pos: np.ndarray
-    robot_vel: np.ndarray
-    obstacle_pos: np.ndarray
-    obstacle_vel: np.ndarray
-
-
-def read_scene(obs: np.ndarray, max_pos: float, max_v: float, observation: str = "paper") -> Scene:
-    """Undo the observation's normalisation (positions / max_pos, velocities / max_v).
-
-    ``obs`` (N, 13 + 5K) in the "paper" layout, or (N, 13 + 6K) in the "neighbours" one (every neighbour
-    an obstacle), or (N, 13 + 12K) in the "encounters" one (its extra columns unread); K is read from its
-    width. Values clipped by the observation stay clipped.
-    """
-    if observation not in OBSERVATIONS:
-        raise ValueError(f"unknown observation layout {observation!r}; expected one of {list(OBSERVATIONS)}")
-    if observation == "encounters":
-        obs = drop_encounters(check_array("obs", obs, (None, None)))
-    if observation != "paper":
-        obs = as_obstacle_observation(obs)
-    obs = check_array("obs", obs, (None, None))
-    n, width = obs.shape
-    k, rest = divmod(width - MANAGER_OBS_BASE_DIM, OBSTACLE_OBS_DIM)
-    if width < MANAGER_OBS_BASE_DIM or rest:
-        raise ValueError(f"obs must have 13 + 5K columns, got {width}")
-    s = MANAGER_OBS_SLICES
-    sincos = obs[:, s["target_sincos"]]
-    target = np.concatenate(
-        [
-            obs[:, s["target_pos"]] * max_pos,
-            np.arctan2(sincos[:, 0], sincos[:, 1])[:, None],
-            obs[:, s["target_vel"]] * max_v,
-        ],
-        axis=1,
-    )
-    blocks = obs[:, MANAGER_OBS_BASE_DIM:].reshape(n, k, OBSTACLE_OBS_DIM)
-    return Scene(
-        target=target,
-        robot_pos=obs[:, s["robot_pos"]] * max_pos,
-        robot_vel=obs[:, s["robot_vel"]] * max_v,
-        obstacle_pos=blocks[:, :, OBSTACLE_OBS_SLICES["pos"]] * max_pos,
-        obstacle_vel=blocks[:, :, OBSTACLE_OBS_SLICES["vel"]] * max_v,
-    )
+PLANNERS = ("direct", "sampling", "trajectory")
 
 
 @dataclass(frozen=True)
@@ -282,12 +222,7 @@ class SamplingPlanner:
         best = np.argmax(self.score(scene, cand), axis=1)  # ties to the earlier candidate
         return self.subgoals(scene, cand[np.arange(len(cand)), best])
 
-    @staticmethod
-    def subgoals(scene: Scene, chosen: np.ndarray) -> np.ndarray:
-        """Sub-goal poses (N, 5) at positions ``chosen`` (N,) complex: the target's heading, zero velocity."""
-        subgoal = np.zeros((len(chosen), 5))
-        subgoal[:, 0], subgoal[:, 1], subgoal[:, 2] = chosen.real, chosen.imag, scene.target[:, 2]
-        return subgoal
+    subgoals = staticmethod(subgoal_poses)
 
     def read(self, obs: np.ndarray) -> Scene:
         return read_scene(obs, self.max_pos or self.field.max_pos, self.robot.max_speed, self.observation)
@@ -313,14 +248,16 @@ class SamplingPlanner:
 
 def build_planner(
     name: str, config: TaskSettings, worker: object = None, **options: object
-) -> DirectPlanner | SamplingPlanner:
-    """The scripted manager ``name`` ("direct" or "sampling") for environments built from ``config``.
+) -> DirectPlanner | SamplingPlanner | TrajectoryPlanner:
+    """The scripted manager ``name`` ("direct", "sampling" or "trajectory") for environments built from
+    ``config``.
 
-    The sampling planner's rollout uses the world's robot limits, its speed capped by the worker's own
-    cap where it states one (``max_speed``: the paper's worker stops at 2.2 m/s) and its braking by the
-    worker's braking acceleration where it has one. ``worker`` is a ready worker object, which the
-    sampling planner needs (``hier_ssl.envs.planners.make_planner`` resolves one from a spec or the
-    config). ``options`` override planner settings (e.g. ``margin=0.1``).
+    The sampling and trajectory planners use the world's robot limits, the speed capped by the worker's
+    own cap where it states one (``max_speed``: the paper's worker stops at 2.2 m/s), and the worker's
+    braking acceleration where it has one (the sampling planner's rollouts, the trajectory planner's
+    acceptor). ``worker`` is a ready worker object, which both need (``hier_ssl.envs.planners.make_planner``
+    resolves one from a spec or the config). ``options`` override planner settings (e.g. ``margin=0.1``;
+    for "trajectory", the fields of ``TrajectoryParams`` too, e.g. ``num_sub_destinations=8``).
     """
     if name not in PLANNERS:
         raise ValueError(f"unknown planner {name!r}; known: {list(PLANNERS)}")
@@ -329,12 +266,27 @@ def build_planner(
     if name == "direct":
         return DirectPlanner(fld, config.action_form, max_v=robot.max_speed, **layout, **options)
     if worker is None:
-        raise ValueError("the sampling planner needs a worker: hier_ssl.envs.planners.make_planner makes one")
+        raise ValueError(f"the {name} planner needs a worker: hier_ssl.envs.planners.make_planner makes one")
     brake = getattr(worker, "brake_accel", None)
-    settings = {
+    limits = {
         "max_speed": getattr(worker, "max_speed", robot.max_speed),
-        "brake_accel": brake if brake is not None else robot.max_accel * getattr(worker, "margin", 1.0),
         "collision_distance": config.collision_distance,
+    }
+    brake = brake if brake is not None else robot.max_accel * getattr(worker, "margin", 1.0)
+    if name == "trajectory":
+        fields = {f.name for f in dataclasses.fields(TrajectoryParams)}
+        params = TrajectoryParams(**{k: v for k, v in options.items() if k in fields})
+        rest = {k: v for k, v in options.items() if k not in fields}
+        # The robot's acceleration, less the worker's reserve where it keeps one: the paper worker
+        # accelerates at the robot's limit and brakes earlier, which a symmetric bang-bang cannot model;
+        # its first second, where the moving obstacles are, is the acceleration (obstacle task, 60 episodes,
+        # frame skip 1: 100 % at 3 m/s^2, 95 % at the paper worker's 1 m/s^2 braking, the rest timeouts).
+        accel = robot.max_accel * getattr(worker, "margin", 1.0)
+        settings = {**limits, "max_accel": accel, "brake_accel": brake, **layout, **rest}
+        return TrajectoryPlanner(fld, robot, config.action_form, params=params, **settings)
+    settings = {
+        **limits,
+        "brake_accel": brake,
         "arrive_radius": config.d_th,
         "hold": config.frame_skip * config.dt,
         **layout,
@@ -343,4 +295,13 @@ def build_planner(
     return SamplingPlanner(fld, robot, config.action_form, **settings)
 
 
-__all__ = ["PLANNERS", "DirectPlanner", "SamplingPlanner", "Scene", "build_planner", "read_scene"]
+__all__ = [
+    "PLANNERS",
+    "DirectPlanner",
+    "SamplingPlanner",
+    "Scene",
+    "TrajectoryParams",
+    "TrajectoryPlanner",
+    "build_planner",
+    "read_scene",
+]

@@ -132,4 +132,3 @@ def sac_policy(actor: SquashedGaussianActor, generator: torch.Generator | None =
             return action.cpu().numpy()
 
     return policy
-

@@ -45,7 +45,7 @@ VARIANTS = {
     "paper": (("final", True), ("final", False), ("best", False)),
     "defaults": (("best", False), ("final", False)),
 }
-PLANNER_ROWS = ("direct", "sampling")
+PLANNER_ROWS = ("direct", "sampling", "trajectory")
 # What fixes the episodes a manager plays (not how it acts): taken from the paper family's config.
 EPISODE_KEYS = (
     "field",

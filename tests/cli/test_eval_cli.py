@@ -84,7 +84,7 @@ def test_manager_env_keeps_a_runs_settings_unless_overridden(tmp_path: Path) -> 
 def test_eval_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     run = _sac_run(tmp_path / "run", task="proposed")
     cases = [
-        (["eval", "astar"], "neither a planner (direct, sampling) nor a run directory"),
+        (["eval", "astar"], "neither a planner (direct, sampling, trajectory) nor a run directory"),
         (["eval", str(run), "--task", "obstacle"], "trained with observations/actions of size (13, 4)"),
         (["eval", str(tmp_path)], "no config.yaml"),
     ]

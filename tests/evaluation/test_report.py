@@ -188,6 +188,7 @@ def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
     for source, policy in (("paper family", "final, sampled"), ("paper family", "best, mean")):
         assert f"| FSCAPS | {source} | {policy} | 1 |" in text
     assert "| FSCAPS | defaults | final, mean | 1 |" in text and "| - | planner | sampling | - |" in text
+    assert "| - | planner | trajectory | - |" in text
     assert (tmp_path / "results" / "paper-tables.csv").is_file()
     assert (tmp_path / "results" / "fig3-proposed.png").is_file() and "fig3-proposed.png" in text
     cached = sorted(p.name for p in (tmp_path / "runs" / "evals").iterdir())

@@ -1,0 +1,81 @@
+"""A manager observation read back in physical units: what every scripted planner knows of the world."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hier_ssl.manager.neighbours import as_obstacle_observation, drop_encounters
+from hier_ssl.manager.observation import (
+    MANAGER_OBS_BASE_DIM,
+    MANAGER_OBS_SLICES,
+    OBSTACLE_OBS_DIM,
+    OBSTACLE_OBS_SLICES,
+    check_array,
+)
+
+OBSERVATIONS = ("paper", "neighbours", "encounters")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A manager observation in physical units, fields on the leading axis.
+
+    Shapes: target (N, 5) x, y, theta, vx, vy; robot_pos, robot_vel (N, 2); obstacle_pos, obstacle_vel
+    (N, K, 2). Metres, radians, m/s, field frame.
+    """
+
+    target: np.ndarray
+    robot_pos: np.ndarray
+    robot_vel: np.ndarray
+    obstacle_pos: np.ndarray
+    obstacle_vel: np.ndarray
+
+
+def read_scene(obs: np.ndarray, max_pos: float, max_v: float, observation: str = "paper") -> Scene:
+    """Undo the observation's normalisation (positions / max_pos, velocities / max_v).
+
+    ``obs`` (N, 13 + 5K) in the "paper" layout, or (N, 13 + 6K) in the "neighbours" one (every neighbour
+    an obstacle), or (N, 13 + 12K) in the "encounters" one (its extra columns unread); K is read from its
+    width. Values clipped by the observation stay clipped.
+    """
+    if observation not in OBSERVATIONS:
+        raise ValueError(f"unknown observation layout {observation!r}; expected one of {list(OBSERVATIONS)}")
+    if observation == "encounters":
+        obs = drop_encounters(check_array("obs", obs, (None, None)))
+    if observation != "paper":
+        obs = as_obstacle_observation(obs)
+    obs = check_array("obs", obs, (None, None))
+    n, width = obs.shape
+    k, rest = divmod(width - MANAGER_OBS_BASE_DIM, OBSTACLE_OBS_DIM)
+    if width < MANAGER_OBS_BASE_DIM or rest:
+        raise ValueError(f"obs must have 13 + 5K columns, got {width}")
+    s = MANAGER_OBS_SLICES
+    sincos = obs[:, s["target_sincos"]]
+    target = np.concatenate(
+        [
+            obs[:, s["target_pos"]] * max_pos,
+            np.arctan2(sincos[:, 0], sincos[:, 1])[:, None],
+            obs[:, s["target_vel"]] * max_v,
+        ],
+        axis=1,
+    )
+    blocks = obs[:, MANAGER_OBS_BASE_DIM:].reshape(n, k, OBSTACLE_OBS_DIM)
+    return Scene(
+        target=target,
+        robot_pos=obs[:, s["robot_pos"]] * max_pos,
+        robot_vel=obs[:, s["robot_vel"]] * max_v,
+        obstacle_pos=blocks[:, :, OBSTACLE_OBS_SLICES["pos"]] * max_pos,
+        obstacle_vel=blocks[:, :, OBSTACLE_OBS_SLICES["vel"]] * max_v,
+    )
+
+
+def subgoal_poses(scene: Scene, chosen: np.ndarray) -> np.ndarray:
+    """Sub-goal poses (N, 5) at positions ``chosen`` (N,) complex: the target's heading, zero velocity."""
+    subgoal = np.zeros((len(chosen), 5))
+    subgoal[:, 0], subgoal[:, 1], subgoal[:, 2] = chosen.real, chosen.imag, scene.target[:, 2]
+    return subgoal
+
+
+__all__ = ["OBSERVATIONS", "Scene", "read_scene", "subgoal_poses"]

@@ -1,0 +1,162 @@
+from __future__ import annotations
+
+import cmath
+import math
+
+import numpy as np
+import pytest
+
+from hier_ssl.envs import env_config, scenario_config
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.evaluation.evaluate import evaluate
+from hier_ssl.manager import decode_subgoal, manager_observation
+from hier_ssl.manager.bangbang import bang_bang_2d
+from hier_ssl.manager.planners import read_scene
+from hier_ssl.manager.trajectory import (
+    Collisions,
+    TrajectoryParams,
+    TrajectoryPlanner,
+    accepted,
+    first_collisions,
+)
+from hier_ssl.world.field import get_field
+
+FIELD = get_field("hardware_challenge")
+
+
+def _obs(robot_xy, target_xy, obstacles=(), robot_vel=(0.0, 0.0), obstacle_vel=None):
+    """Manager observations (1, 13 + 5K) of one hand-placed scene."""
+    k = len(obstacles)
+    vel = np.zeros((1, k, 2)) if obstacle_vel is None else np.asarray(obstacle_vel, float).reshape(1, k, 2)
+    return manager_observation(
+        np.array([[*target_xy, 0.0, 0.0, 0.0]]),
+        np.array([robot_xy], dtype=float),
+        np.array([0.0]),
+        np.array([robot_vel], dtype=float),
+        np.array([0.0]),
+        np.asarray(obstacles, dtype=float).reshape(1, k, 2),
+        vel,
+        np.zeros((1, k)),
+        max_pos=FIELD.max_pos,
+    )
+
+
+def _xy(action: np.ndarray) -> complex:
+    subgoal = decode_subgoal(action, "pose4", FIELD.half_length, FIELD.half_width)[0]
+    return complex(subgoal[0], subgoal[1])
+
+
+def test_an_empty_field_goes_straight_to_the_target() -> None:
+    planner = make_planner("trajectory", env_config(task="proposed"))
+    assert _xy(planner(_obs((-1.0, 0.5), (2.0, -1.5), robot_vel=(1.0, 1.0)))) == pytest.approx(2.0 - 1.5j)
+
+
+def test_a_still_obstacle_on_the_line_gets_a_sub_destination() -> None:
+    # (-1, 0) to (1, 0) through a still robot at the origin, 3 m/s^2 and 2.2 m/s: the direct path comes
+    # within 0.3 m of it at 0.683 s, found at the check of 0.7 s (x = -0.265), 1.265 m from the target over
+    # the start's 2 m: 0.63 >= 0.7 s / 4 s, rejected.
+    config = env_config(task="obstacle")
+    planner = make_planner("trajectory", config)
+    obs = _obs((-1.0, 0.0), (1.0, 0.0), obstacles=[(0.0, 0.0)])
+    scene = read_scene(obs, FIELD.max_pos, 2.5)
+    speed, accel = planner.limits
+    direct = bang_bang_2d(-1 + 0j, 1 + 0j, 0j, speed, accel)
+    obstacles = (np.zeros((1, 1), complex), np.zeros((1, 1), complex), np.ones((1, 1), bool))
+    path = (lambda t: direct.at(t)[0][None], direct.total_time[None])
+    hits = first_collisions(*path, obstacles, 0.3, planner.params)
+    assert float(hits.still_time[0]) == pytest.approx(0.7) and np.isinf(hits.moving_time[0])
+    chosen, winner = planner.plan(scene, np.array([np.nan + 0j]))
+    sub = complex(chosen[0])
+    assert abs(sub.imag) > 0.3 and not np.isnan(winner[0])
+    # The winner is the sub-destination relative to the robot-target line (2 m long, along +x), clipped to
+    # the field.
+    free = -1.0 + winner[0] * 2.0
+    half_l, half_w = planner.field.half_length, planner.field.half_width
+    assert sub == pytest.approx(
+        complex(np.clip(free.real, -half_l, half_l), np.clip(free.imag, -half_w, half_w))
+    )
+    angle = abs(math.degrees(cmath.phase(winner[0])))
+    assert 20.0 <= angle <= 140.0 and 0.5 <= abs(winner[0]) <= 1.5
+    # Its path: the sub-path, then the target from the switch, clear of the obstacle by the planner's 0.25 m
+    # (collision distance 0.2 + margin 0.05).
+    first = bang_bang_2d(-1 + 0j, sub, 0j, speed, accel)
+    switches = 0.1 + 0.2 * np.arange(1, 40)
+    switches = switches[switches < float(first.total_time)]
+    clear = []
+    for s in switches:
+        at, vel = first.at(s)
+        then = bang_bang_2d(at, 1 + 0j, vel, speed, accel)
+        t = np.arange(0.1, s + float(then.total_time), 0.1)
+        path = np.where(t < s, first.at(t)[0], then.at(t - s)[0])
+        clear.append(np.abs(path).min() >= 0.25)
+    assert any(clear)
+
+
+def test_last_winner_is_tried_and_remembered_per_robot() -> None:
+    # No random sub-destinations: the remembered one is the only candidate, and it is taken.
+    planner = make_planner("trajectory", env_config(task="obstacle"), num_sub_destinations=0)
+    obs = _obs((-1.0, 0.0), (1.0, 0.0), obstacles=[(0.0, 0.0)])
+    assert _xy(planner(obs)) == pytest.approx(-1.0)  # nothing to try, nothing remembered: stop in place
+    planner.forget(3)
+    planner.memory[2] = 0.7 * cmath.exp(1j * math.radians(60))
+    assert _xy(planner(obs, rows=np.array([2]))) == pytest.approx(
+        -1.0 + 1.4 * cmath.exp(1j * math.radians(60)), abs=1e-3
+    )
+    assert _xy(planner(obs, rows=np.array([1]))) == pytest.approx(-1.0)
+    planner.forget(3)
+    assert np.isnan(planner.memory).all()
+
+
+def test_the_same_seed_gives_the_same_decisions() -> None:
+    config = env_config(task="obstacle", frame_skip=4)
+    runs = [evaluate(make_planner("trajectory", config), config, 12, seed=5) for _ in range(2)]
+    planner = make_planner("trajectory", config)
+    runs.append(evaluate(planner, config, 12, seed=5))
+    runs.append(evaluate(planner, config, 12, seed=5))  # the same planner again: memory and draws reset
+    for key in ("length", "success", "cpad"):
+        for other in runs[1:]:
+            np.testing.assert_array_equal(runs[0]["per_robot"][key], other["per_robot"][key])
+    # A different planner seed draws other sub-destinations.
+    obs = _obs((-1.0, 0.0), (1.0, 0.0), obstacles=[(0.0, 0.0)])
+    one, two = make_planner("trajectory", config), make_planner("trajectory", config, seed=1)
+    assert _xy(one(obs)) != pytest.approx(_xy(two(obs)))
+
+
+@pytest.mark.parametrize(
+    "config",
+    [env_config(task=t, frame_skip=8) for t in ("baseline", "proposed", "obstacle")]
+    + [scenario_config(s, frame_skip=8) for s in ("crossing", "crowd", "formation")],
+    ids=lambda c: c.scenario_name,
+)
+def test_trajectory_plays_every_task_and_scenario(config) -> None:
+    result = evaluate(make_planner("trajectory", config), config, 4, seed=0)
+    assert result["robots"] >= 4 and 0.0 <= result["success_rate"] <= 1.0
+
+
+def test_params_are_checked() -> None:
+    with pytest.raises(ValueError, match="step_size_on_sub_path must be > 0"):
+        TrajectoryParams(step_size_on_sub_path=0.0)
+    with pytest.raises(ValueError, match="min_angle <= max_angle"):
+        TrajectoryParams(min_angle=150.0)
+    with pytest.raises(ValueError, match="collision_distance must be > 0"):
+        TrajectoryPlanner(FIELD, collision_distance=0.0)
+    planner = make_planner("trajectory", env_config(worker="paper"), brake_time_offset=0.3)
+    assert planner.params.brake_time_offset == 0.3 and planner.limits[0] == 2.2
+
+
+def test_checks_cover_the_motion_between_them_and_the_acceptors_follow_tigers() -> None:
+    # At 4.4 m/s along y = 0 from x = -1, past a still obstacle at x = -0.34: the checks at 0.1 s (x = -0.56)
+    # and 0.2 s (x = -0.12) are each 0.22 m from it, outside 0.2 m, but the robot passes through it between.
+    path = (lambda t: np.array([-1.0 + 4.4 * t + 0j]), np.array([0.5]))
+    still = (np.array([[-0.34 + 0j]]), np.zeros((1, 1), complex), np.ones((1, 1), bool))
+    hits = first_collisions(*path, still, 0.2, TrajectoryParams())
+    assert float(hits.still_time[0]) == pytest.approx(0.2) and np.isinf(hits.moving_time[0])
+    # Still: a collision 0.1 m short of a 2 m path's end at 2 s passes (0.05 < 2 / 4), one at 1 m does not.
+    p, start, goal = TrajectoryParams(), np.zeros(2, complex), np.full(2, 2 + 0j)
+    near = Collisions(
+        np.full(2, 2.0), np.array([1.9 + 0j, 1.0 + 0j]), np.full(2, np.inf), np.zeros(2, complex)
+    )
+    assert accepted(near, start, goal, np.zeros(2), 3.0, p)[0].tolist() == [True, False]
+    # Moving: at 2 m/s braking at 1 m/s^2, a first collision must come after 2 + 0.5 s.
+    late = Collisions(np.full(2, np.inf), np.zeros(2, complex), np.array([2.4, 2.6]), np.zeros(2, complex))
+    assert accepted(late, start, goal, np.full(2, 2.0), 1.0, p)[1].tolist() == [False, True]

@@ -1,0 +1,44 @@
+"""Run an exported hier_ssl manager (ONNX) with numpy and onnxruntime alone: no hier_ssl, no torch.
+
+    python examples/run_exported_manager.py manager.onnx
+
+Reads the input layout stored in the file, asks the manager for the sub-goal of a few robots at once and
+prints them. On a robot, call it every ``frame_skip`` control periods of 25 ms and hand the sub-goal to
+the goToPoint controller until the next call.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import onnxruntime
+
+
+def main() -> None:
+    session = onnxruntime.InferenceSession(sys.argv[1], providers=["CPUExecutionProvider"])
+    layout = json.loads(session.get_modelmeta().custom_metadata_map["layout"])
+    width = session.get_inputs()[0].shape[1]
+    print(f"task {layout['task']}, frame skip {layout['frame_skip']}, input columns {width}")
+
+    # Target (x, y, theta, vx, vy), then robot (x, y, theta, vx, vy, omega): field frame, m, rad, m/s.
+    states = np.array(
+        [
+            [1.5, 1.0, 0.0, 0.0, 0.0, -2.0, -1.0, np.pi / 2, 0.0, 0.0, 0.0],
+            [-2.0, 0.5, np.pi, 0.0, 0.0, 2.0, 0.0, 0.0, 0.5, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0, 0.3, -0.2, -1.0, 0.0, 0.0, 0.0],
+        ],
+        dtype=np.float32,
+    )
+    (subgoals,) = session.run(["subgoal"], {"state": states[:, :width]})  # (B, 5): x, y, theta, vx, vy
+    for state, subgoal in zip(states, subgoals, strict=True):
+        print(
+            f"robot at ({state[5]:+.2f}, {state[6]:+.2f}) -> target ({state[0]:+.2f}, {state[1]:+.2f}): "
+            f"sub-goal ({subgoal[0]:+.2f}, {subgoal[1]:+.2f}) m, heading {subgoal[2]:+.2f} rad"
+        )
+    assert "hier_ssl" not in sys.modules and "torch" not in sys.modules
+
+
+if __name__ == "__main__":
+    main()

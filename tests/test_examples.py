@@ -1,0 +1,82 @@
+"""Every script of examples/ runs as the docs show it, with budgets of seconds, and prints what it says."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+EXAMPLES = Path(__file__).parents[1] / "examples"
+
+
+def _run(script: str, *args: str, cwd: Path) -> list[str]:
+    """The script's printed lines; it must exit 0."""
+    # One torch thread: two OpenMP threads stall badly on a busy 2-core CPU (tests/conftest.py).
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(
+        [sys.executable, str(EXAMPLES / script), *args], cwd=cwd, env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    return done.stdout.splitlines()
+
+
+def test_every_example_is_tested_and_shown_in_the_docs() -> None:
+    scripts = sorted(path.name for path in EXAMPLES.glob("*.py"))
+    tested = set(re.findall(r'_run\(\s*"(\w+\.py)"', Path(__file__).read_text()))
+    shown = set(re.findall(r"examples/(\w+\.py)", (EXAMPLES.parent / "docs" / "examples.md").read_text()))
+    assert scripts and set(scripts) == shown
+    assert set(scripts) - {"run_exported_manager.py"} == tested  # that one is run by export_onnx.py
+
+
+def test_pettingzoo_loop(tmp_path: Path) -> None:
+    lines = _run("pettingzoo_loop.py", "--episodes", "3", cwd=tmp_path)
+    assert lines[0] == "Passed Parallel API test"
+    episodes = [
+        re.fullmatch(r"episode (\d): success ([01]) collision ([01]) length (\d+) .*", x) for x in lines[1:]
+    ]
+    assert [m.group(1) for m in episodes] == ["0", "1", "2"]
+    assert sum(m.group(2) == "1" for m in episodes) >= 2  # the sampling planner passes the obstacle
+
+
+def test_sb3_on_a_gymnasium_id(tmp_path: Path) -> None:
+    lines = _run("sb3_gymnasium.py", "--steps", "200", "--episodes", "2", cwd=tmp_path)
+    assert [line.split(":")[0] for line in lines[:2]] == ["episode 0", "episode 1"]
+    assert all(1 <= int(line.split()[2]) <= 75 for line in lines[:2])  # the TimeLimit at frame skip 16
+    assert lines[2].startswith("success rate ") and lines[2].endswith("over 2 episodes")
+
+
+def test_custom_worker(tmp_path: Path) -> None:
+    lines = _run("custom_worker.py", "--episodes", "20", cwd=tmp_path)
+    rows = {(words[0], words[1]): float(words[3]) for words in map(str.split, lines)}
+    assert set(rows) == {
+        (manager, worker)
+        for manager in ("direct", "sampling")
+        for worker in ("__main__:Proportional", "paper", "paper+latency=4")
+    }
+    # Past the obstacle the planner succeeds with either worker; driving straight at the target does not.
+    assert rows["sampling", "__main__:Proportional"] >= 0.9 and rows["sampling", "paper"] >= 0.9
+    assert rows["direct", "paper"] < rows["sampling", "paper"]
+
+
+def test_shared_policy_scenario(tmp_path: Path) -> None:
+    lines = _run("shared_policy_scenario.py", "--robots", "3", "--episodes", "2", cwd=tmp_path)
+    assert len(lines) == 2
+    for episode, line in enumerate(lines):
+        # 7 columns per robot + 13 per controlled robot: 3 robots, all controlled (crossing has no obstacles)
+        assert line.startswith(f"episode {episode}: state (60,), team return ")
+        outcomes = dict(part.split() for part in line.split(", ")[2:])
+        assert set(outcomes) == {"manager_0", "manager_1", "manager_2"}
+        assert set(outcomes.values()) <= {"success", "collision", "timeout"}
+
+
+def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:
+    lines = _run("export_onnx.py", "--train-steps", "100", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert (tmp_path / "out" / "manager.onnx").is_file()
+    tail = lines[lines.index(next(x for x in lines if x.startswith("exported "))) + 1 :]
+    assert tail[0] == "task proposed, frame skip 16, input columns 11"
+    for line in tail[1:]:
+        x, y = map(float, re.search(r"sub-goal \(([-+.\d]+), ([-+.\d]+)\) m", line).groups())
+        assert abs(x) <= 3.0 and abs(y) <= 2.0  # inside the 6 x 4 m field's lines
+    assert len(tail) == 4

@@ -58,7 +58,7 @@ def test_every_local_reference_exists_and_nothing_comes_from_outside(site: Path,
     parser.feed((site / page).read_text())
     assets = [url for tag, rel, url in parser.found if tag in ("script", "img") or "stylesheet" in rel]
     assert any(url.endswith(".css") for url in assets) and any(url.endswith(".js") for url in assets)
-    for tag, rel, url in parser.found:
+    for tag, _, url in parser.found:
         parts = urlsplit(url)
         if parts.scheme or parts.netloc:
             # Outside links are fine to follow, not to load: a page must render offline.
@@ -83,8 +83,9 @@ def test_chromium_renders_the_page(site: Path, page: str, tmp_path: Path) -> Non
     chromium = _chromium()
     shot = tmp_path / "page.png"
     # file:// URLs: nothing is served. --no-sandbox because CI runs as root.
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking"]
-    flags += [f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1280,900", "--hide-scrollbars"]
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--hide-scrollbars"]
+    flags += ["--disable-background-networking", f"--user-data-dir={tmp_path / 'profile'}"]
+    flags.append("--window-size=1280,900")
     url = (site / page).as_uri()
     done = subprocess.run(
         [chromium, *flags, f"--screenshot={shot}", url], capture_output=True, text=True, timeout=120

@@ -1,6 +1,7 @@
-"""The README's examples, run as written: the own-controller example (the controller saved as the file
-the README names, the command line run by the installed ``hier-ssl`` from that directory, the Python
-snippets run there too), the Gymnasium / Stable-Baselines3 / CleanRL snippets and the multi-agent one."""
+"""The examples of the README and the user guide (docs/), run as written: the own-controller example (the
+controller saved as the file the page names, the command line run by the installed ``hier-ssl`` from that
+directory, the Python snippets run there too), the Gymnasium / Stable-Baselines3 / CleanRL snippets and
+the multi-agent one."""
 
 from __future__ import annotations
 
@@ -11,14 +12,17 @@ import subprocess
 import sys
 from pathlib import Path
 
-README = Path(__file__).parents[1] / "README.md"
+ROOT = Path(__file__).parents[1]
+GUIDE = ROOT / "docs" / "guide"
 
 
-def _blocks(section: str) -> dict[str, list[str]]:
-    """The fenced code blocks of the README section titled ``section``, by language."""
-    text = README.read_text()
-    start = text.index(f"## {section}\n")
-    end = text.find("\n## ", start + 1)
+def _blocks(page: Path, section: str) -> dict[str, list[str]]:
+    """The fenced code blocks of ``page``'s section titled ``section`` (a level-1 or level-2 heading, up to
+    the next heading of level 1 or 2), by language."""
+    text = page.read_text()
+    start = re.search(rf"^##? {re.escape(section)}\n", text, re.MULTILINE).end()
+    following = re.search(r"^##? ", text[start:], re.MULTILINE)
+    end = len(text) if following is None else start + following.start()
     blocks: dict[str, list[str]] = {}
     for language, code in re.findall(r"```(\w+)\n(.*?)```", text[start:end], re.DOTALL):
         blocks.setdefault(language, []).append(code)
@@ -40,7 +44,7 @@ def _run(snippet: str, cwd: Path) -> list[list[str]]:
 
 
 def test_the_workers_section_example_runs_as_written(tmp_path: Path) -> None:
-    blocks = _blocks("Workers")
+    blocks = _blocks(GUIDE / "workers.md", "Workers and your own controller")
     controller, snippet, objects = blocks["python"]
     (command,) = blocks["bash"]
     (tmp_path / "my_controller.py").write_text(controller)
@@ -73,7 +77,7 @@ def test_the_workers_section_example_runs_as_written(tmp_path: Path) -> None:
 
 
 def test_the_gymnasium_section_examples_run_as_written(tmp_path: Path) -> None:
-    sb3, vector = _blocks("Gymnasium, Stable-Baselines3, CleanRL")["python"]
+    sb3, vector = _blocks(GUIDE / "environments.md", "Gymnasium, Stable-Baselines3, CleanRL")["python"]
     (row,) = _run(sb3, tmp_path)
     limit, length, success, cpad = row
     assert int(limit) == 75 and 1 <= int(length) <= 75 and success in ("0.0", "1.0") and float(cpad) >= 0
@@ -89,7 +93,14 @@ def test_the_subproc_vec_env_example_runs_as_written(tmp_path: Path) -> None:
 
 
 def test_the_multi_agent_example_runs_as_written(tmp_path: Path) -> None:
-    (snippet,) = _blocks("Multi-agent learners: the global state")["python"]
+    (snippet,) = _blocks(GUIDE / "environments.md", "Multi-agent learners: the global state")["python"]
     ((space, *states, steps),) = _run(snippet, tmp_path)
     assert space == "(80,)"  # 7 x 4 robot columns + 13 x 4 controlled-robot columns
     assert "".join(states) == f"({steps},80)" and int(steps) >= 1
+
+
+def test_the_getting_started_snippet_runs_as_written(tmp_path: Path) -> None:
+    (snippet,) = _blocks(ROOT / "docs" / "getting-started.md", "A first session")["python"]
+    (words,) = _run(snippet, tmp_path)
+    keys = [word.strip("{'\":") for word in words[::2]]
+    assert keys == ["return", "length", "decisions", "success", "collision", "cpad"]

@@ -12,7 +12,7 @@ import argparse
 
 import numpy as np
 
-from hier_ssl.compare import compare
+from hier_ssl.evaluation.compare import compare
 from hier_ssl.world.physics import RobotSpec, RobotState
 
 

@@ -14,7 +14,7 @@ from pettingzoo.test import parallel_api_test
 
 import hier_ssl
 from hier_ssl.envs import env_config
-from hier_ssl.manager.planners import make_planner
+from hier_ssl.envs.planners import make_planner
 
 
 def main() -> None:

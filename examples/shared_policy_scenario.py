@@ -16,8 +16,8 @@ import argparse
 import numpy as np
 
 import hier_ssl
-from hier_ssl.compare import load_manager
 from hier_ssl.envs import scenario_config
+from hier_ssl.evaluation.compare import load_manager
 
 
 def main() -> None:

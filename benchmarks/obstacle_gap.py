@@ -1,5 +1,5 @@
 """Measurement, not CI: why the paper family's Obstacle FSCAPS does not learn here, and why its Obstacle
-CAPS collides more than the paper's (README "Results").
+CAPS collides more than the paper's (docs/results.md).
 
 Two sides, seed 0, of the Obstacle ``--setup`` (fscaps or caps). From our default
 (configs/obstacle/SETUP.yaml), each ``no-*`` run puts one group of keys back to the public code's value

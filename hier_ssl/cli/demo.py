@@ -24,7 +24,7 @@ MIN_LEG = 1.5  # m from the robot to its next target
 CLEARANCE = 0.4  # m between the obstacle's centre and the robot's line: 2 radii and a 22 cm margin
 SIDE_STEP = 0.45  # m from the obstacle's centre to the waypoint beside it
 TARGET_TIME = 400  # control steps (10 s) before moving on to the next target
-_D_TH, _THETA_TH, _V_TH = 0.05, np.deg2rad(5.0), 0.05  # SPEC.md "Thresholds"
+_D_TH, _THETA_TH, _V_TH = 0.05, np.deg2rad(5.0), 0.05  # the paper's success thresholds (docs/paper.md)
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def _subgoal(robot: np.ndarray, obstacle: np.ndarray, goal: np.ndarray) -> tuple
 
 
 def _arrived(state: RobotState, goal: np.ndarray) -> bool:
-    """Robot 0 of field 0 within the success thresholds of ``goal`` (SPEC.md \"Thresholds\")."""
+    """Robot 0 of field 0 within the success thresholds of ``goal`` (the paper's, docs/paper.md)."""
     error = (state.angle[0, 0] - goal[2] + np.pi) % (2 * np.pi) - np.pi
     return bool(
         np.hypot(*(state.pos[0, 0] - goal[0:2])) < _D_TH

@@ -131,7 +131,6 @@ def _export(args: argparse.Namespace) -> int:
 
     path = export_manager(args.run_dir, args.fmt, args.out)
     print(
-        f"wrote {path} ({path.stat().st_size:,} bytes, {args.fmt}); input/output layout: README.md, "
-        "'Deploying a manager'"
+        f"wrote {path} ({path.stat().st_size:,} bytes, {args.fmt}); input/output layout: docs/guide/export.md"
     )
     return 0

@@ -21,7 +21,7 @@ LayerSizes = Annotated[tuple[Annotated[int, Field(ge=1)], ...], Field(min_length
 
 class SACConfig(BaseModel):
     """Hyper-parameters. Networks, optimisers, gamma, tau, batch, buffer and policy_frequency default to
-    the paper's public code (SPEC "SAC settings"); the keys where ours differ say what the public code
+    the paper's public code (docs/paper.md); the keys where ours differ say what the public code
     uses: a config with ``caps_actions: sampled``, ``actor_schedule: delayed``, ``learning_starts: 80000``
     and ``alpha: 1.0`` (learned, no CAPS) or ``alpha: 0.2`` (with CAPS) reproduces it."""
 

@@ -41,7 +41,7 @@ class ObstacleConfig(Strict):
 
 
 class TaskSettings(Strict):
-    """How a manager's decisions become sub-goals, rewards and episode ends (SPEC.md), shared by the
+    """How a manager's decisions become sub-goals, rewards and episode ends (docs/paper.md), shared by the
     paper's environments (``EnvConfig``) and the multi-robot scenarios (``ScenarioConfig``)."""
 
     action_form: Literal["pose4", "pose6"] = "pose4"
@@ -58,8 +58,9 @@ class TaskSettings(Strict):
     hit_weight: float = Field(1.0, ge=0, allow_inf_nan=False)
     # R_obst's distance to the nearest obstacle: from the sub-goal (paper text) or the robot (public code).
     obstacle_from: Literal["subgoal", "robot"] = "subgoal"
-    # "paper": 13 values + 5 per obstacle in field coordinates (SPEC); "neighbours": 13 + 6 per slot for
-    # the ``neighbours`` nearest other robots, relative to the robot (``hier_ssl.manager.neighbours``);
+    # "paper": 13 values + 5 per obstacle in field coordinates (docs/paper.md); "neighbours": 13 + 6 per
+    # slot for the ``neighbours`` nearest other robots, relative to the robot
+    # (``hier_ssl.manager.neighbours``);
     # "encounters": "neighbours" + 6 closest-approach values per slot (``hier_ssl.manager.encounter``).
     observation: Literal["paper", "neighbours", "encounters"] = "paper"
     neighbours: int = Field(6, ge=0)
@@ -71,8 +72,8 @@ class TaskSettings(Strict):
     expose_obstacles: bool = False
     dt: float = Field(0.025, gt=0)
     substeps: int = Field(2, ge=1)
-    # SPEC "Thresholds" (hier_ssl.manager.rewards.DIST_THRESHOLD, .success.SPEED_THRESHOLD and
-    # .COLLISION_DISTANCE are the same numbers).
+    # The paper's thresholds (docs/paper.md; hier_ssl.manager.rewards.DIST_THRESHOLD,
+    # .success.SPEED_THRESHOLD and .COLLISION_DISTANCE are the same numbers).
     d_th: float = Field(0.05, gt=0)
     theta_th_deg: float = Field(5.0, gt=0)
     speed_th: float = Field(0.05, gt=0)
@@ -82,7 +83,7 @@ class TaskSettings(Strict):
 
 
 class EnvConfig(TaskSettings):
-    """One learning environment of the paper (SPEC.md): the Baseline, Proposed or Obstacle task
+    """One learning environment of the paper (docs/paper.md): the Baseline, Proposed or Obstacle task
     (``hier_ssl.envs.tasks``), one controlled robot and the obstacles listed here."""
 
     task: str = "proposed"

@@ -1,4 +1,4 @@
-"""The paper's three environments (SPEC.md) as scenarios: one controlled robot, its target, and the
+"""The paper's three environments (docs/paper.md) as scenarios: one controlled robot, its target, and the
 obstacles its ``EnvConfig`` lists, each with its own behaviour and placement.
 
 - ``baseline``: robot-centric reward (the robot's distance and angle to the target), success when the
@@ -8,7 +8,7 @@ obstacles its ``EnvConfig`` lists, each with its own behaviour and placement.
 - ``obstacle``: proposed plus R_obst and R_hit; a collision ends the episode as a failure. Without
   obstacles in its config it gets one at the midpoint and starts at least 0.6 m from the target.
 
-Reset sampling (SPEC "Reset sampling"): target and robot uniform on the field (less ``spawn_margin``), the
+Reset sampling (docs/paper.md "Starts"): target and robot uniform on the field (less ``spawn_margin``), the
 robot at least ``min_start_distance`` from the target; each obstacle at the robot-target midpoint (the
 public code) or uniform, clear of robot, target and earlier obstacles; uniform headings.
 """

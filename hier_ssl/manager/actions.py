@@ -1,6 +1,6 @@
 """Decoding the manager's normalised action into a sub-goal pose for the worker, and back.
 
-Two action forms (SPEC "Manager action"):
+Two action forms (docs/paper.md "Actions: the sub-goal"):
 
 - ``"pose4"`` (public code): (x, y, sin, cos); the sub-goal velocity is 0.
 - ``"pose6"`` (paper text): (x, y, vx, vy, sin, cos).

@@ -1,6 +1,6 @@
 """The manager's observation for many robots: target, own state and the K nearest other robots.
 
-Layout, 13 values (the paper's observation without obstacles, SPEC "Manager observation") then 6 per
+Layout, 13 values (the paper's observation without obstacles, docs/paper.md "Observations") then 6 per
 neighbour slot, nearest first::
 
     0-12      as ``hier_ssl.manager.observation`` with K = 0

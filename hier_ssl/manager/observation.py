@@ -1,6 +1,6 @@
 """The manager's observation: target, robot and obstacles as one normalised vector per field.
 
-Layout (SPEC "Manager observation"), 13 values then 5 per obstacle::
+Layout (docs/paper.md "Observations"), 13 values then 5 per obstacle::
 
     0-1   target x, y            / max_pos
     2-3   sin, cos of target angle
@@ -12,7 +12,7 @@ Layout (SPEC "Manager observation"), 13 values then 5 per obstacle::
     13+5k obstacle k: x, y / max_pos, vx, vy / max_v, w / max_w
 
 Every value is clipped to [-clip, clip]. The paper's text lists cos before sin; its code and
-the SPEC put sin first, as here. Read observations through `MANAGER_OBS_SLICES`
+docs/paper.md put sin first, as here. Read observations through `MANAGER_OBS_SLICES`
 and `obstacle_obs_slice`, not by bare column numbers.
 """
 

@@ -11,7 +11,7 @@ manager is (``policy(obs (N, O)) -> actions (N, A)`` in [-1, 1]).
   the same action, so a seeded evaluation is reproducible and the policy may be called on any subset of
   fields.
 
-Everything a planner knows about the world comes from the observation (SPEC "Manager observation", or the
+Everything a planner knows about the world comes from the observation (docs/paper.md "Observations", or the
 "neighbours" layout, whose neighbours it treats as obstacles) and from constants given at construction: the
 field, the robot's limits, the action form and frame.
 """

@@ -1,4 +1,4 @@
-"""The manager's reward terms (paper section 3, SPEC "Rewards") as vectorised pure functions.
+"""The manager's reward terms (paper section 3, docs/paper.md "Rewards") as vectorised pure functions.
 
 R = R_d + R_theta + R_t (+ R_obst + R_hit in the obstacle task), with d and delta the
 distance and angle difference to the target, measured on the robot (Baseline) or on the

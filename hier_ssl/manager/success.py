@@ -1,4 +1,4 @@
-"""Success and failure predicates of the manager's tasks (SPEC "Thresholds and episode end").
+"""Success and failure predicates of the manager's tasks (docs/paper.md "Tasks and when an episode succeeds").
 
 Comparisons are strict (d < D_th), as in the public code; the reward's bonus applies at
 d <= D_th, a difference only on a set of measure zero.
@@ -31,7 +31,8 @@ def robot_settled(
     task: str, target: np.ndarray, robot_pos: np.ndarray, robot_vel: np.ndarray, d_th: float, speed_th: float
 ) -> np.ndarray:
     """The robot is slower than speed_th and, in the action-centric tasks, within d_th of the target (its
-    heading is not checked: SPEC, public code). target (N, 5); robot_pos, robot_vel (N, 2) -> (N,) bool."""
+    heading is not checked: docs/paper.md, public code).
+    target (N, 5); robot_pos, robot_vel (N, 2) -> (N,) bool."""
     settled = vector_length(robot_vel) < speed_th
     if task == "baseline":
         return settled

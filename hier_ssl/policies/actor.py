@@ -2,7 +2,7 @@
 (``load_policy``): SAC, PPO or the candidates' chooser. The deterministic torch module alone is
 ``hier_ssl.checkpoints.actor.load_actor``.
 
-The paper's test script evaluates *sampled* actions (SPEC "Public-code details"): ``load_policy(run_dir,
+The paper's test script evaluates *sampled* actions (docs/paper.md): ``load_policy(run_dir,
 sample=True, seed=...)`` draws them from the whole SAC actor (``SquashedGaussianActor``, log-std head
 included) or from PPO's Gaussian with its saved standard deviation, with a seeded generator of its own.
 """

@@ -46,7 +46,7 @@ def ppo_train_cfg(
     rsl-rl's own. Actor and critic are ``MLPModel``s over the "policy" observation group with a
     state-independent Gaussian head (std initialised to ``cfg.init_noise_std``, learned). Empirical
     observation normalisation is off: the manager's observations are already scaled to about [-1, 1]
-    (SPEC "Manager observation"), and a running normaliser would drift the deterministic policy
+    (docs/paper.md "Observations"), and a running normaliser would drift the deterministic policy
     between evaluations.
     """
     hidden = list(cfg.hidden)

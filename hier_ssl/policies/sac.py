@@ -5,7 +5,7 @@ changes for speed: both critics live in one batched module (``TwinQ``), and the 
 run on foreach kernels. CAPS (Mysore et al. 2021) adds a temporal and a spatial smoothness term to the
 actor loss; with a teacher (``hier_ssl.policies.teacher``) an imitation term of a planner's actions joins.
 
-Where this SAC and the paper's public code differ (SPEC "Public-code details"), a key of ``SACConfig``
+Where this SAC and the paper's public code differ (docs/paper.md, its settings), a key of ``SACConfig``
 chooses; the default is ours, the public code's value is given in brackets:
 
 - ``caps_actions``: "mean" takes CAPS on the deterministic actions tanh(mean) at s, s' and an unclamped
@@ -34,7 +34,7 @@ from hier_ssl.policies.replay import Batch, ReplayBuffer
 from hier_ssl.policies.teacher import imitation_loss, teacher_weight
 
 # The public code clamps the perturbed state s_bar of sampled CAPS to this box; observations are scaled to
-# about [-1, 1] (SPEC "Manager observation").
+# about [-1, 1] (docs/paper.md "Observations").
 SAMPLED_CAPS_OBS_BOUND = 1.2
 
 
@@ -245,7 +245,7 @@ class SAC:
                 self.generator,
             )
         actor_loss = actor_loss + caps_temporal + caps_spatial
-        if terms:  # added last, as the runs in the README were trained
+        if terms:  # added last, as the runs of docs/results.md were trained
             actor_loss = actor_loss + terms["imitation"]
         return actor_loss, log_pi, {"caps_temporal": caps_temporal, "caps_spatial": caps_spatial, **terms}
 

@@ -311,7 +311,8 @@ def _header(episodes: int, seed: int, contact: dict[str, float]) -> str:
         "act with their own interface, frame skip and worker; the planners decide every 16 control steps. "
         "*paper*: the paper's published numbers (final models, sampled actions). *paper family*: our runs "
         "of the public code's settings (configs/paper/); *defaults*: our runs of our defaults (configs/, "
-        'README "Deviations from the paper"). *Policy*: the checkpoint training ended with (final) or '
+        'docs/research-notes.md "Deviations from the paper"). *Policy*: the checkpoint training ended with '
+        "(final) or "
         "the one model selection kept (best), acting with sampled or mean actions.\n\n"
         "Cells: the median over training seeds of each run's figure, with the seeds' min - max. A run's "
         "figures: success and collision rates, the median episode length in control steps of 25 ms (1200 "

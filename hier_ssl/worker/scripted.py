@@ -91,7 +91,7 @@ class _Scripted:
 
 @dataclass(frozen=True)
 class PaperGoToPoint(_Scripted):
-    """The paper's scripted controller (SPEC.md "Scripted goToPoint controller of the public code").
+    """The paper's scripted controller (docs/paper.md "The worker").
 
     Per step, along the axis to the sub-goal and across it: if the robot moves away from the sub-goal or is
     inside the braking distance |v^2 - v_goal^2| / (2 brake_accel), the velocity moves ``dv`` towards the

@@ -40,7 +40,7 @@ class Field:
 
 
 FIELDS: dict[str, Field] = {
-    # The paper's 6 x 4 m field (SPEC.md "World").
+    # The paper's 6 x 4 m field (docs/paper.md "The world").
     "hardware_challenge": Field("hardware_challenge", 6.0, 4.0, 2.0, 0.8, 0.7),
     # SSL rules: Division B 9 x 6 m with a 2 x 1 m defense area, Division A 12 x 9 m with 3.6 x 1.8 m.
     "division_b": Field("division_b", 9.0, 6.0, 2.0, 1.0, 1.0),

@@ -12,7 +12,7 @@ from hier_ssl.world.frames import heading
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """An SSL robot (SPEC.md "World"); speeds in m/s and rad/s, accelerations in m/s^2 and rad/s^2."""
+    """An SSL robot (docs/paper.md); speeds in m/s and rad/s, accelerations in m/s^2 and rad/s^2."""
 
     radius: float = 0.09
     mass: float = 2.2

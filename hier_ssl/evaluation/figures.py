@@ -1,5 +1,6 @@
 """Fig. 3 of the paper (field, target, sub-goals as dots, robot path as a line, one panel per manager, same
-episode), a GIF of one episode, and which recorded episode to show.
+episode, a legend), a GIF of one episode, and which recorded episode to show. Where a controlled robot
+collided is marked with a cross in its colour, and panel titles name the robots that did.
 
 An *episode* is one dict of ``hier_ssl.envs.play.Recorder.episode`` with its ``outcome`` labels
 (``label_outcomes``).
@@ -13,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from hier_ssl.manager.success import COLLISION_DISTANCE
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec, RobotState
 
@@ -63,6 +65,7 @@ def _panel(
         dots.append(subgoals[keep])
         owner += [i] * int(keep.sum())
     dots = np.concatenate(dots) if owner else None
+    hits = [(i, point) for i, t, point in collisions(episode) if t <= end]
     return render_fields(
         field,
         state,
@@ -73,15 +76,64 @@ def _panel(
         team=[0] * m + [1] * (robots.shape[1] - m),
         size=size,
         robot=robot,
+        collisions=np.array([point for _, point in hits]).reshape(-1, 2) if hits else None,
+        collision_robot=[i for i, _ in hits],
     )
+
+
+def collisions(
+    episode: dict[str, Any], distance: float = COLLISION_DISTANCE
+) -> list[tuple[int, int, np.ndarray]]:
+    """Where each controlled robot whose ``outcome`` is "collision" hit another robot: (robot i, control
+    step t, point (2,) halfway between the two centres) at the first step another robot was within
+    ``distance`` m of it (the step of the closest approach if none was: a run with a larger collision
+    distance). Robots are indices into ``episode["robots"]`` (T+1, R, 2), field frame."""
+    robots, found = episode["robots"], []
+    for i, label in enumerate(episode["outcome"]):
+        if label != "collision":
+            continue
+        gaps = np.linalg.norm(robots - robots[:, i : i + 1], axis=-1)  # (T+1, R)
+        gaps[:, i] = np.inf
+        nearest = gaps.min(axis=1)
+        within = np.flatnonzero(nearest < distance)
+        t = int(within[0]) if within.size else int(np.argmin(nearest))
+        other = int(np.argmin(gaps[t]))
+        found.append((i, t, (robots[t, i] + robots[t, other]) / 2))
+    return found
 
 
 def panel_title(name: str, episode: dict[str, Any]) -> str:
     steps, outcomes = len(episode["robots"]) - 1, episode["outcome"]
     if len(outcomes) == 1:
         return f"{name}\n{outcomes[0]}, {steps} steps, CPAD {episode['cpad'][0]:.2f} m"
-    reached, hit = outcomes.count("success"), outcomes.count("collision")
-    return f"{name}\n{reached}/{len(outcomes)} reached, {hit} collided, {steps} steps"
+    reached = outcomes.count("success")
+    hit = [str(i) for i, label in enumerate(outcomes) if label == "collision"]
+    which = f" (robot{'s' * (len(hit) > 1)} {', '.join(hit)})" if hit else ""
+    return f"{name}\n{reached}/{len(outcomes)} reached, {len(hit)} collided{which}, {steps} steps"
+
+
+def legend_entries() -> list[tuple[str, dict[str, Any]]]:
+    """(label, matplotlib ``Line2D`` keywords) of what the panels draw, for a legend."""
+    # here, not at the top: matplotlib, for drawing alone
+    from hier_ssl.world.render import COLLISION_MARKER, SUBGOAL, TARGET, TEAM_COLORS
+
+    point = {"linestyle": "none", "markersize": 7}
+    cross = {"marker": COLLISION_MARKER, "color": TARGET, "markeredgecolor": "#101010"}
+    return [
+        ("target", {**point, "marker": "o", "markerfacecolor": "none", "markeredgecolor": TARGET}),
+        ("sub-goals", {**point, "marker": ".", "color": SUBGOAL}),
+        ("robot, path", {"marker": "o", "color": TEAM_COLORS[0], "markersize": 6}),
+        ("obstacle, path", {"marker": "o", "color": TEAM_COLORS[1], "markersize": 6}),
+        ("collision", {**point, **cross}),
+    ]
+
+
+def _legend(fig: Any, **where: Any) -> None:
+    """The legend of ``legend_entries`` on one row of ``fig``, placed by ``where`` (``Figure.legend``)."""
+    from matplotlib.lines import Line2D
+
+    handles = [Line2D([], [], label=label, **style) for label, style in legend_entries()]
+    fig.legend(handles=handles, ncol=len(handles), frameon=False, fontsize=8, handletextpad=0.3, **where)
 
 
 def figure3(
@@ -97,7 +149,8 @@ def figure3(
     An episode is one of ``evaluate(..., record=...)["trajectories"]`` with ``outcome`` and ``cpad``
     added. Target: red ring with a heading tick; sub-goals: orange dots; the robot's path: blue line
     (from the robot, drawn where it started); the obstacles' paths: yellow lines (from where they
-    started, so a still obstacle is a disc without a line).
+    started, so a still obstacle is a disc without a line); a collision: a cross where it happened. With
+    several controlled robots each has its own colour. A legend below the panels says so.
     """
     # here, not at the top: matplotlib, for drawing alone
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -110,7 +163,9 @@ def figure3(
     width, height = size
     cols = min(len(panels), 4)
     rows = -(-len(panels) // cols)
-    fig = Figure(figsize=(cols * width / 100, rows * (height / 100 + 0.55) + (0.3 if title else 0)), dpi=100)
+    legend_in = 0.3
+    fig_height = rows * (height / 100 + 0.55) + (0.3 if title else 0) + legend_in
+    fig = Figure(figsize=(max(cols * width / 100, 4.4), fig_height), dpi=100)
     FigureCanvasAgg(fig)
     for i, (name, episode) in enumerate(panels):
         ax = fig.add_subplot(rows, cols, i + 1)
@@ -119,7 +174,8 @@ def figure3(
         ax.set_axis_off()
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, legend_in / fig_height, 1, 1))
+    _legend(fig, loc="lower center")
     fig.savefig(path)
     return path
 
@@ -150,12 +206,13 @@ def episode_video(
     width, height = size
     longest = max(len(e["robots"]) - 1 for _, e in panels)
     stride = max(2, -(-longest // max_frames))
-    # The names once, as an image strip above the panels.
-    fig = Figure(figsize=(len(panels) * width / 100, 0.45), dpi=100, facecolor="white")
+    # The names and the legend once, as an image strip above the panels.
+    fig = Figure(figsize=(len(panels) * width / 100, 0.75), dpi=100, facecolor="white")
     canvas = FigureCanvasAgg(fig)
     for i, (name, episode) in enumerate(panels):
         label = panel_title(name, episode).split("\n")[1].split(",")[0]
-        fig.text((i + 0.5) / len(panels), 0.5, f"{name}: {label}", ha="center", va="center")
+        fig.text((i + 0.5) / len(panels), 0.75, f"{name}: {label}", ha="center", va="center")
+    _legend(fig, loc="lower center", bbox_to_anchor=(0.5, 0.0))
     canvas.draw()
     strip = np.asarray(canvas.buffer_rgba())[..., :3]
     frames = []
@@ -169,11 +226,25 @@ def episode_video(
 def pick_episode(recorded: Sequence[Sequence[dict[str, Any]]]) -> int:
     """Index of the episode to show of ``recorded[m][j]``, manager m's recorded episode j (with its
     ``outcome`` labels): one in which the most managers succeed (with several robots, counting each
-    manager's share of robots that did), and of those the one where their paths differ most
-    (``path_spread``)."""
+    manager's share of robots that did) and, if any such is typical, whose robots start as far from their
+    targets as those of the middle half of the recorded episodes (``start_distance``: not a 0.3 m one);
+    of those the one where the managers' paths differ most (``path_spread``), and where no paths differ
+    (one manager) the one nearest the median start distance."""
     solved = np.sum([[np.mean(np.equal(e["outcome"], "success")) for e in row] for row in recorded], axis=0)
-    spread = [path_spread(episode) for episode in zip(*recorded, strict=True)]
-    return int(np.argmax(np.where(solved == solved.max(), spread, -np.inf)))
+    spread = np.array([path_spread(episode) for episode in zip(*recorded, strict=True)])
+    start = np.array([start_distance(e) for e in recorded[0]])
+    low, median, high = np.percentile(start, [25, 50, 75])
+    best = solved == solved.max()
+    typical = best & (start >= low) & (start <= high)
+    pool = typical if typical.any() else best
+    order = np.lexsort((np.abs(start - median), -spread))  # the last key sorts first
+    return int(order[pool[order]][0])
+
+
+def start_distance(episode: dict[str, Any]) -> float:
+    """Mean distance (m) from each controlled robot's start to its target in a ``Recorder.episode``."""
+    m = episode["controlled"]
+    return float(np.linalg.norm(episode["robots"][0, :m] - episode["target"][:m, :2], axis=-1).mean())
 
 
 def path_spread(episodes: Sequence[dict[str, Any]]) -> float:
@@ -189,10 +260,13 @@ def path_spread(episodes: Sequence[dict[str, Any]]) -> float:
 
 __all__ = [
     "episode_video",
+    "collisions",
     "figure3",
     "label_outcomes",
+    "legend_entries",
     "outcome",
     "panel_title",
     "path_spread",
     "pick_episode",
+    "start_distance",
 ]

@@ -24,6 +24,7 @@ ROBOT_COLORS = (
     "#8b5a2b", "#b197fc", "#1c2f6e", "#74c0fc", "#868e96",
 )  # fmt: skip
 TARGET, SUBGOAL = "#e03131", "#ff922b"
+COLLISION_MARKER = "X"  # where a controlled robot hit another, in that robot's colour with a dark edge
 _LINE_WIDTH_M = 0.02  # SSL field lines are 10 mm wide; drawn a little wider so they survive small images
 _GOAL_DEPTH_M = 0.18
 _CENTRE_RADIUS_M = 0.5
@@ -42,6 +43,8 @@ def render_fields(
     size: tuple[int, int] = (660, 460),
     team: Sequence[int] | None = None,
     robot: RobotSpec | None = None,
+    collisions: np.ndarray | None = None,
+    collision_robot: Sequence[int] | None = None,
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
@@ -53,7 +56,9 @@ def render_fields(
     an index among the controlled ones). ``trails`` are polylines (T, 2) of this field in the field frame,
     the i-th that of robot ``trail_robot[i]`` (default: robot i). A robot is drawn in its team's colour;
     with several controlled robots each of them, its path, target and sub-goals share a colour of
-    ``ROBOT_COLORS``. ``robot`` gives the disc radius (default: ``RobotSpec()``).
+    ``ROBOT_COLORS``. ``robot`` gives the disc radius (default: ``RobotSpec()``). ``collisions`` (C, 2) are
+    points of this field where controlled robots hit another robot, marked with a cross above everything
+    else in the colour of the robot ``collision_robot[c]`` (an index among the controlled ones; default 0).
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -89,6 +94,17 @@ def render_fields(
     )
     ax.add_collection(discs)
     ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
+    if collisions is not None:
+        points = np.asarray(collisions, dtype=float).reshape(-1, 2)
+        owner = [0] * len(points) if collision_robot is None else collision_robot
+        marks = {
+            "marker": COLLISION_MARKER,
+            "edgecolors": "#101010",
+            "linewidths": 0.8 * line_pt,
+            "zorder": 8,
+        }
+        cross = [colors[controlled[j]] for j in _owner_indices(owner, len(points), len(controlled))]
+        ax.scatter(points[:, 0], points[:, 1], s=(12 * line_pt) ** 2, c=cross, **marks)
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if image.shape != (height, width, 3):
@@ -154,6 +170,13 @@ def _draw_targets(ax: object, points: np.ndarray, colors: list[str], radius: flo
     ax.scatter(x, y, s=(1.6 * line_pt) ** 2, c=colors, zorder=4)
     if points.shape[1] >= 3:
         ax.add_collection(_ticks(points[:, 0:2], points[:, 2], 2 * radius, colors, 1.2 * line_pt))
+
+
+def _owner_indices(owner: Sequence[int], rows: int, controlled: int) -> list[int]:
+    """``owner`` checked: one index among the ``controlled`` robots per row."""
+    if len(owner) != rows or not all(0 <= j < controlled for j in owner):
+        raise ValueError(f"collision_robot: {list(owner)} does not name one of {controlled} robots per row")
+    return list(owner)
 
 
 def _per_field(points: np.ndarray, field_index: int, name: str) -> np.ndarray:

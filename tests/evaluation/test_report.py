@@ -11,7 +11,15 @@ from hier_ssl.envs import env_config
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.compare import compare
 from hier_ssl.evaluation.evaluate import evaluate
-from hier_ssl.evaluation.figures import episode_video, figure3, path_spread, pick_episode
+from hier_ssl.evaluation.figures import (
+    collisions,
+    episode_video,
+    figure3,
+    legend_entries,
+    panel_title,
+    path_spread,
+    pick_episode,
+)
 from hier_ssl.evaluation.paper_tables import PAPER_RESULTS, Row, csv_text, markdown, paper_record
 from hier_ssl.evaluation.report import csv_table, latex_table, markdown_table, table_cells
 from hier_ssl.manager import cpad, min_time_to_pose
@@ -134,6 +142,7 @@ def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
     png = figure3(panels, get_field("hardware_challenge"), tmp_path / "fig" / "fig3.png", size=(220, 150))
     image = imread(png)
     assert image.shape[1] > 400 and image.std() > 0.05  # two panels side by side, not blank
+    assert (image[-25:, :, :3] < 0.3).all(axis=-1).sum() > 50  # the legend's dark text along the bottom
     gif = episode_video(
         panels, get_field("hardware_challenge"), tmp_path / "ep.gif", max_frames=5, size=(110, 75)
     )
@@ -144,8 +153,11 @@ def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
 
 def _episodes(outcomes: list[list[str]]) -> list[list[dict]]:
     """Recorded episodes with these outcomes, every path the same (one robot standing still)."""
-    still = np.zeros((3, 1, 2))
-    return [[{"controlled": 1, "robots": still, "outcome": [o]} for o in row] for row in outcomes]
+    still, target = np.zeros((3, 1, 2)), np.array([[1.0, 0.0, 0.0, 0.0, 0.0]])
+    return [
+        [{"controlled": 1, "robots": still, "target": target, "outcome": [o]} for o in row]
+        for row in outcomes
+    ]
 
 
 def test_pick_episode_prefers_episodes_most_managers_solve() -> None:
@@ -154,8 +166,9 @@ def test_pick_episode_prefers_episodes_most_managers_solve() -> None:
     )
     assert pick_episode(_episodes([["timeout", "timeout"], ["collision", "timeout"]])) == 0
     # With several robots a manager counts for the share of its robots that succeeded.
-    half = [{"controlled": 2, "robots": np.zeros((3, 2, 2)), "outcome": ["success", "timeout"]}]
-    both = [{"controlled": 2, "robots": np.zeros((3, 2, 2)), "outcome": ["success", "success"]}]
+    two = {"controlled": 2, "robots": np.zeros((3, 2, 2)), "target": np.ones((2, 5))}
+    half = [{**two, "outcome": ["success", "timeout"]}]
+    both = [{**two, "outcome": ["success", "success"]}]
     assert pick_episode([half + both]) == 1
 
 
@@ -202,16 +215,81 @@ def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
 def test_pick_episode_shows_where_the_paths_differ_most() -> None:
     line = np.linspace([0.0, 0.0], [2.0, 0.0], 11)[:, None]  # (T + 1, robots, 2): one robot on a line
     detour = line + np.array([0.0, 0.5]) * np.sin(np.linspace(0, np.pi, 11))[:, None, None]
-    same = [{"controlled": 1, "robots": line}, {"controlled": 1, "robots": line[:6]}]
-    apart = [{"controlled": 1, "robots": line}, {"controlled": 1, "robots": detour}]
+    target = np.array([[2.0, 0.0, 0.0, 0.0, 0.0]])
+    same = [
+        {"controlled": 1, "robots": line, "target": target},
+        {"controlled": 1, "robots": line[:6], "target": target},
+    ]
+    apart = [
+        {"controlled": 1, "robots": line, "target": target},
+        {"controlled": 1, "robots": detour, "target": target},
+    ]
     assert path_spread([same[0], same[0]]) == 0.0
     # The shorter episode is held at its end: 1 m behind at the last step.
     assert path_spread(same) == pytest.approx(np.mean(np.r_[np.zeros(6), 0.2, 0.4, 0.6, 0.8, 1.0]))
     assert path_spread(apart) == pytest.approx(np.mean(0.5 * np.sin(np.linspace(0, np.pi, 11))))
-    far = [{"controlled": 1, "robots": line}, {"controlled": 1, "robots": line + 9.0}]
+    far = [
+        {"controlled": 1, "robots": line, "target": target},
+        {"controlled": 1, "robots": line + 9.0, "target": target},
+    ]
     recorded = [[same[m], apart[m], far[m]] for m in range(2)]
     for m, outcomes in enumerate((["success"] * 3, ["success", "success", "timeout"])):
         for episode, o in zip(recorded[m], outcomes, strict=True):
             episode["outcome"] = [o]
     # Episode 2's paths differ most but fewer managers solve it; of episodes 0 and 1, 1 differs more.
     assert pick_episode(recorded) == 1
+
+
+def _from(distance: float, outcome: str = "success", detour: float = 0.0) -> dict:
+    """One robot driving 10 steps to a target at the origin from ``distance`` m along +x, bulging
+    ``detour`` m sideways on the way."""
+    x = np.linspace(distance, 0.0, 11)
+    y = detour * np.sin(np.linspace(0, np.pi, 11))
+    robots = np.stack([x, y], axis=-1)[:, None]
+    return {"controlled": 1, "robots": robots, "target": np.zeros((1, 5)), "outcome": [outcome]}
+
+
+def test_pick_episode_shows_a_typical_episode_not_a_short_one() -> None:
+    distances = [0.3, 1.5, 2.0, 2.6, 4.0]
+    # One manager: no paths to compare, so the episode whose start distance is the median.
+    assert pick_episode([[_from(d) for d in distances]]) == 2
+    # Two managers whose paths differ most on the 0.3 m episode: a start that short is not typical.
+    detours = [0.9, 0.0, 0.1, 0.4, 2.0]
+    recorded = [
+        [_from(d) for d in distances],
+        [_from(d, detour=b) for d, b in zip(distances, detours, strict=True)],
+    ]
+    assert pick_episode(recorded) == 3
+    # Solved by more managers still comes first: only the 0.3 m episode is solved by both.
+    for j in range(1, 5):
+        recorded[1][j]["outcome"] = ["timeout"]
+    assert pick_episode(recorded) == 0
+
+
+def test_collisions_are_found_where_and_when_the_robots_met() -> None:
+    robots = np.zeros((11, 3, 2))
+    robots[:, 0, 0] = np.linspace(0.0, 1.0, 11)  # robot 0 drives along +x at 0.1 m a step
+    robots[:, 1] = [3.0, 3.0]  # robot 1, controlled too, far away
+    robots[:, 2] = [0.75, 0.05]  # an obstacle on robot 0's way
+    episode = {"controlled": 2, "robots": robots, "outcome": ["collision", "success"]}
+    ((i, t, point),) = collisions(episode)
+    # First within 0.2 m at step 6: robot 0 at (0.6, 0), 0.158 m from the obstacle; the point between them.
+    assert (i, t) == (0, 6) and point == pytest.approx([0.675, 0.025])
+    # Never within the distance (a run with a larger collision distance): the closest approach.
+    ((_, t, _),) = collisions(episode, distance=0.01)
+    assert t == 7 or t == 8  # x = 0.7 and 0.8 are both 0.05 m from 0.75 along x
+    assert collisions({**episode, "outcome": ["success", "timeout"]}) == []
+
+
+def test_multi_robot_titles_name_the_robots_that_collided() -> None:
+    episode = {"robots": np.zeros((58, 4, 2)), "outcome": ["collision", "success", "collision", "timeout"]}
+    assert panel_title("direct", episode) == "direct\n1/4 reached, 2 collided (robots 0, 2), 57 steps"
+    episode["outcome"] = ["success", "success", "collision", "success"]
+    assert panel_title("direct", episode) == "direct\n3/4 reached, 1 collided (robot 2), 57 steps"
+    assert [label for label, _ in legend_entries()] == [
+        "target",
+        "sub-goals",
+        "robot, path",
+        "obstacle, path",
+        "collision",
+    ]

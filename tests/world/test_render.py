@@ -70,3 +70,26 @@ def test_several_controlled_robots_each_get_their_own_colour() -> None:
     assert len(set(ROBOT_COLORS)) == 11 and TEAM_COLORS[1] not in ROBOT_COLORS
     with pytest.raises(ValueError, match="trail_robot"):
         render_fields(world.field, world.state, trails=[np.zeros((2, 2))] * 4)
+
+
+def test_render_marks_collisions_in_the_colliding_robots_colours() -> None:
+    world = World(1, 3)
+    world.set_state([0], np.array([[[-1.5, 0.5], [1.0, -1.0], [2.0, 1.2]]]), np.zeros((1, 3)))
+    team = [0, 0, 1]  # two controlled robots: the first blue, the second red (ROBOT_COLORS)
+    plain = render_fields(world.field, world.state, team=team, size=(330, 230))
+    marked = render_fields(
+        world.field,
+        world.state,
+        team=team,
+        size=(330, 230),
+        collisions=np.array([[0.0, -1.5]]),
+        collision_robot=[1],
+    )
+    hx, hy = world.field.wall_half_extent
+    px_per_m = 1 / max(2 * (hx + 0.05) / 330, 2 * (hy + 0.05) / 230)
+    col, row = round(165 + px_per_m * 0.0), round(115 + px_per_m * 1.5)
+    changed = np.any(plain != marked, axis=-1)
+    assert changed[row - 4 : row + 5, col - 4 : col + 5].sum() > 20 and not changed[:, : col - 20].any()
+    assert np.abs(marked[row, col].astype(int) - _rgb("#e03131")).max() < 40  # robot 1's red at the centre
+    with pytest.raises(ValueError, match="collision_robot"):
+        render_fields(world.field, world.state, team=team, collisions=np.zeros((1, 2)), collision_robot=[2])

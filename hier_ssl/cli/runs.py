@@ -35,6 +35,11 @@ def add_train(subparsers: argparse._SubParsersAction) -> None:
     train.add_argument("--out", default=None, help="run directory (default: runs/NAME-sSEED-TIME)")
     train.add_argument("--resume", default=None, metavar="RUN_DIR", help="continue a killed run")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
+    train.add_argument(
+        "--no-planners",
+        action="store_true",
+        help="skip the end's comparison with the direct and sampling planners (and its Fig. 3 and GIF)",
+    )
     train.set_defaults(func=_train)
 
 
@@ -63,6 +68,8 @@ def _train(args: argparse.Namespace) -> int:
         raise
     print_summary(summary)
     print(f"wrote {run_dir / 'eval.json'}")
+    if config.kind == "manager" and not args.no_planners:
+        beside_planners(run_dir, config.eval_episodes, config.seed)
     return 0
 
 
@@ -76,6 +83,47 @@ def _resume_hint(run_dir: Path, save_interval: int) -> str:
         f"interrupted before the first checkpoint (one every {save_interval} steps): nothing in {run_dir} "
         "to resume; start the run again"
     )
+
+
+PLANNERS_SAID = (
+    "What learning bought: the trained manager beside two scripted managers on the same {episodes} held-out\n"
+    "episodes. `direct` names the target as the sub-goal (no planning at all); `sampling` is a classical\n"
+    "planner that samples sub-goals and predicts the obstacles at every decision. Success: the robot\n"
+    "reached the target pose and stopped; collisions: it touched another robot; length: 25 ms control\n"
+    "steps to the end of the episode; CPAD: how far the sub-goal moved in all (m), lower is steadier.\n"
+)
+
+
+def beside_planners(run_dir: Path, episodes: int, seed: int, video: bool = True) -> None:
+    """Print a trained manager beside the ``direct`` and ``sampling`` planners on its held-out episodes
+    (eval.json's: the same seed, so its row repeats the summary's) and write Fig. 3 and a GIF of one of
+    them (the GIF with ``video``) under ``run_dir/beside-planners/``."""
+    # here, not at the top: torch and matplotlib, for this command alone
+    from hier_ssl.evaluation.compare import compare
+    from hier_ssl.evaluation.report import write_evaluation
+    from hier_ssl.runs.train import EVALUATION_SEED
+
+    evaluations = compare(
+        [run_dir, "direct", "sampling"],
+        episodes=episodes,
+        seed=EVALUATION_SEED + seed,
+        record=range(min(16, episodes)),
+    )
+    print("\n" + PLANNERS_SAID.format(episodes=episodes))
+    print("| manager | success % | collisions % | median length | median CPAD m |\n|---|---|---|---|---|")
+    for e in evaluations:
+        r = e.record
+        cells = (
+            100 * r["success_rate"],
+            100 * r["collision_rate"],
+            r["episode_length"]["median"],
+            r["cpad"]["median"],
+        )
+        print(f"| {e.name} | {cells[0]:.1f} | {cells[1]:.1f} | {cells[2]:.0f} | {cells[3]:.2f} |")
+    paths = write_evaluation(
+        evaluations, run_dir / "beside-planners", video=video, title=evaluations[0].env.scenario_name
+    )
+    print("wrote " + ", ".join(str(path) for path in paths))
 
 
 # -- reproduce -----------------------------------------------------------------------------------------------

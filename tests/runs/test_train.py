@@ -105,7 +105,7 @@ def test_killed_run_resumes_to_the_same_step_with_its_replay(tmp_path: Path) -> 
     assert 0 < killed_at < 600
     assert not (run / "eval.json").exists()
 
-    proc = _cli("train", "--resume", str(run), "--no-progress")
+    proc = _cli("train", "--resume", str(run), "--no-progress", "--no-planners")
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 0, err
     model = torch.load(run / MODEL_FILE, weights_only=True)
@@ -337,3 +337,29 @@ def test_an_interrupted_run_prints_the_resume_command(tmp_path: Path) -> None:
     assert proc.returncode == 130
     assert f"continue the run with: hier-ssl train --resume {run}" in err
     assert "nothing in" in _resume_hint(tmp_path / "empty", 5000)
+
+
+def test_a_trained_manager_is_shown_beside_the_planners_on_its_held_out_episodes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hier_ssl.cli.runs import beside_planners
+
+    # Episodes of at most 160 control steps, so an untrained manager's are short too.
+    short = {**TINY["env"], "max_steps": 160}
+    config = parse_config(
+        {**TINY, "env": short, "total_steps": 200, "eval_interval": 100, "eval_episodes": 6}
+    )
+    run = tmp_path / "run"
+    summary = train(config, run, progress=False)
+    capsys.readouterr()
+    beside_planners(run, config.eval_episodes, config.seed, video=False)  # GIFs: tests/cli/test_eval_cli.py
+    out = capsys.readouterr().out
+    assert "What learning bought" in out and "`sampling` is a classical" in out
+    rows = [line.split(" | ") for line in out.splitlines() if line.startswith("| ") and "---" not in line]
+    assert [row[0] for row in rows] == ["| manager", "| run", "| direct", "| sampling"]
+    # The same held-out episodes as eval.json: the run's row repeats its success and collision rates.
+    assert float(rows[1][1]) == pytest.approx(100 * summary["success_rate"], abs=0.05)
+    assert float(rows[1][2]) == pytest.approx(100 * summary["collision_rate"], abs=0.05)
+    assert float(rows[2][3]) <= 160  # the run's episode limit: the planners play its episodes
+    written = sorted(p.name for p in (run / "beside-planners").iterdir())
+    assert written == ["fig3.png", "table.csv", "table.md", "table.tex"]

@@ -12,6 +12,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+from hier_ssl.cli import build_parser
+from hier_ssl.config.files import config_names
+
 ROOT = Path(__file__).parents[1]
 GUIDE = ROOT / "docs" / "guide"
 
@@ -104,3 +107,28 @@ def test_the_getting_started_snippet_runs_as_written(tmp_path: Path) -> None:
     (words,) = _run(snippet, tmp_path)
     keys = [word.strip("{'\":") for word in words[::2]]
     assert keys == ["return", "length", "decisions", "success", "collision", "cpad"]
+
+
+def test_the_readme_tour_runs_as_written(tmp_path: Path) -> None:
+    blocks = _blocks(ROOT / "README.md", "A tour")
+    (snippet,) = blocks["python"]
+    (words,) = _run(snippet, tmp_path)
+    assert [word.strip("{'\":") for word in words[::2]][:4] == ["return", "length", "decisions", "success"]
+    # The commands parse as the CLI takes them and name what exists: shipped configs, files of the checkout.
+    (commands,) = blocks["bash"]
+    for line in commands.splitlines():
+        argv = shlex.split(line.split("#")[0])
+        if argv[0] == "hier-ssl":
+            args = build_parser().parse_args(argv[1:])
+            assert args.command != "train" or args.config in config_names(), line
+        else:
+            assert argv[0] == "python" and (ROOT / argv[1]).is_file(), line
+
+
+def test_the_readme_is_a_front_page_whose_links_resolve() -> None:
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) < 200
+    links = re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text)
+    assert any(link.startswith("docs/") for link in links)
+    for link in links:
+        assert (ROOT / link).exists(), f"README links {link}, which is not in the repository"

@@ -102,3 +102,13 @@ def test_chromium_renders_the_page(site: Path, page: str, tmp_path: Path) -> Non
     assert dom.returncode == 0, dom.stderr
     expected = "hier_ssl.envs.parallel_env" if page.startswith("api/") else "Getting started"
     assert expected in dom.stdout
+
+
+def test_every_markdown_page_closes_its_code_blocks() -> None:
+    # An unclosed fence does not stop a build: the rest of the page would render as code.
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]:
+        fences = [line for line in page.read_text().splitlines() if line.lstrip().startswith("```")]
+        assert len(fences) % 2 == 0, f"{page.relative_to(ROOT)}: {len(fences)} fence lines"
+        assert all(f.strip() != "```" for f in fences[::2]), (
+            f"{page.relative_to(ROOT)}: a block without a language"
+        )

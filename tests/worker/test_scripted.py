@@ -11,7 +11,7 @@ from hier_ssl.world.frames import to_field_frame
 from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 SPEC = RobotSpec()
-D_TH, THETA_TH, V_TH = 0.05, math.radians(5), 0.05  # SPEC.md "Thresholds"
+D_TH, THETA_TH, V_TH = 0.05, math.radians(5), 0.05  # the paper's thresholds (docs/paper.md)
 
 
 def _reach(worker_name: str, distance: float, direction: float, turn: float) -> tuple[int, float, float]:

@@ -11,7 +11,7 @@ def test_hardware_challenge_field_is_the_papers() -> None:
     assert (field.penalty_width, field.penalty_depth, field.goal_width) == (2.0, 0.8, 0.7)
     assert (field.half_length, field.half_width) == (3.0, 2.0)
     assert field.wall_half_extent == pytest.approx((3.3, 2.3))
-    assert field.max_pos == pytest.approx(3.8)  # max(W/2, L/2 + penalty depth), SPEC.md
+    assert field.max_pos == pytest.approx(3.8)  # max(W/2, L/2 + penalty depth), docs/paper.md
 
 
 @pytest.mark.parametrize(("name", "length", "width"), [("division_b", 9.0, 6.0), ("division_a", 12.0, 9.0)])

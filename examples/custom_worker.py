@@ -13,7 +13,7 @@ import argparse
 import numpy as np
 
 from hier_ssl.evaluation.compare import compare
-from hier_ssl.world.physics import RobotSpec, RobotState
+from hier_ssl.world import RobotSpec, RobotState
 
 
 class Proportional:

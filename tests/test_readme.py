@@ -91,7 +91,7 @@ def test_the_gymnasium_section_examples_run_as_written(tmp_path: Path) -> None:
 
 
 def test_the_subproc_vec_env_example_runs_as_written(tmp_path: Path) -> None:
-    (snippet,) = _blocks("Processes, SuperSuit, TorchRL")["python"]
+    (snippet,) = _blocks(GUIDE / "environments.md", "Processes, SuperSuit, TorchRL")["python"]
     assert _run(snippet, tmp_path) == [["(2,", "13)", "(2,)"]]
 
 

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hier_ssl.manager.actions import action_dim, encode_subgoal
-from hier_ssl.manager.scene import Scene, read_scene, subgoal_poses
+from hier_ssl.manager.scene import Scene, read_scene, scene_action, subgoal_poses
 from hier_ssl.manager.trajectory import TrajectoryParams, TrajectoryPlanner
 from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.physics import RobotSpec
@@ -234,15 +234,8 @@ class SamplingPlanner:
 
     def action(self, scene: Scene, subgoal: np.ndarray) -> np.ndarray:
         """The actions (N, A) that name sub-goal poses (N, 5) in ``scene``'s task."""
-        fld = self.field
-        return encode_subgoal(
-            subgoal,
-            self.action_form,
-            fld.half_length,
-            fld.half_width,
-            self.robot.max_speed,
-            frame=self.action_frame,
-            target=scene.target,
+        return scene_action(
+            scene, subgoal, self.field, self.robot.max_speed, self.action_form, self.action_frame
         )
 
 

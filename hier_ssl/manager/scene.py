@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hier_ssl.manager.actions import encode_subgoal
 from hier_ssl.manager.neighbours import as_obstacle_observation, drop_encounters
 from hier_ssl.manager.observation import (
     MANAGER_OBS_BASE_DIM,
@@ -14,6 +15,7 @@ from hier_ssl.manager.observation import (
     OBSTACLE_OBS_SLICES,
     check_array,
 )
+from hier_ssl.world.field import Field
 
 OBSERVATIONS = ("paper", "neighbours", "encounters")
 
@@ -78,4 +80,20 @@ def subgoal_poses(scene: Scene, chosen: np.ndarray) -> np.ndarray:
     return subgoal
 
 
-__all__ = ["OBSERVATIONS", "Scene", "read_scene", "subgoal_poses"]
+def scene_action(
+    scene: Scene, subgoal: np.ndarray, field: Field, max_v: float, action_form: str, action_frame: str
+) -> np.ndarray:
+    """The actions (N, A) that name sub-goal poses ``subgoal`` (N, 5) in ``scene``'s task, as a planner
+    with that field, speed scale, action form and frame emits them."""
+    return encode_subgoal(
+        subgoal,
+        action_form,
+        field.half_length,
+        field.half_width,
+        max_v,
+        frame=action_frame,
+        target=scene.target,
+    )
+
+
+__all__ = ["OBSERVATIONS", "Scene", "read_scene", "scene_action", "subgoal_poses"]

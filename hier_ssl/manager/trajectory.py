@@ -50,9 +50,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hier_ssl.manager.actions import action_dim, encode_subgoal
+from hier_ssl.manager.actions import action_dim
 from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d
-from hier_ssl.manager.scene import Scene, read_scene, subgoal_poses
+from hier_ssl.manager.scene import Scene, read_scene, scene_action, subgoal_poses
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec
 
@@ -207,15 +207,9 @@ class TrajectoryPlanner:
         chosen, winner = self.plan(scene, last)
         if rows is not None:
             self.memory[rows] = np.where(np.isnan(winner), last, winner)
-        fld = self.field
-        return encode_subgoal(
-            subgoal_poses(scene, chosen),
-            self.action_form,
-            fld.half_length,
-            fld.half_width,
-            self.robot.max_speed,
-            frame=self.action_frame,
-            target=scene.target,
+        poses = subgoal_poses(scene, chosen)
+        return scene_action(
+            scene, poses, self.field, self.robot.max_speed, self.action_form, self.action_frame
         )
 
     def plan(self, scene: Scene, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

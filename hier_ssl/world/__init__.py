@@ -1,4 +1,4 @@
-"""The world: field geometry, robot bodies, obstacle behaviours and contacts, N fields in one pymunk space.
+"""The world: field geometry, robot bodies, obstacle behaviours and contacts, N fields stepped together.
 
 Everything crosses this boundary as arrays with a leading (fields, robots) pair of axes. Drawing
 (``hier_ssl.world.render``, matplotlib) is imported where it is used.

@@ -1,4 +1,5 @@
-"""N independent SSL fields of R omnidirectional robots each, stepped together in one pymunk space.
+"""N independent SSL fields of R omnidirectional robots each, stepped together, in pymunk spaces of up to
+``FIELDS_PER_SPACE`` fields (``hier_ssl.world.blocks``: one space for all would leave the cache).
 
 Every robot is a dynamic disc driven by a kinematic control body through a ``PivotJoint`` and a
 ``GearJoint`` whose ``max_bias`` is 0 and whose ``max_force`` is bounded: the control body carries the
@@ -7,44 +8,36 @@ force. The acceleration limit is therefore physical, contacts win over the motor
 of walls and each other (overwriting a dynamic body's velocity every step lets it tunnel through walls).
 
 All state crosses this boundary as arrays with a leading (fields, robots) pair of axes, read and written
-with ``pymunk.batch``'s iterators in one call each; there is no per-body Python on the hot path. At one
-field a step costs numpy's and pymunk's per-call overheads rather than arithmetic, which is what the
-layout of the hot path (``FastSpace``, ``World._prepare``) is about.
+with ``pymunk.batch``'s iterators in one call per space each; there is no per-body Python on the hot path.
+At one field a step costs numpy's and pymunk's per-call overheads rather than arithmetic, which is what
+the layout of the hot path (``FastSpace``, ``World._prepare``) is about.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pymunk
-import pymunk.batch as pb
 
+from hier_ssl.world.blocks import ROBOT, FieldBlock, block_bounds
 from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, cap_speed, wrap_angle
 from hier_ssl.world.robot import RobotSpec, RobotState
-from hier_ssl.world.space import FastSpace, joint_impulses, set_joint_impulses
+from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
-_ROBOT, _WALL = 1, 2
-# Wall segments are centred this far outside the wall line, so their surface lies on it.
-_WALL_RADIUS = 0.01
-_VELOCITY = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY
-_STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | _VELOCITY
-# What ``World._prepare`` makes: cffi call data and views of pymunk's memory, made again for a copy.
-_PREPARED = set(
-    "_fast _raw_pos _raw_angle _raw_vel _raw_spin _write_velocity _write_state _robot_vel _robot_spin "
-    "_control_vel _control_spin".split()
-)
+# What ``World._prepare`` makes: views of the blocks' memory and constants, made again for a copy.
+_PREPARED = set("_read_rows _velocity_rows _robot_vel _robot_spin _control_vel _control_spin".split())
 # At one field numpy's per-call overhead is the whole cost of an operation, and it doubles when an operand
 # is a Python scalar, of another dtype, strided or broadcast from a non-0-d array: the hot path keeps to
 # contiguous arrays of one shape and dtype, and 0-d constants.
 
 
 class World:
-    """``num_fields`` fields with ``num_robots`` robots each, one pymunk space, one ``step`` for all.
+    """``num_fields`` fields with ``num_robots`` robots each, one ``step`` for all.
 
     Fields are laid out on a grid, far enough apart that nothing crosses from one to another. Robot
     indices are the caller's: which robots are controlled and which are obstacles is not the world's
     business. ``state`` is replaced, never modified, by ``step`` and ``set_state``: a state a caller keeps
-    stays as it was. Bodies must not be added to or removed from ``space``.
+    stays as it was. Bodies must not be added to or removed from the ``blocks``' spaces.
 
     A world pickles and copies: the copy has the same bodies, contacts and joint impulses and steps bit
     for bit as the original while no robot touches two bodies at once. When one does, Chipmunk's broad
@@ -76,23 +69,30 @@ class World:
         self.dt, self.substeps = float(dt), substeps
         self._sub_dt = self.dt / substeps
 
-        self.space = pymunk.Space()
-        self.space.iterations = iterations
-        # Units are metres: pymunk's default slop (0.1) would allow 10 cm of overlap.
-        self.space.collision_slop = 5e-4
-        # Push half of any remaining overlap out per substep (pymunk's default leaves ~92 %).
-        self.space.collision_bias = 0.5 ** (1.0 / self._sub_dt)
-
         hx, hy = self.field.wall_half_extent
         pitch = 2 * max(hx, hy) + 2.0
         cols = int(np.ceil(np.sqrt(self.num_fields)))
         idx = np.arange(self.num_fields)
         self.offsets = np.stack([(idx % cols) * pitch, (idx // cols) * pitch], axis=-1).astype(np.float64)
 
-        self._shape_owner: dict[pymunk.Shape, tuple[int, int]] = {}
-        self._joints: list[pymunk.Constraint] = []
-        robots, controls = self._build(hx, hy)
-        self._check_body_order(robots, controls)
+        handlers = (self._on_robot_contact, self._on_wall_contact)
+        parked = self._parking_spots()
+        self.blocks = [
+            FieldBlock(
+                b,
+                self.num_robots,
+                self.offsets,
+                self.field,
+                self.robot,
+                self._sub_dt,
+                iterations,
+                parked,
+                handlers,
+            )
+            for b in block_bounds(self.num_fields)
+        ]
+        self._shape_owner = {shape: owner for block in self.blocks for shape, owner in block.owners.items()}
+        self._joints = [joint for block in self.blocks for joint in block.joints]
         self._prepare(hx, hy)
 
         n, r = self.num_fields, self.num_robots
@@ -100,43 +100,9 @@ class World:
         self.robot_touch = np.zeros((n, r), dtype=bool)  # robot_contacts.any(axis=2), kept by the callback
         self.wall_contacts = np.zeros((n, r), dtype=bool)
         self._contacts_set = False  # whether a callback has written a contact since the last clearing
-        self.space.on_collision(_ROBOT, _ROBOT, pre_solve=self._on_robot_contact)
-        self.space.on_collision(_ROBOT, _WALL, pre_solve=self._on_wall_contact)
         self.state = self._read_state()
 
     # -- construction -------------------------------------------------------------------------------------
-
-    def _build(self, hx: float, hy: float) -> tuple[list[pymunk.Body], list[pymunk.Body]]:
-        spec = self.robot
-        moment = pymunk.moment_for_circle(spec.mass, 0, spec.radius)
-        robots, controls = [], []
-        parked = self._parking_spots()
-        for f in range(self.num_fields):
-            ox, oy = self.offsets[f]
-            wx, wy = hx + _WALL_RADIUS, hy + _WALL_RADIUS
-            corners = [(ox - wx, oy - wy), (ox + wx, oy - wy), (ox + wx, oy + wy), (ox - wx, oy + wy)]
-            for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
-                wall = pymunk.Segment(self.space.static_body, a, b, _WALL_RADIUS)
-                wall.collision_type, wall.friction, wall.elasticity = _WALL, 0.2, 0.0
-                self.space.add(wall)
-                self._shape_owner[wall] = (f, -1)
-            for i in range(self.num_robots):
-                body = pymunk.Body(spec.mass, moment)
-                body.position = (ox + parked[i, 0], oy + parked[i, 1])
-                disc = pymunk.Circle(body, spec.radius)
-                disc.collision_type, disc.friction, disc.elasticity = _ROBOT, 0.2, 0.0
-                control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-                control.position = body.position
-                pivot = pymunk.PivotJoint(control, body, (0, 0), (0, 0))
-                pivot.max_bias, pivot.max_force = 0.0, spec.mass * spec.max_accel
-                gear = pymunk.GearJoint(control, body, 0.0, 1.0)
-                gear.max_bias, gear.max_force = 0.0, moment * spec.max_ang_accel
-                self.space.add(body, disc, control, pivot, gear)
-                self._joints += [pivot, gear]
-                self._shape_owner[disc] = (f, i)
-                robots.append(body)
-                controls.append(control)
-        return robots, controls
 
     def _parking_spots(self) -> np.ndarray:
         """Non-overlapping start positions (R, 2) used until the first reset."""
@@ -146,43 +112,20 @@ class World:
         spots = np.stack([(i % cols) * gap, (i // cols) * gap], axis=-1)
         return spots - spots.mean(axis=0)
 
-    def _check_body_order(self, robots: list[pymunk.Body], controls: list[pymunk.Body]) -> None:
-        # pymunk.batch lists bodies in insertion order and adds the static body once the space has
-        # stepped. Checked once here, that order lets every per-step access be a strided view instead of
-        # a gather through index arrays.
-        self.space.step(self._sub_dt)
-        ids = pb.Buffer()
-        pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, ids)
-        expected = [b.id for pair in zip(robots, controls, strict=True) for b in pair]
-        expected.append(self.space.static_body.id)
-        if np.frombuffer(ids.int_buf(), dtype=np.uintp).tolist() != expected:
-            raise RuntimeError(
-                f"pymunk {pymunk.version} lists bodies in an unexpected order; this World needs "
-                "pymunk.batch to return robot, control, ..., static body"
-            )
-
-    def _pairs(self, rows: np.ndarray) -> np.ndarray:
-        """(rows, C) body rows as (N, R, 2, C): [..., 0, :] the robots, [..., 1, :] their control bodies."""
-        return rows[:-1].reshape(self.num_fields, self.num_robots, 2, rows.shape[-1])
-
     def _prepare(self, hx: float, hy: float) -> None:
-        """Batch buffers, views into them and constants of the hot path, made once.
+        """Buffers, views into them and constants of the hot path, made once.
 
         numpy costs about twice as much per call when an operand is strided or broadcast than when all are
-        contiguous and of one shape, or 0-d: the state is copied out of pymunk's rows into contiguous
-        arrays once per read, and constants are full-shape or 0-d arrays.
+        contiguous and of one shape, or 0-d: the state is copied out of the blocks' rows into one
+        contiguous array per read, and constants are full-shape or 0-d arrays.
         """
         n, r, spec = self.num_fields, self.num_robots, self.robot
-        self._fast = FastSpace(self.space, _STATE, 6)
-        robots = self._pairs(self._fast.rows)[:, :, 0]
-        self._raw_pos, self._raw_angle = robots[..., 0:2], robots[..., 2]
-        self._raw_vel, self._raw_spin = robots[..., 3:5], robots[..., 5]
-        # The static body's row stays zero: a velocity written there throws robots out of their fields.
-        self._write_velocity = self._fast.writer(_VELOCITY, np.zeros((len(self._fast.rows), 3)))
-        self._write_state = self._fast.writer(_STATE, np.zeros((len(self._fast.rows), 6)))
-        pairs = self._pairs(self._write_velocity.rows)
-        self._robot_vel, self._robot_spin = pairs[:, :, 0, 0:2], pairs[:, :, 0, 2]
-        self._control_vel, self._control_spin = as_complex(pairs[:, :, 1, 0:2]), pairs[:, :, 1, 2]
+        self._read_rows = np.zeros((n, r, 6))
+        # Each block's velocity rows are copied from these, [..., 0, :] robots, [..., 1, :] control bodies.
+        self._velocity_rows = np.zeros((n, r, 2, 3))
+        self._robot_vel, self._robot_spin = self._velocity_rows[:, :, 0, 0:2], self._velocity_rows[:, :, 0, 2]
+        self._control_vel = as_complex(self._velocity_rows[:, :, 1, 0:2])
+        self._control_spin = self._velocity_rows[:, :, 1, 2]
 
         self._command_shape = (n, r, 3)
         self._i_angle = np.zeros((n, r), dtype=_COMPLEX)
@@ -220,22 +163,23 @@ class World:
 
     def _on_wall_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
         a, b = arbiter.shapes
-        f, i = self._shape_owner[a] if a.collision_type == _ROBOT else self._shape_owner[b]
+        f, i = self._shape_owner[a] if a.collision_type == ROBOT else self._shape_owner[b]
         self.wall_contacts[f, i] = True
         self._contacts_set = True
 
     # -- state --------------------------------------------------------------------------------------------
 
     def _read_state(self) -> RobotState:
-        self._fast.read()
-        angle = wrap_angle(self._raw_angle)
+        rows = self._read_rows
+        for block in self.blocks:
+            block.fast.read()
+            rows[block.fields] = block.robot_rows
+        angle = wrap_angle(rows[..., 2])
         # exp(i angle) as ``heading`` makes it, for the next step's robot-to-field rotation and the workers:
         # the real part of the exponent stays 0.
         self._i_angle.imag = angle
-        # A copy and an in-place subtraction: faster than one subtraction from the strided rows.
-        pos = self._raw_pos.copy()
-        pos -= self._field_offsets
-        return RobotState(pos, angle, self._raw_vel.copy(), self._raw_spin.copy(), np.exp(self._i_angle))
+        pos = rows[..., 0:2] - self._field_offsets
+        return RobotState(pos, angle, rows[..., 3:5].copy(), rows[..., 5].copy(), np.exp(self._i_angle))
 
     def set_state(
         self,
@@ -280,8 +224,6 @@ class World:
             )
         if m == 0:
             return
-        out = self._write_state.rows
-        out[:] = self._fast.read()
         packed = np.concatenate(
             [
                 checked["pos"] + self.offsets[fields, None, :],
@@ -291,10 +233,8 @@ class World:
             ],
             axis=-1,
         )
-        pairs = self._pairs(out)
-        pairs[fields, :, 0] = packed
-        pairs[fields, :, 1] = packed
-        self._write_state()
+        for block in self.blocks:
+            block.place(fields, packed)
         self.robot_contacts[fields] = False
         self.robot_touch[fields] = False
         self.wall_contacts[fields] = False
@@ -321,20 +261,23 @@ class World:
 
         # Control bodies: the command turned into the field frame and capped at the speed limits.
         target = cap_speed(command[..., 0:2].view(_COMPLEX)[..., 0] * state.heading, self._max_speed)
-        # (Results are assigned into the strided buffer views: a ufunc writing to them directly is slower.)
+        # (Results are assigned into strided views of the velocity rows: a ufunc writing there is slower.)
         self._control_vel[...] = target
         self._control_spin[...] = np.maximum(np.minimum(command[..., 2], self._max_spin), self._min_spin)
         # Robots keep their velocity, less what would carry them into a wall within this period.
         self._robot_vel[...] = self._speculative_wall_stop(state.pos, state.vel)
         self._robot_spin[...] = state.ang_vel
-        self._write_velocity()
+        for block in self.blocks:
+            block.velocity_rows[...] = self._velocity_rows[block.fields]
+            block.write_velocity()
 
         if self._contacts_set:
             self.robot_contacts.fill(False)
             self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
             self._contacts_set = False
-        self._fast.step(self._sub_dt, self.substeps)
+        for block in self.blocks:
+            block.fast.step(self._sub_dt, self.substeps)
         self.state = self._read_state()
         return self.state
 

@@ -277,7 +277,7 @@ def test_bad_construction_raises_naming_the_value() -> None:
 
 def test_adding_bodies_behind_the_worlds_back_is_refused() -> None:
     world = _world(1, 1)
-    world.space.add(pymunk.Body(1.0, 1.0))
+    world.blocks[0].space.add(pymunk.Body(1.0, 1.0))
     with pytest.raises(RuntimeError, match="added to or removed"):
         world.step(np.zeros((1, 1, 3)))
 

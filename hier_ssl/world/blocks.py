@@ -150,13 +150,26 @@ class FieldBlock:
         self.__dict__.update(state)
         self._prepare()
 
+    def advance(self, velocity: np.ndarray, dt: float, substeps: int) -> None:
+        """Write ``velocity`` (C, R, 2, 3), the robots' and control bodies' (vx, vy, w), and step ``substeps``
+        times ``dt``. The World reads each block right after: its bodies are still in cache."""
+        self.velocity_rows[...] = velocity
+        self.write_velocity()
+        self.fast.step(dt, substeps)
+
+    def read(self, out: np.ndarray) -> None:
+        """Copy each robot's x, y, angle, vx, vy, w into ``out`` (C, R, 6)."""
+        self.fast.read()
+        out[...] = self.robot_rows
+
     def place(self, fields: np.ndarray, packed: np.ndarray) -> None:
         """Write ``packed`` (M, R, 6) into the robots and control bodies of the World's ``fields`` (M,) that
         are this block's; its other bodies keep their state."""
         mine = (fields >= self.start) & (fields < self.stop)
         if not mine.any():
             return
-        self.write_state.rows[:] = self.fast.read()
+        # The rows of the last read: no body has moved since (the World reads after every step and write).
+        self.write_state.rows[:] = self.fast.rows
         local = fields[mine] - self.start
         self.state_rows[local, :, 0] = packed[mine]
         self.state_rows[local, :, 1] = packed[mine]

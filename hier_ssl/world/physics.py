@@ -170,10 +170,12 @@ class World:
     # -- state --------------------------------------------------------------------------------------------
 
     def _read_state(self) -> RobotState:
-        rows = self._read_rows
         for block in self.blocks:
-            block.fast.read()
-            rows[block.fields] = block.robot_rows
+            block.read(self._read_rows[block.fields])
+        return self._state_of_rows()
+
+    def _state_of_rows(self) -> RobotState:
+        rows = self._read_rows
         angle = wrap_angle(rows[..., 2])
         # exp(i angle) as ``heading`` makes it, for the next step's robot-to-field rotation and the workers:
         # the real part of the exponent stays 0.
@@ -267,9 +269,6 @@ class World:
         # Robots keep their velocity, less what would carry them into a wall within this period.
         self._robot_vel[...] = self._speculative_wall_stop(state.pos, state.vel)
         self._robot_spin[...] = state.ang_vel
-        for block in self.blocks:
-            block.velocity_rows[...] = self._velocity_rows[block.fields]
-            block.write_velocity()
 
         if self._contacts_set:
             self.robot_contacts.fill(False)
@@ -277,8 +276,9 @@ class World:
             self.wall_contacts.fill(False)
             self._contacts_set = False
         for block in self.blocks:
-            block.fast.step(self._sub_dt, self.substeps)
-        self.state = self._read_state()
+            block.advance(self._velocity_rows[block.fields], self._sub_dt, self.substeps)
+            block.read(self._read_rows[block.fields])
+        self.state = self._state_of_rows()
         return self.state
 
     def _speculative_wall_stop(self, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:

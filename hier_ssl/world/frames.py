@@ -34,9 +34,10 @@ def wrap_angle(angle: ArrayLike) -> np.ndarray:
 def all_finite(values: np.ndarray) -> bool:
     """Whether every value of a float64 array is finite. A sum is finite when every value is; only when it
     is not (a NaN, an infinity, or an overflow of absurd finite values) does the exact test run. The sum
-    is Python's for a few values (a BLAS call costs more than they do), the dot product of squares above."""
+    is Python's for a few values (a numpy call costs more than they do), numpy's above: not a BLAS dot
+    product, which threads from a few thousand values and then waits on cores other processes hold."""
     flat = values.ravel()
-    total = sum(flat.tolist()) if flat.size <= _FEW else np.dot(flat, flat)
+    total = sum(flat.tolist()) if flat.size <= _FEW else flat.sum()
     return math.isfinite(total) or bool(np.isfinite(flat).all())
 
 

@@ -32,6 +32,7 @@ from hier_ssl.manager.observation import (
     slot_slice,
     slots_dim,
 )
+from hier_ssl.manager.rewards import vector_length
 
 NEIGHBOUR_OBS_DIM = 6
 
@@ -65,7 +66,7 @@ def nearest(pos: np.ndarray, others_pos: np.ndarray, k: int) -> tuple[np.ndarray
         present False).
     """
     b, j = others_pos.shape[:2]
-    dist = np.linalg.norm(others_pos - pos[:, None, :], axis=2)
+    dist = vector_length(others_pos - pos[:, None, :])
     order = np.argsort(dist, axis=1, kind="stable")[:, :k]
     index = np.zeros((b, k), dtype=np.int64)
     index[:, : order.shape[1]] = order
@@ -122,16 +123,22 @@ def neighbour_observation(
     rows = np.arange(b)[:, None]
     rel_pos = others_pos[rows, index] - pos[:, None]
     rel_vel = others_vel[rows, index] - vel[:, None]
-    flags = np.stack([teammate[rows, index], present], axis=2)
-    scaled = [np.clip(rel_pos / max_pos, -clip, clip), np.clip(rel_vel / max_v, -clip, clip)]
-    blocks = [np.concatenate([*scaled, flags], axis=2)]
+    # Written straight into the float32 rows; padding slots are all zeros, whatever robot their
+    # placeholder index points at (a product with ``present``, as a float64 block then cast would be).
+    obs = np.empty((b, base.shape[1] + neighbour_obs_dim(k, encounters) - MANAGER_OBS_BASE_DIM), np.float32)
+    obs[:, : base.shape[1]] = base
+    slots = obs[:, base.shape[1] : base.shape[1] + NEIGHBOUR_OBS_DIM * k].reshape(b, k, NEIGHBOUR_OBS_DIM)
+    mask = present[..., None]
+    slots[..., 0:2] = np.clip(rel_pos / max_pos, -clip, clip) * mask
+    slots[..., 2:4] = np.clip(rel_vel / max_v, -clip, clip) * mask
+    slots[..., 4] = teammate[rows, index] & present
+    slots[..., 5] = present
     if encounters:
         to_target = (target[:, 0:2] - pos)[:, None]
         columns = encounter_columns(rel_pos, rel_vel, vel[:, None], to_target, max_pos=max_pos, clip=clip)
-        blocks.append(np.stack(columns, axis=2))
-    # Padding slots are all zeros, whatever robot their placeholder index points at.
-    flat = [(block * present[..., None]).reshape(b, -1).astype(np.float32) for block in blocks]
-    return np.concatenate([base, *flat], axis=1)
+        tail = obs[:, base.shape[1] + NEIGHBOUR_OBS_DIM * k :].reshape(b, k, ENCOUNTER_DIM)
+        tail[...] = np.stack(columns, axis=2) * mask
+    return obs
 
 
 def drop_encounters(obs: np.ndarray) -> np.ndarray:

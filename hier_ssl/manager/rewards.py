@@ -89,7 +89,11 @@ def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndar
     Returns:
         (N,) m; +inf where K = 0, so thresholds and Gaussians of it read "no obstacle".
     """
-    return np.minimum.reduce(vector_length(obs_pos - point[..., None, :]), axis=-1, initial=_INF)
+    # The root of the least square: sqrt is correctly rounded and monotonic, so this is the least of the
+    # roots bit for bit, at one root per field instead of one per obstacle.
+    diff = obs_pos - point[..., None, :]
+    square = diff * diff
+    return np.sqrt(np.minimum.reduce(square[..., 0] + square[..., 1], axis=-1, initial=_INF))
 
 
 def obstacle_distance(

@@ -33,6 +33,7 @@ from hier_ssl.manager.observation import (
     slots_dim,
 )
 from hier_ssl.manager.rewards import vector_length
+from hier_ssl.world.frames import as_complex
 
 NEIGHBOUR_OBS_DIM = 6
 
@@ -120,9 +121,11 @@ def neighbour_observation(
     )
     b = base.shape[0]
     index, present = nearest(pos, others_pos, k)
-    rows = np.arange(b)[:, None]
-    rel_pos = others_pos[rows, index] - pos[:, None]
-    rel_vel = others_vel[rows, index] - vel[:, None]
+    # Each row's neighbours by one take from the flattened (B * J) others, as complex x + iy: a fifth of
+    # the cost of indexing with (rows, index). A complex difference is the two real ones, bit for bit.
+    picked = np.arange(b)[:, None] * others_pos.shape[1] + index
+    rel_pos = _as_float(as_complex(others_pos).ravel().take(picked) - as_complex(pos)[:, None])
+    rel_vel = _as_float(as_complex(others_vel).ravel().take(picked) - as_complex(vel)[:, None])
     # Written straight into the float32 rows; padding slots are all zeros, whatever robot their
     # placeholder index points at (a product with ``present``, as a float64 block then cast would be).
     obs = np.empty((b, base.shape[1] + neighbour_obs_dim(k, encounters) - MANAGER_OBS_BASE_DIM), np.float32)
@@ -131,7 +134,7 @@ def neighbour_observation(
     mask = present[..., None]
     slots[..., 0:2] = np.clip(rel_pos / max_pos, -clip, clip) * mask
     slots[..., 2:4] = np.clip(rel_vel / max_v, -clip, clip) * mask
-    slots[..., 4] = teammate[rows, index] & present
+    slots[..., 4] = teammate.ravel().take(picked) & present
     slots[..., 5] = present
     if encounters:
         to_target = (target[:, 0:2] - pos)[:, None]
@@ -139,6 +142,11 @@ def neighbour_observation(
         tail = obs[:, base.shape[1] + NEIGHBOUR_OBS_DIM * k :].reshape(b, k, ENCOUNTER_DIM)
         tail[...] = np.stack(columns, axis=2) * mask
     return obs
+
+
+def _as_float(z: np.ndarray) -> np.ndarray:
+    """Complex numbers (...) as float pairs (..., 2), a view."""
+    return z[..., None].view(np.float64)
 
 
 def drop_encounters(obs: np.ndarray) -> np.ndarray:

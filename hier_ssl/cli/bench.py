@@ -9,8 +9,9 @@ included, and in the env views also rewards, success and collision checks, obser
 - ``env``: the PettingZoo ParallelEnv of one field, random manager actions, at frame skip 1 and 16; also
   the seconds that importing ``hier_ssl`` and building the env take in a fresh interpreter.
 - ``vector``: the batched view (auto-reset) at frame skip 16 with random actions, for the Proposed task at
-  N = 1024 and ``formation`` (6 controlled robots + 6 moving obstacles per field) at N = 256; the
-  policy's cost is not included.
+  N = 1024 and ``formation`` (6 controlled robots + 6 moving obstacles per field) at N = 256, or (``sweep``)
+  each task of a list at each N of a list; the policy's cost is not included. Also the resident memory
+  per field.
 """
 
 from __future__ import annotations
@@ -214,6 +215,66 @@ def bench_env(
     return BenchResult("env", 1, core.num_agents + core.num_obstacles, steps / wall, extra)
 
 
+def resident_bytes() -> int | None:
+    """This process's resident memory in bytes (Linux's /proc), or None where that cannot be read."""
+    try:
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError):
+        return None
+
+
+@dataclass
+class VectorRun:
+    """The batched torch view of ``task`` over ``n_fields`` fields, built and reset, ready to be timed:
+    ``run(count)`` makes ``count`` vector steps of uniform random actions (drawn beforehand, auto-reset)
+    and returns (seconds, control steps of one field, seconds in ``World.step``) by ``clock``;
+    ``memory_per_field`` is the resident memory building and one step added, bytes per field."""
+
+    task: str
+    n_fields: int
+    frame_skip: int
+    clock: Clock
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        # here, not at the top: torch, for the vector bench alone
+        import torch
+
+        from hier_ssl.envs.vector import TorchVectorEnv
+
+        before = resident_bytes()
+        self.env = env = TorchVectorEnv(task_config(self.task, frame_skip=self.frame_skip), self.n_fields)
+        self.core, world = env.core, env.core.world
+        world_step, self._in_world = world.step, [0.0]
+
+        def timed_step(command: Any) -> Any:  # World.step, timed
+            start = self.clock()
+            state = world_step(command)
+            self._in_world[0] += self.clock() - start
+            return state
+
+        world.step = timed_step
+        generator = torch.Generator().manual_seed(self.seed)
+        self._pool = [
+            torch.rand(env.num_envs, env.num_actions, generator=generator) * 2 - 1 for _ in range(8)
+        ]
+        env.reset(seed=self.seed)
+        self.run(1)
+        after = resident_bytes()
+        self.memory_per_field = None if before is None else (after - before) / self.n_fields
+
+    def run(self, count: int) -> tuple[float, int, float]:
+        self._in_world[0], first, start = 0.0, self.core.control_steps, self.clock()
+        for i in range(count):
+            self.env.step(self._pool[i % len(self._pool)])
+        return self.clock() - start, self.core.control_steps - first, self._in_world[0]
+
+    @property
+    def robots_per_field(self) -> int:
+        return self.core.num_agents + self.core.num_obstacles
+
+
 def bench_vector(
     task: str,
     n_fields: int,
@@ -226,44 +287,20 @@ def bench_vector(
     """The batched torch view of ``task`` (a paper task or a scenario) over ``n_fields`` fields at
     ``frame_skip``, uniform random actions drawn beforehand, auto-reset. ``decisions`` vector steps per
     timed run. ``steps_per_s``: control steps per second of all fields; ``decisions_per_s``: rows x vector
-    steps per second; ``physics_share``: the part of the time spent in ``World.step``."""
-    # here, not at the top: torch, for the vector bench alone
-    import torch
-
-    from hier_ssl.envs.vector import TorchVectorEnv
-
-    env = TorchVectorEnv(task_config(task, frame_skip=frame_skip), n_fields)
-    core, world = env.core, env.core.world
-    world_step, in_world = world.step, [0.0]
-
-    def timed_step(command: Any) -> Any:  # World.step, timed
-        start = clock()
-        state = world_step(command)
-        in_world[0] += clock() - start
-        return state
-
-    world.step = timed_step
-    generator = torch.Generator().manual_seed(seed)
-    pool = [torch.rand(env.num_envs, env.num_actions, generator=generator) * 2 - 1 for _ in range(8)]
-    env.reset(seed=seed)
-
-    def run(count: int = decisions) -> tuple[float, int, float]:
-        in_world[0], first, start = 0.0, core.control_steps, clock()
-        for i in range(count):
-            env.step(pool[i % len(pool)])
-        return clock() - start, core.control_steps - first, in_world[0]
-
-    run(2)
-    wall, steps, physics = _best(run, repeats)
+    steps per second; ``physics_share``: the part of the time spent in ``World.step``;
+    ``memory_kb_per_field``: resident memory the env took, kB per field (``VectorRun``)."""
+    bench = VectorRun(task, n_fields, frame_skip, clock, seed)
+    bench.run(1)
+    wall, steps, physics = _best(lambda: bench.run(decisions), repeats)
+    memory = bench.memory_per_field
     extra = {
         "task": task,
         "frame_skip": frame_skip,
-        "decisions_per_s": round(env.num_envs * decisions / wall, 1),
+        "decisions_per_s": round(bench.env.num_envs * decisions / wall, 1),
         "physics_share": round(physics / wall, 3),
+        "memory_kb_per_field": None if memory is None else round(memory / 1024, 1),
     }
-    return BenchResult(
-        "vector", n_fields, core.num_agents + core.num_obstacles, n_fields * steps / wall, extra
-    )
+    return BenchResult("vector", n_fields, bench.robots_per_field, n_fields * steps / wall, extra)
 
 
 def views(target: str, clock: Clock = time.perf_counter) -> Iterator[BenchResult]:
@@ -272,6 +309,23 @@ def views(target: str, clock: Clock = time.perf_counter) -> Iterator[BenchResult
         yield from (bench_env(frame_skip, clock=clock) for frame_skip in ENV_FRAME_SKIPS)
     else:
         yield from (bench_vector(task, n, clock=clock) for task, n in VECTOR_RUNS)
+
+
+def sweep(
+    tasks: Sequence[str], sizes: Sequence[int], frame_skip: int, clock: Clock = time.perf_counter
+) -> Iterator[BenchResult]:
+    """``bench_vector`` for each task at each N of ``sizes``, yielded by task and N. Each result adds
+    ``per_field_vs_smallest``: its field-steps/s over those at the smallest N (1.0: the cost per field is
+    flat). The largest N runs first: memory a smaller run freed would otherwise be counted as not taken."""
+    for task in tasks:
+        results = {
+            n: bench_vector(task, n, frame_skip, decisions=max(2, 40 // frame_skip), repeats=3, clock=clock)
+            for n in sorted(set(sizes), reverse=True)
+        }
+        smallest = results[min(results)].steps_per_s
+        for n in sorted(results):
+            results[n].extra["per_field_vs_smallest"] = round(results[n].steps_per_s / smallest, 3)
+            yield results[n]
 
 
 def print_results(results: Iterator[BenchResult], as_json: bool) -> None:

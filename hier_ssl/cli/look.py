@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from hier_ssl.cli import bench
+from hier_ssl.cli import bench, side_by_side
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 from hier_ssl.cli.demo import run_demo
 from hier_ssl.cli.deploy import add_bench_deploy
@@ -50,11 +50,41 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         "env": "PettingZoo view, one field, frame skip 1 and 16: steps and decisions/s, build seconds",
         "vector": "batched view at frame skip 16: proposed at N = 1024, formation at N = 256",
     }
-    for name, text in views.items():
-        view = targets.add_parser(name, help=text)
+    parsers = {name: targets.add_parser(name, help=text) for name, text in views.items()}
+    for view in parsers.values():
         view.add_argument("--json", action="store_true", help="one JSON object per line")
         view.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
         view.set_defaults(func=_bench_view)
+    vector = parsers["vector"]
+    vector.add_argument(
+        "--sizes",
+        type=positive_int,
+        nargs="+",
+        metavar="N",
+        help="sweep these numbers of fields instead (e.g. 256 1024 4096), for each of --tasks",
+    )
+    vector.add_argument(
+        "--tasks",
+        nargs="+",
+        default=["obstacle", "formation"],
+        help="tasks of the sweep (default: %(default)s)",
+    )
+    vector.add_argument(
+        "--frame-skip", type=positive_int, default=16, help="of the sweep (default: %(default)s)"
+    )
+    versus = targets.add_parser(
+        "compare", help="vector view beside VMAS (if installed), alternating; PettingZoo at frame skip 1"
+    )
+    versus.add_argument("--json", action="store_true", help="one JSON object per line")
+    versus.add_argument("--cpu-time", action="store_true", help=CPU_TIME_HELP)
+    versus.add_argument(
+        "--sizes", type=positive_int, nargs="+", default=[1024], metavar="N", help="fields (default: 1024)"
+    )
+    versus.add_argument("--rounds", type=positive_int, default=3, help="alternations (default: %(default)s)")
+    versus.add_argument(
+        "--steps", type=positive_int, default=None, help="control steps a round (default: about 0.5 s)"
+    )
+    versus.set_defaults(func=_bench_compare)
     add_bench_deploy(
         targets.add_parser("deploy", help="deploy chain over 127.0.0.1: tracker error, latency, task success")
     )
@@ -65,7 +95,20 @@ def _bench_view(args: argparse.Namespace) -> int:
     if not args.json:
         where = f"CPU {cpu}" if cpu is not None else "one thread"
         print(f"{args.target} bench on {where}, best of several runs")
-    bench.print_results(bench.views(args.target, _clock(args)), args.json)
+    sizes = getattr(args, "sizes", None)
+    results = bench.sweep(args.tasks, sizes, args.frame_skip, _clock(args)) if sizes else None
+    bench.print_results(results or bench.views(args.target, _clock(args)), args.json)
+    return 0
+
+
+def _bench_compare(args: argparse.Namespace) -> int:
+    cpu = bench.pin_to_one_core()
+    if not args.json:
+        where = f"CPU {cpu}" if cpu is not None else "one thread"
+        vmas = "beside VMAS" if side_by_side.vmas_installed() else "(VMAS not installed: hier_ssl alone)"
+        print(f"compare on {where}, {args.rounds} alternating rounds, best of each, {vmas}")
+    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps)
+    side_by_side.print_comparisons(records, args.json)
     return 0
 
 

@@ -1,0 +1,135 @@
+"""``hier-ssl bench compare``: hier_ssl's batched view beside VMAS's, timed in turns in one process.
+
+Each pair has the same robots per field: ``obstacle`` (1 robot + 1 obstacle) beside VMAS ``navigation``
+with 2 agents, ``formation`` (6 + 6) beside ``navigation`` with 6 (the issue's anchor; VMAS has no moving
+obstacles), ``proposed`` (1 robot) beside ``simple``. Both take uniform random actions drawn beforehand;
+hier_ssl resets finished episodes inside its step, VMAS (no auto-reset) runs on. Rounds alternate the
+two, hier_ssl first, and each side's best round is kept. A control step is 0.025 s of simulated time in
+hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simulated second.
+
+Without VMAS installed (``pip install hier_ssl[bench]``) only hier_ssl's figures are printed; the
+PettingZoo view's steps per second at frame skip 1 are printed in both cases.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+from hier_ssl.cli.bench import Clock, VectorRun, bench_env
+
+HIER_DT, VMAS_DT = 0.025, 0.1
+# (hier_ssl task or scenario, VMAS scenario, VMAS options)
+PAIRS = (
+    ("obstacle", "navigation", {"n_agents": 2}),
+    ("formation", "navigation", {"n_agents": 6}),
+    ("proposed", "simple", {}),
+)
+PETTINGZOO_TASKS = ("proposed", "obstacle")
+
+
+def vmas_installed() -> bool:
+    return importlib.util.find_spec("vmas") is not None
+
+
+class VmasRun:
+    """A VMAS scenario over ``n_fields`` environments on the CPU, reset once; ``run(count)`` makes
+    ``count`` steps of uniform random actions drawn beforehand and returns the seconds by ``clock``."""
+
+    def __init__(self, scenario: str, n_fields: int, options: dict[str, Any], clock: Clock, seed: int = 0):
+        # here, not at the top: VMAS is optional (the bench extra), and it loads torch
+        import torch
+        import vmas
+
+        self.clock = clock
+        self.env = vmas.make_env(
+            scenario, num_envs=n_fields, device="cpu", continuous_actions=True, seed=seed, **options
+        )
+        self.env.reset()
+        generator = torch.Generator().manual_seed(seed)
+        sizes = [self.env.get_agent_action_size(agent) for agent in self.env.agents]
+        self._pool = [
+            [torch.rand(n_fields, size, generator=generator) * 2 - 1 for size in sizes] for _ in range(8)
+        ]
+        self.run(1)
+
+    def run(self, count: int) -> float:
+        start = self.clock()
+        for i in range(count):
+            self.env.step(self._pool[i % len(self._pool)])
+        return self.clock() - start
+
+
+def compare_pair(
+    task: str,
+    scenario: str,
+    options: dict[str, Any],
+    n_fields: int,
+    rounds: int,
+    clock: Clock,
+    steps: int | None = None,
+) -> dict[str, Any]:
+    """hier_ssl's ``task`` at frame skip 1 and, if installed, VMAS's ``scenario`` over ``n_fields``
+    fields, ``rounds`` alternating rounds of ``steps`` control steps each (None: 200,000 robot-steps, about
+    half a second): the best of each side in field-steps/s and simulated seconds per second, and their
+    ratios (hier_ssl over VMAS)."""
+    hier = VectorRun(task, n_fields, 1, clock)
+    vmas_run = VmasRun(scenario, n_fields, options, clock) if vmas_installed() else None
+    count = steps or max(5, round(200_000 / (n_fields * hier.robots_per_field)))
+    best, best_vmas = 0.0, 0.0
+    for _ in range(rounds):
+        seconds, steps, _ = hier.run(count)
+        best = max(best, n_fields * steps / seconds)
+        if vmas_run is not None:
+            best_vmas = max(best_vmas, n_fields * count / vmas_run.run(count))
+    out = {
+        "bench": "compare",
+        "task": task,
+        "n_fields": n_fields,
+        "robots_per_field": hier.robots_per_field,
+        "steps_per_s": round(best, 1),
+        "sim_s_per_s": round(best * HIER_DT, 1),
+    }
+    if vmas_run is not None:
+        out |= {
+            "vmas": scenario + "".join(f" {k}={v}" for k, v in options.items()),
+            "vmas_steps_per_s": round(best_vmas, 1),
+            "vmas_sim_s_per_s": round(best_vmas * VMAS_DT, 1),
+            "ratio_per_step": round(best / best_vmas, 3),
+            "ratio_per_sim_s": round(best * HIER_DT / (best_vmas * VMAS_DT), 3),
+        }
+    return out
+
+
+def comparisons(
+    sizes: Sequence[int], rounds: int, clock: Clock, steps: int | None = None
+) -> Iterator[dict[str, Any]]:
+    """The PettingZoo view at frame skip 1 for ``PETTINGZOO_TASKS`` (``bench_env``), then every pair at
+    every N (``compare_pair``)."""
+    for task in PETTINGZOO_TASKS:
+        result = bench_env(1, task, decisions=steps, clock=clock)
+        yield {"bench": "env", "task": task, "n_fields": 1, "steps_per_s": round(result.steps_per_s, 1)}
+    for n in sizes:
+        for task, scenario, options in PAIRS:
+            yield compare_pair(task, scenario, options, n, rounds, clock, steps)
+
+
+def describe(record: dict[str, Any]) -> str:
+    """One line of text for a record of ``comparisons``."""
+    line = f"  {record['task']:>9} N = {record['n_fields']:5d}: {record['steps_per_s']:12,.0f} field-steps/s"
+    if "sim_s_per_s" in record:
+        line += f" ({record['sim_s_per_s']:,.0f} sim s/s)"
+    if "vmas" in record:
+        line += (
+            f" | VMAS {record['vmas']}: {record['vmas_steps_per_s']:,.0f} ({record['vmas_sim_s_per_s']:,.0f}"
+            f" sim s/s) | ratio {record['ratio_per_step']:.2f} per step, {record['ratio_per_sim_s']:.2f}"
+            " per simulated second"
+        )
+    return line
+
+
+def print_comparisons(records: Iterator[dict[str, Any]], as_json: bool) -> None:
+    for record in records:
+        print(json.dumps(record) if as_json else describe(record), flush=True)

@@ -1,0 +1,71 @@
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+
+from hier_ssl import cli
+from hier_ssl.cli import bench, side_by_side
+
+
+@pytest.fixture(autouse=True)
+def _quick(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
+    monkeypatch.setattr(bench, "build_seconds", lambda task, frame_skip: 0.5)
+
+
+def test_vector_sweep_gives_each_task_at_each_size_against_the_smallest(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    argv = ["bench", "vector", "--json", "--sizes", "3", "2", "--tasks", "obstacle", "crossing"]
+    assert cli.main([*argv, "--frame-skip", "2"]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(r["task"], r["n_fields"], r["frame_skip"]) for r in records] == [
+        ("obstacle", 2, 2),
+        ("obstacle", 3, 2),
+        ("crossing", 2, 2),
+        ("crossing", 3, 2),
+    ]
+    assert [r["per_field_vs_smallest"] for r in records[::2]] == [1.0, 1.0]
+    for record in records:
+        assert record["steps_per_s"] > 0 and record["per_field_vs_smallest"] > 0
+        assert record["memory_kb_per_field"] is None or record["memory_kb_per_field"] >= 0
+
+
+def test_resident_bytes_grow_with_what_the_process_holds() -> None:
+    before = bench.resident_bytes()
+    if before is None:
+        pytest.skip("no /proc here")
+    held = bytearray(64 << 20)
+    held[::4096] = b"\1" * len(held[::4096])  # touch every page
+    assert bench.resident_bytes() - before >= 60 << 20
+
+
+def test_compare_without_vmas_prints_hier_ssl_alone(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(side_by_side, "vmas_installed", lambda: False)
+    assert cli.main(["bench", "compare", "--sizes", "2", "--rounds", "1", "--steps", "3"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "VMAS not installed" in lines[0] and len(lines) == 1 + 2 + len(side_by_side.PAIRS)
+    assert not any("VMAS " in line for line in lines[1:])
+    assert cli.main(["bench", "compare", "--json", "--sizes", "2", "--rounds", "1", "--steps", "3"]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(r["bench"], r["task"]) for r in records] == [("env", "proposed"), ("env", "obstacle")] + [
+        ("compare", task) for task, _, _ in side_by_side.PAIRS
+    ]
+    for record in records[2:]:
+        assert record["sim_s_per_s"] == pytest.approx(record["steps_per_s"] * side_by_side.HIER_DT, abs=0.1)
+        assert "vmas_steps_per_s" not in record
+
+
+def test_compare_beside_vmas_gives_both_sides_and_their_ratios() -> None:
+    pytest.importorskip("vmas")
+    record = side_by_side.compare_pair("obstacle", "navigation", {"n_agents": 2}, 2, 2, time.perf_counter, 3)
+    assert record["vmas"] == "navigation n_agents=2" and record["robots_per_field"] == 2
+    ratio = record["steps_per_s"] / record["vmas_steps_per_s"]
+    assert record["ratio_per_step"] == pytest.approx(ratio, rel=1e-2)
+    assert record["ratio_per_sim_s"] == pytest.approx(ratio * 0.25, rel=1e-2)
+    line = side_by_side.describe(record)
+    assert "VMAS navigation n_agents=2" in line and "per simulated second" in line

@@ -16,6 +16,7 @@ included, and in the env views also rewards, success and collision checks, obser
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import subprocess
@@ -243,6 +244,7 @@ class VectorRun:
 
         from hier_ssl.envs.vector import TorchVectorEnv
 
+        gc.collect()  # what an earlier run left is freed before, not while, this one is measured
         before = resident_bytes()
         self.env = env = TorchVectorEnv(task_config(self.task, frame_skip=self.frame_skip), self.n_fields)
         self.core, world = env.core, env.core.world

@@ -162,15 +162,16 @@ class FieldBlock:
         self.fast.read()
         out[...] = self.robot_rows
 
-    def place(self, fields: np.ndarray, packed: np.ndarray) -> None:
+    def place(self, fields: np.ndarray, packed: np.ndarray) -> bool:
         """Write ``packed`` (M, R, 6) into the robots and control bodies of the World's ``fields`` (M,) that
-        are this block's; its other bodies keep their state."""
+        are this block's; its other bodies keep their state. Returns whether any of ``fields`` was."""
         mine = (fields >= self.start) & (fields < self.stop)
         if not mine.any():
-            return
+            return False
         # The rows of the last read: no body has moved since (the World reads after every step and write).
         self.write_state.rows[:] = self.fast.rows
         local = fields[mine] - self.start
         self.state_rows[local, :, 0] = packed[mine]
         self.state_rows[local, :, 1] = packed[mine]
         self.write_state()
+        return True

@@ -235,12 +235,14 @@ class World:
             ],
             axis=-1,
         )
+        # Only the blocks written are read again: the others' rows are those of their last read.
         for block in self.blocks:
-            block.place(fields, packed)
+            if block.place(fields, packed):
+                block.read(self._read_rows[block.fields])
         self.robot_contacts[fields] = False
         self.robot_touch[fields] = False
         self.wall_contacts[fields] = False
-        self.state = self._read_state()
+        self.state = self._state_of_rows()
 
     # -- stepping -----------------------------------------------------------------------------------------
 

@@ -25,9 +25,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hier_ssl.manager.actions import action_dim, encode_subgoal
+from hier_ssl.manager.candidate_points import candidate_points, candidate_weights
 from hier_ssl.manager.scene import Scene, read_scene, scene_action, subgoal_poses
 from hier_ssl.manager.trajectory import TrajectoryParams, TrajectoryPlanner
 from hier_ssl.world.field import Field, get_field
+from hier_ssl.world.frames import as_complex
 from hier_ssl.world.physics import RobotSpec
 
 if TYPE_CHECKING:
@@ -125,31 +127,31 @@ class SamplingPlanner:
         rng = np.random.default_rng(self.seed)
         along = rng.uniform(0.1, 0.9, self.num_samples)
         across = rng.uniform(-self.across, self.across, self.num_samples)
-        # Frozen samples as complex offsets in the (along fraction, across metres) frame of the line.
-        object.__setattr__(self, "_samples", (along, across))
         turns = np.exp(2j * np.pi * np.arange(self.ring_points) / self.ring_points)
-        object.__setattr__(self, "_ring", (np.asarray(self.rings)[:, None] * turns).ravel())
-        object.__setattr__(self, "_escape", self.escape * turns)
+        # The frozen samples, rings and escapes; ``candidate_maps`` turns them into the candidates' maps.
+        ring = (np.asarray(self.rings)[:, None] * turns).ravel()
+        object.__setattr__(self, "_offsets", (ring, along, across, self.escape * turns))
+        object.__setattr__(self, "_maps", {})
 
     @property
     def speed(self) -> float:
         return min(self.max_speed or self.robot.max_speed, self.robot.max_speed)
 
+    def candidate_maps(self, num_obstacles: int) -> tuple[np.ndarray, np.ndarray]:
+        """The maps (M, 2 + K), (M, 2, 2) of ``candidate_points`` with ``num_obstacles`` obstacles."""
+        if num_obstacles not in self._maps:
+            self._maps[num_obstacles] = candidate_weights(*self._offsets, num_obstacles)
+        return self._maps[num_obstacles]
+
     def candidates(self, scene: Scene) -> np.ndarray:
-        """Sub-goal positions (N, M) complex, clipped to the field; column 0 is the target."""
-        pos = scene.robot_pos[:, 0] + 1j * scene.robot_pos[:, 1]
-        goal = scene.target[:, 0] + 1j * scene.target[:, 1]
-        obstacles = scene.obstacle_pos[..., 0] + 1j * scene.obstacle_pos[..., 1]  # (N, K)
-        line = goal - pos
-        unit = line / np.maximum(np.abs(line), 1e-9)
-        along, across = self._samples
-        sampled = pos[:, None] + along * line[:, None] + 1j * across * unit[:, None]
-        # Ring points turn with the line, so "left of the obstacle" means the same in every field.
-        rings = (obstacles[:, :, None] + self._ring * unit[:, None, None]).reshape(len(pos), -1)
-        escapes = pos[:, None] + self._escape * unit[:, None]
-        cand = np.concatenate([goal[:, None], pos[:, None], rings, sampled, escapes], axis=1)
-        half_l, half_w = self.field.half_length, self.field.half_width
-        return np.clip(cand.real, -half_l, half_l) + 1j * np.clip(cand.imag, -half_w, half_w)
+        """Sub-goal positions (N, M) complex, clipped to the field; column 0 is the target
+        (``hier_ssl.manager.candidate_points``)."""
+        points = np.concatenate(
+            [scene.target[:, None, 0:2], scene.robot_pos[:, None], scene.obstacle_pos], axis=1
+        )
+        half = np.array([self.field.half_length, self.field.half_width])
+        cand = candidate_points(points, *self.candidate_maps(scene.obstacle_pos.shape[1]), -half, half)
+        return as_complex(cand)
 
     def rollout(self, scene: Scene, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each candidate's trajectory scored, all (N, M): arrival time in s (horizon + remaining distance

@@ -29,7 +29,7 @@ from hier_ssl.checkpoints.actor import (
 from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.config import TrainConfig
 from hier_ssl.policies.candidate_nets import chooser_from_state
-from hier_ssl.policies.candidates import candidate_planner, candidate_policy
+from hier_ssl.policies.candidates import candidate_manager, candidate_policy
 from hier_ssl.policies.networks import NumpyPolicy, SquashedGaussianActor, sac_policy
 
 
@@ -72,7 +72,7 @@ def _candidate_policy(
     path = checkpoint_path(run_dir, config, which)
     with reading(path, config.algo):
         net = chooser_from_state(load_checkpoint(path, "cpu")["net"])
-    return candidate_policy(freeze(net), candidate_planner(config), generator)
+    return candidate_policy(candidate_manager(config, freeze(net)), generator)
 
 
 def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which: str = "best") -> NumpyPolicy:

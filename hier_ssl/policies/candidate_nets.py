@@ -2,7 +2,7 @@
 
 - ``classifier``: an MLP over the manager's observation (B, O) with one logit per candidate slot (B, C).
 - ``scorer``: one small MLP shared by every candidate, over that candidate's features (B, C, F)
-  (``hier_ssl.manager.candidate_features``), one logit each. It scores a candidate by what happens on the
+  (``hier_ssl.policies.candidate_features``), one logit each. It scores a candidate by what happens on the
   way to it, not by its slot, so "pass left of the second-nearest obstacle" is not a class of its own.
 """
 
@@ -15,7 +15,6 @@ import torch
 from torch import nn
 
 from hier_ssl.checkpoints.actor import linear_layers, mean_actor
-from hier_ssl.manager.candidate_features import candidate_features
 from hier_ssl.manager.planners import SamplingPlanner, Scene
 from hier_ssl.policies.networks import mlp
 
@@ -59,53 +58,13 @@ def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Module:
     return scorer
 
 
-def soft_choice(planner: SamplingPlanner, scene: Scene, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """The planner's candidates (N, C) complex and its soft choice over them (N, C), rows summing to 1,
-    which the networks are fitted to: a softmax of its ``score`` / ``tau`` (over the best tier it would
-    choose from, by arrival time)."""
-    cand = planner.candidates(scene)
+def soft_choice(planner: SamplingPlanner, scene: Scene, cand: np.ndarray, tau: float) -> np.ndarray:
+    """The planner's soft choice (N, C) over its candidates ``cand`` (N, C) complex in ``scene``, rows
+    summing to 1, which the networks are fitted to: a softmax of its ``score`` / ``tau`` (over the best
+    tier it would choose from, by arrival time)."""
     score = planner.score(scene, cand)
     weight = np.exp((score - score.max(1, keepdims=True)) / tau)
-    return cand, weight / weight.sum(1, keepdims=True)
-
-
-def observation_features(
-    planner: SamplingPlanner, obs: np.ndarray, scene_and_candidates: tuple[Scene, np.ndarray] | None = None
-) -> torch.Tensor:
-    """Features (B, C, F) of the planner's candidates in the scenes of observations ``obs`` (B, O), the
-    scenes and candidates built unless given."""
-    scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
-    return torch.from_numpy(candidate_features(planner, scene, cand))
-
-
-def chooser_inputs(
-    net: nn.Module,
-    planner: SamplingPlanner,
-    obs: np.ndarray,
-    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
-) -> torch.Tensor:
-    """What ``net`` reads for observations ``obs`` (B, O): the observations themselves, or (scorer) the
-    features of the planner's candidates (``observation_features``)."""
-    if isinstance(net, Scorer):
-        return observation_features(planner, obs, scene_and_candidates)
-    return torch.as_tensor(obs, dtype=torch.float32)
-
-
-def stored_features(
-    planner: SamplingPlanner,
-    obs: np.ndarray,
-    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
-    features: torch.Tensor | None = None,
-) -> np.ndarray:
-    """What a scorer's DAgger keeps of observations ``obs`` (B, O): their candidates' features (built
-    unless given), once per state rather than at every pass, in float16 for half the memory (the fit reads
-    them rounded so, the policy in float32); 2,000 states at a time."""
-    if features is not None:
-        return features.numpy().astype(np.float16)
-    if scene_and_candidates is None and len(obs) > 2000:
-        parts = np.split(obs, range(2000, len(obs), 2000))
-        return np.concatenate([stored_features(planner, part) for part in parts])
-    return observation_features(planner, obs, scene_and_candidates).numpy().astype(np.float16)
+    return weight / weight.sum(1, keepdims=True)
 
 
 def fit_chooser(
@@ -117,7 +76,7 @@ def fit_chooser(
     batch_size: int,
 ) -> tuple[float, float]:
     """``epochs`` passes of the cross-entropy to the planner's soft choice ``labels`` (B, C) over
-    ``inputs`` (observations, or ``stored_features``); the mean loss and the share of states where the
+    ``inputs`` (observations, or a scorer's stored features); the mean loss and the share of states where the
     network's first choice is the planner's."""
     losses = []
     for _ in range(epochs):
@@ -137,9 +96,6 @@ __all__ = [
     "Scorer",
     "build_chooser",
     "chooser_from_state",
-    "chooser_inputs",
     "fit_chooser",
-    "observation_features",
     "soft_choice",
-    "stored_features",
 ]

@@ -11,8 +11,9 @@ over the observation or a scorer over each candidate's features (``candidate_net
 2. PPO on the logits' categorical policy, from the DAgger fit, rewarded by outcomes alone (time, success,
    collision), a KL penalty towards the fit, a value fitted alone at first: what can pass the planner.
 
-A hybrid: at every decision it runs the planner's candidate geometry (not its rollouts, where the
-planner's time goes), so it needs hier_ssl at run time and does not export.
+At every decision it runs the planner's candidate geometry (not its rollouts, where the planner's time
+goes), in torch: the whole decision is one graph (``hier_ssl.policies.candidate_graph``), which training,
+evaluation and ``hier-ssl export`` share.
 """
 
 from __future__ import annotations
@@ -35,15 +36,14 @@ from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
 from hier_ssl.envs.vector import TorchVectorEnv
-from hier_ssl.manager.planners import SamplingPlanner, Scene
-from hier_ssl.policies.candidate_nets import (
-    build_chooser,
-    chooser_from_state,
-    chooser_inputs,
-    fit_chooser,
-    soft_choice,
+from hier_ssl.manager.planners import SamplingPlanner
+from hier_ssl.policies.candidate_graph import (
+    CandidateManager,
+    as_points,
+    candidate_geometry,
     stored_features,
 )
+from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.networks import NumpyPolicy, mlp
 from hier_ssl.policies.sac_runner import MODEL_FILE, atomic_save
 
@@ -57,41 +57,14 @@ def candidate_planner(config: TrainConfig) -> SamplingPlanner:
     return make_planner("sampling", config.task_config)
 
 
-def act(
-    net: nn.Module,
-    planner: SamplingPlanner,
-    obs: np.ndarray,
-    generator: torch.Generator | None = None,
-    scene_and_candidates: tuple[Scene, np.ndarray] | None = None,
-    inputs: torch.Tensor | None = None,
-) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor]:
-    """The candidate each row chooses (B,) (highest logit, or drawn from the logits' softmax with
-    ``generator``), its log-probability (B,), the action (B, A) naming it and what the network read
-    (``chooser_inputs``); ``obs``'s scene, candidates and inputs are built unless given."""
-    scene, cand = scene_and_candidates or (scene := planner.read(obs), planner.candidates(scene))
-    inputs = chooser_inputs(net, planner, obs, (scene, cand)) if inputs is None else inputs
-    with torch.no_grad():
-        logits = net(inputs)
-    if logits.shape[1] != cand.shape[1]:
-        raise ValueError(
-            f"the network scores {logits.shape[1]} candidates, the planner builds {cand.shape[1]} "
-            "for these observations (another obstacle count or planner)"
-        )
-    log_probs = torch.log_softmax(logits, 1)
-    if generator is None:
-        choice = logits.argmax(1)
-    else:
-        choice = torch.multinomial(log_probs.exp(), 1, generator=generator)[:, 0]
-    chosen = cand[np.arange(len(cand)), choice.numpy()]
-    action = planner.action(scene, planner.subgoals(scene, chosen)).astype(np.float32)
-    return choice, log_probs.gather(1, choice[:, None])[:, 0], action, inputs
+def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
+    """``net`` over the candidates of the run's ``sampling`` planner: the run's whole decision."""
+    return CandidateManager(candidate_geometry(config, candidate_planner(config)), net)
 
 
-def candidate_policy(
-    net: nn.Module, planner: SamplingPlanner, generator: torch.Generator | None = None
-) -> NumpyPolicy:
-    """The network as a numpy manager (``act``'s action); a live view of ``net``'s weights."""
-    return lambda obs: act(net, planner, obs, generator)[2]
+def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
+    """The manager as a numpy policy (``CandidateManager.decide``'s action); a live view of its weights."""
+    return lambda obs: manager.decide(obs, generator)[2]
 
 
 def outcome_reward(
@@ -153,6 +126,7 @@ class CandidateLearner:
         self.config, self.run_dir, self.score = config, run_dir, score
         self.settings = config.candidates
         self.planner = candidate_planner(config)
+        self.geometry = candidate_geometry(config, self.planner)
         self.train_time = 0.0  # rollouts and updates, without the scoring
         self.net: nn.Module | None = None
         self.writer = SummaryWriter(run_dir)
@@ -180,12 +154,12 @@ class CandidateLearner:
 
     def dagger(self, saved: dict[str, Any]) -> None:
         """Phase 1: ``rounds`` DAgger rounds, from round ``saved["round"] + 1`` where given."""
-        settings, planner = self.settings, self.planner
+        settings, planner, geometry = self.settings, self.planner, self.geometry
         obs_parts = [saved["obs"].numpy()] if saved else []
         label_parts = [saved["labels"].numpy()] if saved else []
         # A scorer's features of each state, kept as they were met (a resume rebuilds them from the states).
         scorer = settings.network == "scorer"
-        input_parts = [stored_features(planner, saved["obs"].numpy())] if saved and scorer else []
+        input_parts = [stored_features(geometry, saved["obs"].numpy())] if saved and scorer else []
         optimizer = None
         if self.net is not None:
             optimizer = torch.optim.Adam(self.net.parameters(), lr=settings.learning_rate)
@@ -196,18 +170,21 @@ class CandidateLearner:
         self.bar.update(first)
 
         def labelling(student: nn.Module | None) -> NumpyPolicy:
+            manager = None if student is None else CandidateManager(geometry, student)
+
             def policy(obs: np.ndarray) -> np.ndarray:
-                scene = planner.read(obs)
-                cand, soft = soft_choice(planner, scene, settings.tau)
-                obs_parts.append(np.asarray(obs, dtype=np.float32))
+                x = torch.as_tensor(obs, dtype=torch.float32)
+                read = geometry(x)  # the candidates the network chooses among are the ones labelled
+                soft = soft_choice(planner, planner.read(obs), as_points(read[5]), settings.tau)
+                obs_parts.append(x.numpy())
                 label_parts.append(soft.astype(np.float32))
-                # The student reads the scene, candidates and features built here, not built again.
-                read = None if student is None else chooser_inputs(student, planner, obs, (scene, cand))
-                input_parts.extend([stored_features(planner, obs, (scene, cand), read)] if scorer else [])
-                if read is not None:
-                    return act(student, planner, obs, None, (scene, cand), read)[2]
-                chosen = cand[np.arange(len(cand)), soft.argmax(1)]
-                return planner.action(scene, planner.subgoals(scene, chosen))
+                if manager is not None:  # the student reads the candidates and features built here
+                    _, _, action, inputs = manager.decide(obs, None, read)
+                    input_parts.extend([stored_features(geometry, obs, inputs)] if scorer else [])
+                    return action
+                if scorer:
+                    input_parts.append(stored_features(geometry, obs, geometry.features(read)))
+                return geometry.action(torch.as_tensor(soft.argmax(1)), read).numpy()
 
             return policy
 
@@ -303,8 +280,8 @@ class CandidateLearner:
             choice, log_prob = torch.zeros(len(obs), dtype=torch.long), torch.zeros(len(obs))
             action = np.zeros((len(obs), env.num_actions), dtype=np.float32)
             if real.any():
-                choice[real], log_prob[real], action[real], inputs = act(
-                    self.net, self.planner, obs[real], self.generator
+                choice[real], log_prob[real], action[real], inputs = self.manager.decide(
+                    obs[real], self.generator
                 )
                 read.append(inputs)
             next_obs, _, terminated, truncated, info = env.step_rows(action)
@@ -379,6 +356,12 @@ class CandidateLearner:
                 logs["losses/surrogate"] = surrogate.item()
         return logs
 
+    @property
+    def manager(self) -> CandidateManager:
+        """The network over the planner's candidates: the decision it plays."""
+        assert self.net is not None
+        return CandidateManager(self.geometry, self.net)
+
     def save(self, state: dict[str, Any]) -> None:
         extra = {"train_time_s": self.train_time, "torch_rng": torch.get_rng_state()}
         atomic_save({**state, **extra}, self.run_dir / MODEL_FILE)
@@ -386,13 +369,13 @@ class CandidateLearner:
     def scored(self, step: int, transitions: int) -> None:
         assert self.net is not None
         kept = {"net": copy.deepcopy(self.net.state_dict()), "step": step}
-        self.score(candidate_policy(self.net, self.planner), step, transitions, self.train_time, lambda: kept)
+        self.score(candidate_policy(self.manager), step, transitions, self.train_time, lambda: kept)
 
 
 __all__ = [
     "CandidateLearner",
-    "act",
     "advantages",
+    "candidate_manager",
     "candidate_planner",
     "candidate_policy",
     "missing_keys",

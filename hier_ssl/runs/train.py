@@ -232,7 +232,7 @@ def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress
     if saved is not None and (missing := missing_keys(saved)):
         raise ConfigError(f"cannot resume {run_dir}: {run_dir / MODEL_FILE} lacks {missing}")
     net = learner.learn(saved)
-    return candidate_policy(net, learner.planner), learner.train_time
+    return candidate_policy(learner.manager), learner.train_time
 
 
 def _train_ppo(

@@ -15,7 +15,9 @@ from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.policies.actor import load_policy
-from hier_ssl.policies.candidate_nets import Scorer, chooser_from_state, chooser_inputs, soft_choice
+from hier_ssl.policies.candidate_graph import as_points, candidate_geometry
+from hier_ssl.policies.candidate_nets import Scorer, chooser_from_state, soft_choice
+from hier_ssl.policies.candidates import candidate_manager
 from hier_ssl.runs.train import resume_config, train
 
 SHIPPED = load_yaml(config_dir() / "obstacle" / "candidates.yaml")
@@ -32,12 +34,15 @@ def test_the_soft_choice_peaks_on_the_planners_own_choice() -> None:
     core = HierarchicalCore(config, 64)
     obs = core.reset(3).reshape(-1, core.obs_dim)
     scene = planner.read(obs)
-    cand, soft = soft_choice(planner, scene, tau=0.05)
+    # The candidates the network chooses among (torch, from the observation) are the planner's own.
+    cand = as_points(candidate_geometry(parse_config(SHIPPED), planner)(torch.as_tensor(obs))[5])
+    np.testing.assert_allclose(cand, planner.candidates(scene), rtol=0, atol=1e-12)
+    soft = soft_choice(planner, scene, cand, tau=0.05)
     np.testing.assert_allclose(soft.sum(1), 1.0, rtol=1e-9)
     chosen = cand[np.arange(len(cand)), soft.argmax(1)]
     np.testing.assert_allclose(planner.subgoals(scene, chosen), planner.plan(scene))
     # At a high temperature the choice spreads over the planner's best tier (where it has more than one).
-    sharp, spread = soft.max(1), soft_choice(planner, scene, tau=10.0)[1].max(1)
+    sharp, spread = soft.max(1), soft_choice(planner, scene, cand, tau=10.0).max(1)
     assert (spread <= sharp + 1e-12).all() and (spread < 0.9).sum() > len(obs) // 2
 
 
@@ -71,7 +76,8 @@ def test_a_scorer_learns_from_fewer_states_than_the_classifier_and_reloads_as_sa
     task = parse_config(SHIPPED).task_config
     planner = make_planner("sampling", task)
     obs = HierarchicalCore(task, 16).reset(5).reshape(16, -1)
-    logits = net(chooser_inputs(net, planner, obs))
+    manager = candidate_manager(parse_config(SHIPPED), net)
+    logits = net(manager.decide(obs)[3])
     assert logits.shape == (16, planner.candidates(planner.read(obs)).shape[1])
     assert torch.isfinite(logits).all() and (logits.std(1) > 0).all()
     played = evaluate(load_policy(run, which="final"), task, 40, seed=20_000)

@@ -151,9 +151,9 @@ def load_actor(run_dir: str | Path, which: str = "best") -> tuple[nn.Sequential,
     config = run_config(run_dir)
     if config.algo == "candidates":
         raise ConfigError(
-            f"{run_dir}: algo 'candidates' chooses among the sampling planner's candidates, which hier_ssl "
-            "builds in numpy at every decision; it has no stand-alone actor to load or export "
-            "(load_policy plays it)"
+            f"{run_dir}: algo 'candidates' chooses among the sampling planner's candidates; it has no "
+            "stand-alone actor (hier_ssl.policies.actor.load_candidate_manager loads its whole decision, "
+            "load_policy plays it, hier-ssl export exports it)"
         )
     path = checkpoint_path(run_dir, config, which)
     with reading(path, config.algo):

@@ -1,6 +1,6 @@
 """A trained run's policy read from its run directory as a numpy policy that samples or not
-(``load_policy``): SAC, PPO or the candidates' chooser. The deterministic torch module alone is
-``hier_ssl.checkpoints.actor.load_actor``.
+(``load_policy``): SAC, PPO or the candidates' chooser (its torch graph: ``load_candidate_manager``). The
+deterministic torch module alone is ``hier_ssl.checkpoints.actor.load_actor``.
 
 The paper's test script evaluates *sampled* actions (docs/paper.md): ``load_policy(run_dir,
 sample=True, seed=...)`` draws them from the whole SAC actor (``SquashedGaussianActor``, log-std head
@@ -27,7 +27,8 @@ from hier_ssl.checkpoints.actor import (
     sac_actor_state,
 )
 from hier_ssl.checkpoints.tensors import load_checkpoint
-from hier_ssl.config import TrainConfig
+from hier_ssl.config import ConfigError
+from hier_ssl.policies.candidate_graph import CandidateManager
 from hier_ssl.policies.candidate_nets import chooser_from_state
 from hier_ssl.policies.candidates import candidate_manager, candidate_policy
 from hier_ssl.policies.networks import NumpyPolicy, SquashedGaussianActor, sac_policy
@@ -63,16 +64,18 @@ def _sampling_ppo_policy(state: dict[str, torch.Tensor], generator: torch.Genera
     return policy
 
 
-def _candidate_policy(
-    run_dir: str | Path, config: TrainConfig, which: str, generator: torch.Generator | None
-) -> NumpyPolicy:
-    """An ``algo: candidates`` run's classifier or scorer over the planner's candidates
-    (``hier_ssl.policies.candidates``): ``best_actor.pt`` and ``model.pt`` both hold its weights under
-    "net"."""
+def load_candidate_manager(run_dir: str | Path, which: str = "best") -> CandidateManager:
+    """An ``algo: candidates`` run's classifier or scorer over the planner's candidates, frozen: the whole
+    decision, observation (B, O) float32 in, action (B, A) float32 out
+    (``hier_ssl.policies.candidate_graph``).
+    ``best_actor.pt`` and ``model.pt`` both hold its weights under "net"."""
+    config = run_config(run_dir)
+    if config.algo != "candidates":
+        raise ConfigError(f"{run_dir}: an algo {config.algo!r} run; expected algo 'candidates'")
     path = checkpoint_path(run_dir, config, which)
     with reading(path, config.algo):
         net = chooser_from_state(load_checkpoint(path, "cpu")["net"])
-    return candidate_policy(candidate_manager(config, freeze(net)), generator)
+    return freeze(candidate_manager(config, net))
 
 
 def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which: str = "best") -> NumpyPolicy:
@@ -87,7 +90,7 @@ def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which:
     config = run_config(run_dir)
     if config.algo == "candidates":
         generator = torch.Generator().manual_seed(seed) if sample else None
-        return _candidate_policy(run_dir, config, which, generator)
+        return candidate_policy(load_candidate_manager(run_dir, which), generator)
     if not sample:
         actor, _ = load_actor(run_dir, which)
 
@@ -105,4 +108,4 @@ def load_policy(run_dir: str | Path, sample: bool = False, seed: int = 0, which:
         return _sampling_ppo_policy(ppo_actor_state(saved), generator)
 
 
-__all__ = ["load_policy"]
+__all__ = ["load_candidate_manager", "load_policy"]

@@ -8,8 +8,8 @@ sub-goal until it is no longer held, and each leg's closest approach to every ob
 planner's own safety distances (collision distance + margin, growing with the prediction time). Cheap and
 approximate: these say what the rollout measures, and a network learns the rest from the planner's labels.
 
-Torch tensors, float64, batched over (B scenes, C candidates, K obstacles); 2-D vectors are a last axis of
-2 (no complex dtype: ONNX has none). Training, evaluation and the exported file all compute the features
+Torch tensors of one float dtype, batched over (B scenes, C candidates, K obstacles); 2-D vectors are a
+last axis of 2, or split into components (no complex dtype: ONNX has none). Training, evaluation and the exported file all compute the features
 here (``hier_ssl.policies.candidate_graph``); TorchScript compiles these functions, so their tensor
 arguments carry no annotation and their constants are literals.
 """
@@ -56,29 +56,42 @@ def closest_approach(sx, sy, vx, vy, t0, t1):
     return _dot(gx, gy, gx, gy).sqrt().masked_fill(t1 < t0, math.inf), t
 
 
-def _half(rx, ry, vx, vy, lo, hi, model: PathModel):
+def _half(rx, ry, vx, vy, lo, hi, model: PathModel, held: bool):
     """One piece of path on one side of the prediction horizon: relative position r + v t at absolute
     time t in [lo, hi]; its closest distance, the time of it and the clearance beyond the growing safety
     distance at its ends and closest point (an upper bound of the smallest one, whose growing margin can
-    put it between, by up to 6 cm on random scenes)."""
-    d, t = closest_approach(rx + vx * lo, ry + vy * lo, vx, vy, lo, hi)
-    gaps = []
-    for end in (lo, t, hi):
-        x, y = rx + vx * end, ry + vy * end
-        away = _dot(x, y, x, y).sqrt() - model.safety
-        gaps.append(away - model.growth * end.clamp(max=model.horizon) ** 1.5)
-    clearance = torch.minimum(torch.minimum(gaps[0], gaps[1]), gaps[2])
+    put it between, by up to 6 cm on random scenes). ``held``: after the horizon, where the obstacles and
+    the safety distance hold, so the closest point is the least clear."""
+    sx, sy = rx + vx * lo, ry + vy * lo
+    d, t = closest_approach(sx, sy, vx, vy, lo, hi)
+    h, growth = model.horizon, model.growth
+    if held:
+        return d, t, d - (model.safety + growth * h**1.5)
+    ex, ey = rx + vx * hi, ry + vy * hi
+    # The distances at the ends and at the closest point, each less the growing margin there.
+    first = _dot(sx, sy, sx, sy).sqrt() - growth * lo.clamp(max=h) ** 1.5
+    last = _dot(ex, ey, ex, ey).sqrt() - growth * hi.clamp(max=h) ** 1.5
+    closest = d - growth * t.clamp(max=h) ** 1.5
+    clearance = torch.minimum(torch.minimum(first, closest), last) - model.safety
     return d, t, clearance.masked_fill(hi < lo, math.inf)
 
 
-def _piece(r0, w, begin, end, q, u, model: PathModel):
+def _piece(
+    r0: list[torch.Tensor],
+    w: list[torch.Tensor],
+    begin,
+    end,
+    q: list[torch.Tensor],
+    u: list[torch.Tensor],
+    model: PathModel,
+):
     """The robot at r0 + w (t - begin) over [begin, end] (components (B, C, 1) each) against obstacles at
     q + u min(t, H) (components (B, 1, K)): closest distance, its time, clearance, each (B, C, K). The piece
     is split at H: before it the obstacles move, after it they hold where the prediction left them."""
     h = model.horizon
     sx, sy = r0[0] - w[0] * begin - q[0], r0[1] - w[1] * begin - q[1]
-    d_a, t_a, c_a = _half(sx, sy, w[0] - u[0], w[1] - u[1], begin, end.clamp(max=h), model)
-    d_b, t_b, c_b = _half(sx - u[0] * h, sy - u[1] * h, w[0], w[1], begin.clamp(min=h), end, model)
+    d_a, t_a, c_a = _half(sx, sy, w[0] - u[0], w[1] - u[1], begin, end.clamp(max=h), model, False)
+    d_b, t_b, c_b = _half(sx - u[0] * h, sy - u[1] * h, w[0], w[1], begin.clamp(min=h), end, model, True)
     closer = d_b < d_a
     return torch.where(closer, d_b, d_a), torch.where(closer, t_b, t_a), torch.minimum(c_a, c_b)
 
@@ -92,20 +105,20 @@ def two_legs(model: PathModel, target, robot, obstacles, velocities, cand) -> di
     each obstacle, (B, C, K). Vectors are split into their components, (B, C, 1) for the robot's and
     (B, 1, K) for the obstacles': a sum over a last axis of 2 costs torch more than the arithmetic."""
     speed = model.speed
-    p = [robot[:, i, None, None] for i in (0, 1)]
-    g = [target[:, i, None, None] for i in (0, 1)]
-    c = [cand[:, :, i, None] for i in (0, 1)]
-    q = [obstacles[:, None, :, i] for i in (0, 1)]
-    u = [velocities[:, None, :, i] for i in (0, 1)]
-    out, on = [c[i] - p[i] for i in (0, 1)], [g[i] - c[i] for i in (0, 1)]
+    p = [robot[:, i, None, None] for i in range(2)]
+    g = [target[:, i, None, None] for i in range(2)]
+    c = [cand[:, :, i, None] for i in range(2)]
+    q = [obstacles[:, None, :, i] for i in range(2)]
+    u = [velocities[:, None, :, i] for i in range(2)]
+    out, on = [c[i] - p[i] for i in range(2)], [g[i] - c[i] for i in range(2)]
     l1, l2 = _dot(out[0], out[1], out[0], out[1]).sqrt(), _dot(on[0], on[1], on[0], on[1]).sqrt()
-    w1 = [speed * out[i] / l1.clamp(min=1e-9) for i in (0, 1)]
-    w2 = [speed * on[i] / l2.clamp(min=1e-9) for i in (0, 1)]
+    w1 = [speed * out[i] / l1.clamp(min=1e-9) for i in range(2)]
+    w2 = [speed * on[i] / l2.clamp(min=1e-9) for i in range(2)]
     t1 = l1 / speed
     # The worker drives to a held sub-goal and waits there; the target itself is never left.
     tp = torch.where(l2 == 0, t1, t1.clamp(min=model.hold))
     t2 = tp + l2 / speed
-    parked = [0.0 * w for w in w1]
+    parked = [0.0 * w1[i] for i in range(2)]
     d0, s0, c0 = _piece(p, w1, torch.zeros_like(t1), t1, q, u, model)  # to the candidate
     d1, s1, c1 = _piece(c, parked, t1, tp, q, u, model)  # parked there
     d2, s2, c2 = _piece(c, w2, tp, t2, q, u, model)  # on to the target
@@ -132,39 +145,40 @@ def _nearest_two(d, s) -> list[torch.Tensor]:
     return [first.clamp(max=3.0), near[..., 1].clamp(max=3.0), when[..., 0].masked_fill(first.isinf(), 0.0)]
 
 
-def _norm(x):
-    """Lengths (...) of vectors (..., 2)."""
-    return _dot(x[..., 0], x[..., 1], x[..., 0], x[..., 1]).sqrt()
-
-
-def line_frame(target, robot, robot_vel, obstacles, velocities, cand):
-    """Positions and velocities (B, C, 8 + 7K) in the frame of the robot -> target line: candidate minus
-    robot, minus target; target minus robot; robot velocity; per obstacle its position minus the
-    candidate's and the robot's, its velocity (all x, then all y); then each obstacle's distance to the
-    candidate. Shapes as in ``two_legs``; robot_vel (B, 2)."""
+def _line_frame(target, robot, robot_vel, obstacles, velocities, cand) -> list[torch.Tensor]:
+    """Positions and velocities in the frame of the robot -> target line, float32 pieces of (B, C, 8 + 7K):
+    candidate minus robot, minus target; target minus robot; robot velocity; per obstacle its position
+    minus the candidate's and the robot's, its velocity (all x, then all y); then each obstacle's distance
+    to the candidate. Shapes as in ``two_legs``; robot_vel (B, 2)."""
     line = target - robot
-    length = _norm(line)
+    length = _dot(line[:, 0], line[:, 1], line[:, 0], line[:, 1]).sqrt()[:, None]
     # A robot on its target has no line: the field's axes then (not a division by zero).
     far = length > 1e-9
-    ratio = line / length.clamp(min=1e-9)[:, None]
-    unit = torch.stack([torch.where(far, ratio[:, 0], 1.0), torch.where(far, ratio[:, 1], 0.0)], -1)
+    ux = torch.where(far, line[:, 0:1] / length.clamp(min=1e-9), 1.0)[:, :, None]  # (B, 1, 1)
+    uy = torch.where(far, line[:, 1:2] / length.clamp(min=1e-9), 0.0)[:, :, None]
     b, m, k = cand.shape[0], cand.shape[1], obstacles.shape[1]
+    # Vectors by components: (B, C, 4) of the candidate's own, (B, C, K) and (B, 1, K) of the obstacles'.
     own = torch.stack(
         [cand - robot[:, None], cand - target[:, None], line[:, None].expand(b, m, 2),
          robot_vel[:, None].expand(b, m, 2)],
         2,
     )  # fmt: skip
-    to_obstacle = obstacles[:, None] - cand[:, :, None]  # (B, C, K, 2)
-    seen = [to_obstacle, (obstacles - robot[:, None])[:, None].expand(b, m, k, 2)]
-    seen.append(velocities[:, None].expand(b, m, k, 2))
-    z = torch.cat([own] + seen, 2)
-    x, y, ux, uy = z[..., 0], z[..., 1], unit[:, None, None, 0], unit[:, None, None, 1]
-    return torch.cat([x * ux + y * uy, y * ux - x * uy, _norm(to_obstacle)], -1)
+    to_x = obstacles[:, None, :, 0] - cand[:, :, None, 0]
+    to_y = obstacles[:, None, :, 1] - cand[:, :, None, 1]
+    seen = [(obstacles - robot[:, None])[:, None], velocities[:, None]]
+    xs = [own[..., 0] * ux + own[..., 1] * uy, to_x * ux + to_y * uy]
+    ys = [own[..., 1] * ux - own[..., 0] * uy, to_y * ux - to_x * uy]
+    parts = [part.float() for part in xs]
+    parts += [(v[..., 0] * ux + v[..., 1] * uy).float().expand(b, m, k) for v in seen]
+    parts += [part.float() for part in ys]
+    parts += [(v[..., 1] * ux - v[..., 0] * uy).float().expand(b, m, k) for v in seen]
+    return parts + [_dot(to_x, to_y, to_x, to_y).sqrt().float()]
 
 
 def candidate_features(model: PathModel, target, robot, robot_vel, obstacles, velocities, cand):
     """Features (B, C, 27 + 7K) float32 of candidates ``cand`` (B, C, 2) in scenes of K obstacles (shapes
-    as in ``line_frame``): its columns, then per leg the nearest and second-nearest obstacle distance, the
+    as in ``two_legs``; robot_vel (B, 2)): the positions and velocities in the frame of the robot -> target
+    line (``_line_frame``), then per leg the nearest and second-nearest obstacle distance, the
     time of the nearest and the smallest growing-margin clearance; the leg times and the arrival time T, T
     behind the soonest candidate and behind the soonest safe one; the clearances of the whole path against
     the growing and the fixed safety distance, whether each is kept, whether any candidate is safe."""
@@ -185,8 +199,8 @@ def candidate_features(model: PathModel, target, robot, robot_vel, obstacles, ve
         clear.clamp(-1.0, 3.0), hard.clamp(-1.0, 3.0), safe.to(arrival.dtype), close.to(arrival.dtype),
         any_safe.to(arrival.dtype),
     ]  # fmt: skip
-    frame = line_frame(target, robot, robot_vel, obstacles, velocities, cand)
-    return torch.cat([frame, torch.stack(columns, -1)], -1).float()
+    frame = _line_frame(target, robot, robot_vel, obstacles, velocities, cand)
+    return torch.cat(frame + [torch.stack(columns, -1).float()], -1)
 
 
 def feature_dim(num_obstacles: int) -> int:

@@ -33,10 +33,11 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from hier_ssl.checkpoints.actor import load_actor
+from hier_ssl.checkpoints.actor import load_actor, run_config
 from hier_ssl.config import TrainConfig
 from hier_ssl.envs import Scenario, make_scenario
 from hier_ssl.manager.encounter import ENCOUNTER_DIM, encounter_columns
+from hier_ssl.policies.actor import load_candidate_manager
 
 FORMATS = {"torchscript": ".pt", "onnx": ".onnx"}
 STATE_BASE_DIM = 11  # target 5 + robot 6
@@ -205,17 +206,23 @@ def layout(config: TrainConfig) -> dict[str, object]:
 
 
 def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]:
-    """The manager trained in ``run_dir`` as an ``ExportedManager`` (frozen, eval mode), and its config."""
-    actor, config = load_actor(run_dir)
+    """The manager trained in ``run_dir`` as an ``ExportedManager`` (frozen, eval mode), and its config.
+    An ``algo: candidates`` run's actor is its whole decision (``load_candidate_manager``)."""
+    config = run_config(run_dir)
+    if config.algo == "candidates":
+        actor: nn.Module = load_candidate_manager(run_dir)
+    else:
+        actor, config = load_actor(run_dir)
     if config.kind != "manager":
         raise ValueError(f"{run_dir}: a {config.kind} run; export takes a manager run")
     task, env = _task(config), config.task_config
-    in_dim, out_dim = actor[0].in_features, actor[-2].out_features
-    if (in_dim, out_dim) != (task.obs_dim, task.act_dim):
-        raise ValueError(
-            f"{run_dir}: actor maps {in_dim} -> {out_dim} values; its config needs "
-            f"{task.obs_dim} -> {task.act_dim}"
-        )
+    if config.algo != "candidates":
+        in_dim, out_dim = actor[0].in_features, actor[-2].out_features
+        if (in_dim, out_dim) != (task.obs_dim, task.act_dim):
+            raise ValueError(
+                f"{run_dir}: actor maps {in_dim} -> {out_dim} values; its config needs "
+                f"{task.obs_dim} -> {task.act_dim}"
+            )
     scales = task.scales
     module = ExportedManager(
         actor,

@@ -231,7 +231,7 @@ def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress
     saved = load_checkpoint(run_dir / MODEL_FILE) if resume else None
     if saved is not None and (missing := missing_keys(saved)):
         raise ConfigError(f"cannot resume {run_dir}: {run_dir / MODEL_FILE} lacks {missing}")
-    net = learner.learn(saved)
+    learner.learn(saved)
     return candidate_policy(learner.manager), learner.train_time
 
 

@@ -221,7 +221,7 @@ def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: 
 
 
 def test_sampling_draws_from_the_logits_and_greedy_takes_the_highest() -> None:
-    from hier_ssl.policies.candidates import act, candidate_planner
+    from hier_ssl.policies.candidates import candidate_planner
     from hier_ssl.policies.networks import mlp
 
     config = parse_config(SHIPPED)
@@ -234,10 +234,16 @@ def test_sampling_draws_from_the_logits_and_greedy_takes_the_highest() -> None:
     torch.nn.init.zeros_(net[-1].bias)
     with torch.no_grad():
         net[-1].bias[7] = 1.0  # candidate 7 is the most likely, but with uniform logits elsewhere not sure
-    greedy, log_prob, _, read = act(net, planner, obs)
+    manager = candidate_manager(config, net)
+    greedy, log_prob, action, read = manager.decide(obs)
     assert torch.equal(read, torch.as_tensor(obs, dtype=torch.float32))
     assert (greedy == 7).all() and torch.allclose(log_prob, torch.full((64,), log_prob[0].item()))
-    drawn = [act(net, planner, obs, torch.Generator().manual_seed(seed))[0] for seed in (1, 1, 2)]
+    # The greedy action is the forward pass's (the exported graph's) and names the planner's candidate 7.
+    np.testing.assert_array_equal(action, manager(torch.as_tensor(obs)).numpy())
+    scene = planner.read(obs)
+    chosen = planner.subgoals(scene, planner.candidates(scene)[:, 7])
+    np.testing.assert_allclose(action, planner.action(scene, chosen), rtol=0, atol=1e-6)
+    drawn = [manager.decide(obs, torch.Generator().manual_seed(seed))[0] for seed in (1, 1, 2)]
     assert torch.equal(drawn[0], drawn[1]) and not torch.equal(drawn[0], drawn[2])
     assert (drawn[0] != 7).any()
 

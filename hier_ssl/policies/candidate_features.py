@@ -9,9 +9,9 @@ planner's own safety distances (collision distance + margin, growing with the pr
 approximate: these say what the rollout measures, and a network learns the rest from the planner's labels.
 
 Torch tensors of one float dtype, batched over (B scenes, C candidates, K obstacles); 2-D vectors are a
-last axis of 2, or split into components (no complex dtype: ONNX has none). Training, evaluation and the exported file all compute the features
-here (``hier_ssl.policies.candidate_graph``); TorchScript compiles these functions, so their tensor
-arguments carry no annotation and their constants are literals.
+last axis of 2, or split into components (no complex dtype: ONNX has none). Training, evaluation and the
+exported file all compute the features here (``hier_ssl.policies.candidate_graph``); TorchScript compiles
+these functions, so their tensor arguments carry no annotation and their constants are literals.
 """
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ ONNX through an onnxruntime session with one intra-op thread, and, for reference
 ``hier_ssl.evaluation.evaluate`` uses (numpy observation builder, actor, ``decode_subgoal``) and the scripted
 ``sampling`` planner on the same observation (the manager a learned one has to beat, also at batch 1).
 Prints one line per path: file size, and the median and 90th percentile time per call. An ``algo:
-candidates`` run does not export: its Python path (numpy observation, the planner's candidates, the torch
-classifier or scorer with the candidates' features, ``decode_subgoal``) and the planner are timed.
+candidates`` run's file holds its whole decision (the planner's candidates, their features, the classifier
+or scorer, the choice); its Python path is the same torch graph called from numpy.
 
 Run: python benchmarks/export_latency.py RUN_DIR [--calls 5000]
 """
@@ -60,27 +60,25 @@ def main() -> None:
     if teammates:
         state[0, 16::width] = np.arange(k) < task.num_agents - 1
     with tempfile.TemporaryDirectory() as tmp:
-        paths = []
-        if config.algo != "candidates":
-            script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
-            onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
-            module = torch.jit.load(str(script))
-            options = onnxruntime.SessionOptions()
-            options.intra_op_num_threads = options.inter_op_num_threads = 1
-            session = onnxruntime.InferenceSession(str(onnx), options, providers=["CPUExecutionProvider"])
-            x = torch.from_numpy(state)
+        script = export_manager(args.run_dir, "torchscript", Path(tmp) / "manager.pt")
+        onnx = export_manager(args.run_dir, "onnx", Path(tmp) / "manager.onnx")
+        module = torch.jit.load(str(script))
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = options.inter_op_num_threads = 1
+        session = onnxruntime.InferenceSession(str(onnx), options, providers=["CPUExecutionProvider"])
+        x = torch.from_numpy(state)
 
-            def torchscript() -> None:
-                with torch.inference_mode():
-                    module(x)
+        def torchscript() -> None:
+            with torch.inference_mode():
+                module(x)
 
-            def onnx_call() -> None:
-                session.run(["subgoal"], {"state": state})
+        def onnx_call() -> None:
+            session.run(["subgoal"], {"state": state})
 
-            paths = [
-                ("torchscript", torchscript, script.stat().st_size),
-                ("onnxruntime", onnx_call, onnx.stat().st_size),
-            ]
+        paths = [
+            ("torchscript", torchscript, script.stat().st_size),
+            ("onnxruntime", onnx_call, onnx.stat().st_size),
+        ]
 
         fld = task.field
 

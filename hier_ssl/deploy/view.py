@@ -67,6 +67,27 @@ def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray],
     raise ValueError(f"exported manager {str(path)!r}: expected a {' or '.join(EXPORTED)} file")
 
 
+def exported_rows(target: np.ndarray, state: RobotState, m: int) -> np.ndarray:
+    """An exported file's input (N * M, 11 + w J) float32 for fields whose first ``m`` robots are
+    controlled: each one's target (from ``target`` (N, M, 5)) and own state, then every other robot of its
+    field (``state``: (N, R) robots), with a teammate flag (w = 6) where M > 1."""
+    n, r = state.pos.shape[:2]
+    own = np.concatenate(
+        [state.pos[:, :m], state.angle[:, :m, None], state.vel[:, :m], state.ang_vel[:, :m, None]], axis=2
+    )
+    motion = np.concatenate([state.pos, state.vel, state.ang_vel[..., None]], axis=2)  # (N, R, 5)
+    blocks = []
+    for i in range(m):
+        others = [j for j in range(r) if j != i]
+        block = motion[:, others]
+        if m > 1:
+            flag = (np.array(others) < m).astype(np.float64)
+            block = np.concatenate([block, np.broadcast_to(flag[None, :, None], (n, r - 1, 1))], axis=2)
+        blocks.append(block.reshape(n, -1))
+    rows = np.concatenate([target, own, np.stack(blocks, axis=1)], axis=2)
+    return rows.reshape(n * m, -1).astype(np.float32)
+
+
 def manager_task(
     manager: str, task: str | None = None, frame_skip: int | None = None, worker: str | None = None
 ) -> TaskConfig:
@@ -177,27 +198,8 @@ class DeployView:
             action[live] = self.policy(obs[live])
             self.core.set_subgoal(action, live)
             return
-        subgoal = self.exported(self._raw_rows(state)[live.ravel()])
+        subgoal = self.exported(exported_rows(self.target, state, self.m)[live.ravel()])
         self.subgoal[live] = subgoal
-
-    def _raw_rows(self, state: RobotState) -> np.ndarray:
-        """The exported file's input (N * M, 11 + w J) float32: target, robot, then every other robot."""
-        n, m = self.n, self.m
-        r = state.pos.shape[1]
-        own = np.concatenate(
-            [state.pos[:, :m], state.angle[:, :m, None], state.vel[:, :m], state.ang_vel[:, :m, None]], axis=2
-        )
-        motion = np.concatenate([state.pos, state.vel, state.ang_vel[..., None]], axis=2)  # (N, R, 5)
-        blocks = []
-        for i in range(m):
-            others = [j for j in range(r) if j != i]
-            block = motion[:, others]
-            if m > 1:
-                flag = (np.array(others) < m).astype(np.float64)
-                block = np.concatenate([block, np.broadcast_to(flag[None, :, None], (n, r - 1, 1))], axis=2)
-            blocks.append(block.reshape(n, -1))
-        rows = np.concatenate([self.target, own, np.stack(blocks, axis=1)], axis=2)
-        return rows.reshape(n * m, -1).astype(np.float32)
 
     def commanded(self, state: RobotState, sent: np.ndarray) -> RobotState:
         """``state`` with the controlled robots moving as ``sent`` (N, M, 3) commands them: (forward, left,
@@ -215,4 +217,4 @@ class DeployView:
         return self.worker(state.robots(slice(0, self.m)), self.subgoal)
 
 
-__all__ = ["EXPORTED", "DeployView", "Fields", "load_exported", "manager_task"]
+__all__ = ["EXPORTED", "DeployView", "Fields", "exported_rows", "load_exported", "manager_task"]

@@ -11,10 +11,16 @@ import torch
 
 from hier_ssl import cli
 from hier_ssl.config import TrainConfig, dump_config
+from hier_ssl.config.files import config_dir, load_yaml
 from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs import make_scenario, parse_config, vector_env
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.neighbours import neighbour_observation
+from hier_ssl.policies.actor import load_candidate_manager, load_policy
+from hier_ssl.policies.candidate_features import feature_dim
+from hier_ssl.policies.candidate_graph import candidate_geometry
+from hier_ssl.policies.candidate_nets import build_chooser
+from hier_ssl.policies.candidates import candidate_planner
 from hier_ssl.policies.export import export_manager, layout
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.ppo import make_ppo_runner, ppo_policy
@@ -93,6 +99,15 @@ VARIANTS = {
     ),
 }
 
+# Candidate managers (the planner's candidates, their features and a network in one graph): name ->
+# (shipped config, network, export formats).
+CANDIDATE_VARIANTS = {
+    "scorer_obstacle": ("obstacle/scorer", "scorer", ("torchscript", "onnx")),
+    "scorer_crowd": ("scenarios/crowd_scorer", "scorer", ("torchscript", "onnx")),
+    "scorer_formation": ("scenarios/formation_scorer", "scorer", ("torchscript", "onnx")),
+    "classifier_obstacle": ("obstacle/candidates", "classifier", ("torchscript",)),
+}
+
 
 def _config(algo: str, **task: object) -> TrainConfig:
     section = "scenario" if "scenario" in task else "env"
@@ -141,6 +156,35 @@ def _ppo_run(run_dir: Path, **env: object):
     return config, ppo_policy(runner)
 
 
+def _candidates_run(run_dir: Path, name: str, network: str):
+    """A run directory with a random classifier or scorer over the planner's candidates (its weights
+    spread, so the choices differ from state to state); returns its config and the Python policy."""
+    config = parse_config({**load_yaml(config_dir() / f"{name}.yaml"), "candidates": {"network": network}})
+    geometry = candidate_geometry(config, candidate_planner(config))
+    torch.manual_seed(3)
+    width = feature_dim(geometry.k) if network == "scorer" else make_scenario(config.task_config).obs_dim
+    first = torch.randn(64, geometry.num_candidates, width) * 2.0 + 1.0
+    net = build_chooser(
+        network, (32, 32), first if network == "scorer" else first[:, 0], geometry.num_candidates
+    )
+    with torch.no_grad():
+        for p in net.parameters():
+            p.mul_(3.0)
+    run_dir.mkdir()
+    (run_dir / "config.yaml").write_text(dump_config(config))
+    torch.save({"net": net.state_dict(), "step": 0}, run_dir / "best_actor.pt")
+    return config, load_policy(run_dir)
+
+
+def _logit_gap(run_dir: Path, states: np.ndarray, config: TrainConfig) -> np.ndarray:
+    """How far (B,) the Python policy's highest logit is above the next one on ``states``' observations."""
+    manager = load_candidate_manager(run_dir)
+    obs = torch.from_numpy(_observations(states, config))
+    with torch.no_grad():
+        top = manager.net(manager.inputs(obs, manager.geometry(obs))).topk(2, 1).values
+    return (top[:, 0] - top[:, 1]).numpy()
+
+
 def _states(config: TrainConfig, seed: int = 0) -> np.ndarray:
     """Raw states, some beyond the field and the speed limits so the observation's clipping matters; a
     teammate column, where there is one, holds 0 or 1 at random."""
@@ -154,9 +198,8 @@ def _states(config: TrainConfig, seed: int = 0) -> np.ndarray:
     return states.astype(np.float32)
 
 
-def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> tuple[np.ndarray, np.ndarray]:
-    """The reference: the numpy observation builder, the actor, and ``decode_subgoal``. Returns the
-    sub-goals (B, 5) and the length (B,) of the (sin, cos) pair their heading is the angle of."""
+def _observations(states: np.ndarray, config: TrainConfig) -> np.ndarray:
+    """The numpy observation builder's manager observations (B, O) of raw states."""
     x, env = states.astype(np.float64), config.task_config
     field = FIELDS[env.field]
     (k, width), rows = _others(config), len(states)
@@ -168,7 +211,7 @@ def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> tuple[n
     if env.observation != "paper":
         teammate = others[:, :, 5] > 0.5 if width == 6 else np.zeros((rows, k), dtype=bool)
         encounters = env.observation == "encounters"
-        obs = neighbour_observation(
+        return neighbour_observation(
             *own,
             others[:, :, 0:2],
             others[:, :, 2:4],
@@ -177,8 +220,15 @@ def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> tuple[n
             **scales,
             encounters=encounters,
         )
-    else:
-        obs = manager_observation(*own, others[:, :, 0:2], others[:, :, 2:4], others[:, :, 4], **scales)
+    return manager_observation(*own, others[:, :, 0:2], others[:, :, 2:4], others[:, :, 4], **scales)
+
+
+def _python_subgoals(states: np.ndarray, config: TrainConfig, policy) -> tuple[np.ndarray, np.ndarray]:
+    """The reference: the numpy observation builder, the actor, and ``decode_subgoal``. Returns the
+    sub-goals (B, 5) and the length (B,) of the (sin, cos) pair their heading is the angle of."""
+    x, env = states.astype(np.float64), config.task_config
+    field = FIELDS[env.field]
+    obs = _observations(states, config)
     action = np.clip(policy(obs).astype(np.float64), -1.0, 1.0)
     sin, cos = action[:, -2], action[:, -1] + (1.0 if env.action_frame == "target" else 0.0)
     subgoals = decode_subgoal(
@@ -200,9 +250,17 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> dict:
     got)}."""
     root = tmp_path_factory.mktemp("export")
     jobs, cases = [], {}
-    for name, (algo, env, formats) in VARIANTS.items():
+    runs = {
+        name: ((_ppo_run if algo == "ppo" else _sac_run), env, formats)
+        for name, (algo, env, formats) in VARIANTS.items()
+    }
+    runs |= {
+        name: (_candidates_run, {"name": config, "network": network}, formats)
+        for name, (config, network, formats) in CANDIDATE_VARIANTS.items()
+    }
+    for name, (make_run, env, formats) in runs.items():
         run_dir = root / name
-        config, policy = (_ppo_run if algo == "ppo" else _sac_run)(run_dir, **env)
+        config, policy = make_run(run_dir, **env)
         states = _states(config, seed=len(jobs))
         np.save(root / f"{name}.npy", states)
         for fmt in formats:
@@ -210,6 +268,8 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> dict:
             assert not path.with_name(path.name + ".data").exists()  # the weights are inside the file
             jobs.append([f"{name}_{fmt}", str(path), str(root / f"{name}.npy")])
         cases[name] = (config, states, *_python_subgoals(states, config, policy))
+        if name in CANDIDATE_VARIANTS:
+            cases[name] += (_logit_gap(run_dir, states, config),)
     (root / "load.py").write_text(_LOAD_AND_RUN)
     command = [sys.executable, "-I", str(root / "load.py"), json.dumps(jobs), str(root / "out.npz")]
     subprocess.run(command, check=True, cwd=root)
@@ -227,7 +287,7 @@ FLOAT32_ULPS = 32 * float(np.finfo(np.float32).eps)
 
 
 def _assert_same_subgoals(got: np.ndarray, want: np.ndarray, radius: np.ndarray) -> None:
-    assert got.shape == want.shape == (STATES, 5) and got.dtype == np.float32
+    assert got.shape == want.shape and got.shape[1] == 5 and got.dtype == np.float32
     np.testing.assert_allclose(got[:, [0, 1, 3, 4]], want[:, [0, 1, 3, 4]], rtol=0, atol=1e-5)
     # Angles compare on the circle: +pi and -pi name the same heading.
     turn = np.angle(np.exp(1j * (got[:, 2].astype(np.float64) - want[:, 2])))
@@ -247,6 +307,25 @@ def test_exported_files_match_the_python_policy(exported: dict, variant: str) ->
     assert len(layout(config)["input_fields"]) == states.shape[1] == 11 + width * j
     # The Baseline's pose6 sub-goal carries a velocity; the other tasks' sub-goals are at rest.
     assert np.any(want[:, 3:5] != 0) == (config.task_config.scenario_name == "baseline")
+
+
+@pytest.mark.parametrize("variant", list(CANDIDATE_VARIANTS))
+def test_exported_candidate_managers_choose_as_the_python_policy(exported: dict, variant: str) -> None:
+    config, states, want, radius, gap, got = exported[variant]
+    formats = CANDIDATE_VARIANTS[variant][2]
+    assert sorted(k for k in got if not k.endswith("_meta")) == sorted(formats)
+    for fmt in formats:
+        # The same candidate, so the same sub-goal to the float32 rounding of its action, but where two
+        # candidates' logits tie to float32 rounding: the file computes its observation from the raw state
+        # and ONNX Runtime its features with kernels of its own, a few units in the last place apart.
+        other = np.abs(got[fmt][:, 0:2] - want[:, 0:2]).max(1) > 1e-5
+        assert other.sum() <= STATES // 200 and (gap[other] < 1e-4).all(), (fmt, gap[other])
+        _assert_same_subgoals(got[fmt][~other], want[~other], radius[~other])
+    if "onnx" in formats:
+        assert json.loads(str(got["onnx_meta"])) == layout(config)
+    # The random network chooses among many candidates, not one slot everywhere.
+    offsets = np.round(want[:, 0:2] - states[:, 0:2], 2)
+    assert len(np.unique(offsets, axis=0)) > STATES // 4
 
 
 def test_export_writes_one_file_where_asked(tmp_path: Path) -> None:

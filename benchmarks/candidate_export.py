@@ -5,7 +5,9 @@
    file (``hier-ssl export``) are called on the same robots' raw states (``exported_rows``, as ``hier-ssl
    deploy`` calls them) and their sub-goals compared with the Python policy's (its action decoded). A
    disagreement is a sub-goal more than 1 mm from the Python one; for each, the gap between the Python
-   network's two highest logits is reported (a float tie: both candidates score the same to float32).
+   network's two highest logits is reported, and whether the Python policy makes the file's choice on the
+   observation of the float32 raw state the file reads (the environment's is of the float64 state): then
+   the input's rounding moved a threshold (a flag, an order) of the candidates' features.
 2. Held out: ``--episodes`` episodes from seed ``--seed`` played by the Python policy and by each file (its
    sub-goal encoded as the task's action): success and collision rates, median length in control steps.
 
@@ -30,6 +32,7 @@ from hier_ssl.envs.play import play
 from hier_ssl.manager import decode_subgoal, encode_subgoal
 from hier_ssl.policies.actor import load_candidate_manager, load_policy
 from hier_ssl.policies.export import export_manager
+from hier_ssl.world.physics import RobotState
 
 
 class Decisions:
@@ -39,7 +42,9 @@ class Decisions:
 
     def __init__(self, core: HierarchicalCore, python, files: dict, act=None) -> None:
         self.core, self.python, self.files, self.act = core, python, files, act
-        self.seen: dict[str, list[np.ndarray]] = {name: [] for name in ["python", "obs", *files]}
+        self.seen: dict[str, list[np.ndarray]] = {
+            name: [] for name in ["python", "obs", "obs32", "targets", *files]
+        }
 
     def forget(self, count: int) -> None:
         """Nothing to forget: the protocol gives the rows' robots, which the raw states need."""
@@ -53,9 +58,25 @@ class Decisions:
         action = self.python(obs)
         self.seen["python"].append(_decode(core, action, target))
         self.seen["obs"].append(obs)
+        self.seen["obs32"].append(_rounded_observation(core)[rows])
+        self.seen["targets"].append(target)
         for name, call in self.files.items():
             self.seen[name].append(call(raw))
         return action
+
+
+def _rounded_observation(core: HierarchicalCore) -> np.ndarray:
+    """Every robot's observation (N * M, O) of the state and targets rounded to float32, as a file reads
+    them."""
+    state = core.world.state
+    parts = (state.pos, state.angle, state.vel, state.ang_vel)
+    rounded = RobotState(*(part.astype(np.float32).astype(np.float64) for part in parts))
+    target = core.target.copy()
+    core.target[:] = target.astype(np.float32)
+    try:
+        return core.observe(state=rounded).reshape(-1, core.obs_dim)
+    finally:
+        core.target[:] = target
 
 
 def _decode(core: HierarchicalCore, action: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -93,6 +114,8 @@ def agreement(run_dir: str, files: dict, decisions: int, seed: int) -> None:
     assert seen is not None
     want = np.concatenate(seen.seen["python"])[:decisions]
     obs = np.concatenate(seen.seen["obs"])[:decisions]
+    obs32 = np.concatenate(seen.seen["obs32"])[:decisions]
+    targets = np.concatenate(seen.seen["targets"])[:decisions]
     print(f"{run_dir}: {len(want)} decisions of held-out episodes (seeds {first}-{seed - 1}, {batch} each), "
           f"{time.perf_counter() - began:.0f} s")  # fmt: skip
     for name in files:
@@ -102,10 +125,14 @@ def agreement(run_dir: str, files: dict, decisions: int, seed: int) -> None:
             x = torch.from_numpy(obs[other])
             top = manager.net(manager.inputs(x, manager.geometry(x))).topk(2, 1).values
         gaps = (top[:, 0] - top[:, 1]).numpy()
+        core = HierarchicalCore(config, 1, autoreset=False)
+        rounded = _decode(core, policy(obs32[other]), targets[other]) if len(other) else got[other]
+        explained = int((np.abs(rounded[:, 0:2] - got[other, 0:2]).max(1) <= 1e-3).sum())
         rate = 100 * (1 - len(other) / len(want))
         listed = np.array2string(gaps, precision=6, max_line_width=200)
         print(f"  {name:12s} same candidate {rate:.3f} % ({len(other)} of {len(want)} differ); "
-              f"their top-two logit gaps: {listed}")  # fmt: skip
+              f"their top-two logit gaps: {listed}; the Python policy makes the file's choice on the "
+              f"rounded state's observation in {explained} of them")  # fmt: skip
 
 
 def held_out(run_dir: str, files: dict, episodes: int, seed: int) -> None:

@@ -28,6 +28,17 @@ def _stop_on_signals() -> threading.Event:
     return stop
 
 
+def _priority_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--priority",
+        type=int,
+        choices=range(100),
+        default=10,
+        metavar="0-99",
+        help="the loop thread's SCHED_FIFO priority where permitted (0: time-shared; default 10)",
+    )
+
+
 def add_deploy(subparsers: argparse._SubParsersAction) -> None:
     deploy = subparsers.add_parser(
         "deploy", help="drive SSL robots: SSL-Vision packets in, grSim / simulation-protocol commands out"
@@ -66,6 +77,7 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
         default="command",
         help="the velocity the worker steers from: the last command (as in training) or the tracked one",
     )
+    _priority_option(deploy)
     deploy.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     deploy.set_defaults(func=_deploy)
 
@@ -89,6 +101,7 @@ def _deploy(args: argparse.Namespace) -> int:
         args.worker,
         args.frame_skip,
         args.worker_feedback,
+        args.priority,
     )
     _one_thread(args.manager)
     loop = build_loop(settings)
@@ -107,6 +120,7 @@ def _deploy(args: argparse.Namespace) -> int:
         "p50_ms": latency[0],
         "p99_ms": latency[1],
         "simulator_errors": len(stats.simulator_errors),
+        "scheduling": stats.scheduling,
     }
     print(json.dumps(summary), flush=True)
     return 0
@@ -182,6 +196,7 @@ def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
     bench.add_argument("--run", default=None, help="a manager run directory: a task row of its own task")
     bench.add_argument("--seconds", type=float, default=5.0, help="seconds of each latency row")
     bench.add_argument("--episodes", type=positive_int, default=10, help="episodes of each task row")
+    _priority_option(bench)
     bench.set_defaults(func=_bench_deploy)
 
 
@@ -189,7 +204,7 @@ def _bench_deploy(args: argparse.Namespace) -> int:
     from hier_ssl.deploy.bench import deploy_rows
 
     _one_thread(".pt")
-    for row in deploy_rows(args.run, args.seconds, args.episodes):
+    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority):
         print(
             json.dumps(row) if args.json else "  " + ", ".join(f"{k} {v}" for k, v in row.items()), flush=True
         )

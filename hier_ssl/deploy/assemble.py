@@ -9,7 +9,7 @@ from typing import Any
 import yaml
 
 from hier_ssl.deploy.controller import Controller
-from hier_ssl.deploy.loop import DeployLoop
+from hier_ssl.deploy.loop import PRIORITY, DeployLoop
 from hier_ssl.deploy.net import CommandSender, ControlServer, command_target, open_vision, parse_address
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
@@ -65,6 +65,7 @@ class DeploySettings:
     worker: str | None = None
     frame_skip: int | None = None
     feedback: str = "command"
+    priority: int = PRIORITY
 
 
 def build_loop(settings: DeploySettings) -> DeployLoop:
@@ -81,7 +82,7 @@ def build_loop(settings: DeploySettings) -> DeployLoop:
     control = None
     if settings.control_port is not None:
         control = ControlServer(settings.control_port, controller.set_target)
-    return DeployLoop(controller, vision, settings.source, sender, control)
+    return DeployLoop(controller, vision, settings.source, sender, control, priority=settings.priority)
 
 
 __all__ = ["DeploySettings", "build_loop", "parse_robots", "parse_targets"]

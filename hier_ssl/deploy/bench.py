@@ -30,7 +30,7 @@ import numpy as np
 
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.field import STEP, Cameras, camera_frames, camera_strips
-from hier_ssl.deploy.loop import LoopStats
+from hier_ssl.deploy.loop import PRIORITY, LoopStats
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.envs import make_scenario
@@ -116,10 +116,20 @@ def untrained_export(folder: Path, task: str = "obstacle") -> Path:
 class WiredRun:
     """A field server process on ``task`` and the controller loop of ``manager`` here, over 127.0.0.1."""
 
-    def __init__(self, manager: str, task: str, robots: int, episodes: int | None, seed: int = 0) -> None:
+    def __init__(
+        self,
+        manager: str,
+        task: str,
+        robots: int,
+        episodes: int | None,
+        seed: int = 0,
+        priority: int = PRIORITY,
+        field_options: tuple[str, ...] = (),
+    ) -> None:
         settings = DeploySettings(
             manager, "127.0.0.1:0", "grsim:127.0.0.1:9", "blue", list(range(robots)), {}, control_port=0
         )
+        settings.priority = priority
         settings.task = task if _takes_task(manager) else None
         self.loop = build_loop(settings)
         command = [
@@ -140,6 +150,7 @@ class WiredRun:
             str(seed),
         ]
         command += ["--episodes", str(episodes)] if episodes else []
+        command += field_options
         self.field = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
         ports = json.loads(self.field.stdout.readline())
         self.loop.sender.address = ("127.0.0.1", ports["grsim_port"])
@@ -166,9 +177,11 @@ def _takes_task(manager: str) -> bool:
     return manager in PLANNERS
 
 
-def latency_row(manager: str, label: str, robots: int, seconds: float) -> dict[str, Any]:
+def latency_row(
+    manager: str, label: str, robots: int, seconds: float, priority: int = PRIORITY
+) -> dict[str, Any]:
     task = LATENCY_FIELDS[robots]
-    stats, _ = WiredRun(manager, task, robots, None).run(seconds)
+    stats, _ = WiredRun(manager, task, robots, None, priority=priority).run(seconds)
     p50, p99 = np.percentile(stats.latencies, [50, 99]) * 1e3
     return {
         "bench": "deploy latency",
@@ -178,6 +191,7 @@ def latency_row(manager: str, label: str, robots: int, seconds: float) -> dict[s
         "samples": len(stats.latencies),
         "p50_ms": round(float(p50), 3),
         "p99_ms": round(float(p99), 3),
+        "scheduling": stats.scheduling,
     }
 
 
@@ -209,14 +223,16 @@ def task_row(manager: str, label: str, task: str, episodes: int, seed: int = 0) 
     }
 
 
-def deploy_rows(run: str | None, seconds: float, episodes: int) -> Iterator[dict[str, Any]]:
+def deploy_rows(
+    run: str | None, seconds: float, episodes: int, priority: int = PRIORITY
+) -> Iterator[dict[str, Any]]:
     """Every row of ``hier-ssl bench deploy``, yielded as each finishes."""
     yield tracking_error()
     with tempfile.TemporaryDirectory() as folder:
         for robots, task in LATENCY_FIELDS.items():
             network = str(untrained_export(Path(folder), task))
-            yield latency_row(network, "network (untrained)", robots, seconds)
-            yield latency_row("sampling", "sampling", robots, seconds)
+            yield latency_row(network, "network (untrained)", robots, seconds, priority)
+            yield latency_row("sampling", "sampling", robots, seconds, priority)
     for task in ("obstacle", "crossing"):
         yield task_row("sampling", "sampling", task, episodes)
     if run is not None:

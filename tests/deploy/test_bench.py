@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from hier_ssl.cli import build_parser
 from hier_ssl.deploy.bench import latency_row, task_row
+from hier_ssl.deploy.loop import PRIORITY
 
 
 def test_a_latency_row_times_frames_to_commands() -> None:
     row = latency_row("direct", "direct", 1, seconds=2.0)
     assert row["samples"] > 10  # after the first second's ticks
     assert 0 < row["p50_ms"] <= row["p99_ms"] < 1000
+    assert row["scheduling"].startswith(("fifo 10", "time-shared (not permitted"))
 
 
 def test_a_task_row_compares_the_wire_with_the_direct_loop() -> None:
@@ -23,3 +25,4 @@ def test_a_task_row_compares_the_wire_with_the_direct_loop() -> None:
 def test_the_bench_command_takes_its_options() -> None:
     args = build_parser().parse_args(["bench", "deploy", "--json", "--episodes", "3", "--seconds", "2"])
     assert (args.json, args.episodes, args.seconds, args.run) == (True, 3, 2.0, None)
+    assert args.priority == PRIORITY

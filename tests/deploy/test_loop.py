@@ -4,6 +4,7 @@ it within 100 ms, and the control socket takes well-formed targets only."""
 from __future__ import annotations
 
 import json
+import os
 import socket
 import threading
 import time
@@ -14,7 +15,7 @@ import pytest
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
-from hier_ssl.deploy.loop import DeployLoop
+from hier_ssl.deploy.loop import PRIORITY, DeployLoop
 from hier_ssl.deploy.net import MAX_LINE
 
 FUZZED = 10_000
@@ -57,7 +58,7 @@ def robots() -> Iterator[Robots]:
     receiver.close()
 
 
-def _loop(robots: Robots, source: str = "127.0.0.1") -> DeployLoop:
+def _loop(robots: Robots, source: str = "127.0.0.1", priority: int = PRIORITY) -> DeployLoop:
     settings = DeploySettings(
         "direct",
         "127.0.0.1:0",
@@ -68,6 +69,7 @@ def _loop(robots: Robots, source: str = "127.0.0.1") -> DeployLoop:
         source=source,
         control_port=0,
         task="proposed",
+        priority=priority,
     )
     return build_loop(settings)
 
@@ -199,3 +201,27 @@ def test_the_control_socket_listens_on_loopback_and_takes_only_target_messages(r
     finally:
         running.close()
     assert (control.accepted, control.refused) == (1, 8)
+
+
+@pytest.mark.parametrize("priority", [PRIORITY, 0])
+def test_the_loop_ticks_under_the_real_time_scheduler_where_permitted_and_restores_it(
+    robots: Robots, priority: int
+) -> None:
+    loop = _loop(robots, priority=priority)
+    policies, tick = [], loop.controller.tick
+    loop.controller.tick = lambda now: policies.append(os.sched_getscheduler(0)) or tick(now)
+    try:
+        stats = loop.run(threading.Event(), duration=0.2)
+    finally:
+        loop.close()
+    assert len(policies) >= 4 and os.sched_getscheduler(0) == os.SCHED_OTHER
+    if priority and stats.scheduling == f"fifo {priority}":
+        assert set(policies) == {os.SCHED_FIFO}
+    else:  # asked for time-sharing, or not permitted (no CAP_SYS_NICE): the loop runs on, time-shared
+        assert stats.scheduling.startswith("time-shared (asked" if priority == 0 else "time-shared (not")
+        assert set(policies) == {os.SCHED_OTHER}
+
+
+def test_a_priority_out_of_range_is_refused_naming_it(robots: Robots) -> None:
+    with pytest.raises(ValueError, match="priority 100"):
+        _loop(robots, priority=100)

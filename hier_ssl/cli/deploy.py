@@ -73,9 +73,10 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
     deploy.add_argument("--frame-skip", type=positive_int, default=None, help="control periods per decision")
     deploy.add_argument(
         "--worker-feedback",
-        choices=("command", "tracked"),
-        default="command",
-        help="the velocity the worker steers from: the last command (as in training) or the tracked one",
+        choices=("model", "command", "tracked"),
+        default="model",
+        help="the velocity the worker steers from: the commands' answer within the acceleration limits (as "
+        "in training), the last command, or the tracked velocity",
     )
     _priority_option(deploy)
     deploy.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
@@ -197,14 +198,25 @@ def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
     bench.add_argument("--seconds", type=float, default=5.0, help="seconds of each latency row")
     bench.add_argument("--episodes", type=positive_int, default=10, help="episodes of each task row")
     _priority_option(bench)
+    bench.add_argument("--noise-mm", type=float, default=2.0, help="the task rows' vision position noise")
+    bench.add_argument("--noise-deg", type=float, default=0.5, help="the task rows' vision heading noise")
+    bench.add_argument(
+        "--rows",
+        default="tracking,latency,task",
+        help="which rows, comma-separated: tracking, latency, task (default all)",
+    )
     bench.set_defaults(func=_bench_deploy)
 
 
 def _bench_deploy(args: argparse.Namespace) -> int:
-    from hier_ssl.deploy.bench import deploy_rows
+    from hier_ssl.deploy.bench import ROWS, deploy_rows
 
+    rows = tuple(args.rows.split(","))
+    if not set(rows) <= set(ROWS):
+        raise ValueError(f"rows {args.rows!r}: expected a comma-separated choice of {', '.join(ROWS)}")
     _one_thread(".pt")
-    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority):
+    noise = (args.noise_mm, args.noise_deg)
+    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority, noise, rows):
         print(
             json.dumps(row) if args.json else "  " + ", ".join(f"{k} {v}" for k, v in row.items()), flush=True
         )

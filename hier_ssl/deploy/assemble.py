@@ -64,7 +64,7 @@ class DeploySettings:
     task: str | None = None
     worker: str | None = None
     frame_skip: int | None = None
-    feedback: str = "command"
+    feedback: str = "model"
     priority: int = PRIORITY
 
 

@@ -11,8 +11,9 @@
   obstacles).
 - ``task``: success, collisions and median episode length (control steps) of the Obstacle task and of
   crossing driven through field server -> packets -> tracker -> manager -> commands -> field server,
-  against the same manager on the same number of episodes of ``hier_ssl.envs.play`` (what ``hier-ssl
-  eval`` runs), and a run's own task for ``run``; ``success_gap_points`` is through the wire minus direct.
+  against the same manager played directly by ``hier_ssl.envs.play`` (what ``hier-ssl eval`` runs) on
+  the same episodes (``direct_episodes``), and a run's own task for ``run``; ``success_gap_points`` is
+  through the wire minus direct.
 """
 
 from __future__ import annotations
@@ -22,12 +23,13 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from hier_ssl.config import TaskConfig
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.field import STEP, Cameras, camera_frames, camera_strips
 from hier_ssl.deploy.loop import PRIORITY, LoopStats
@@ -203,40 +205,76 @@ def _outcomes(success: np.ndarray, collision: np.ndarray, length: np.ndarray) ->
     }
 
 
-def task_row(manager: str, label: str, task: str, episodes: int, seed: int = 0) -> dict[str, Any]:
+def direct_episodes(
+    policy: Callable[[np.ndarray], np.ndarray], config: TaskConfig, episodes: int, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Success, collision and length (episodes, M) of ``policy`` played directly (``hier_ssl.envs.play``, as
+    ``hier-ssl eval`` plays) on the field server's episodes: episode e in a one-field core reset with seed
+    ``seed + e``. (A core of ``episodes`` fields draws its starts in one batch from ``seed``: other
+    episodes, and the wire's and the direct loop's figures would differ by the episodes drawn.)"""
+    core = HierarchicalCore(config, num_fields=1, autoreset=False)
+    ends = [play(core, policy, seed + e) for e in range(episodes)]
+    return tuple(np.concatenate([end[key] for end in ends]) for key in ("success", "collision", "length"))
+
+
+def task_row(
+    manager: str, label: str, task: str, episodes: int, seed: int = 0, noise: tuple[float, float] = (2.0, 0.5)
+) -> dict[str, Any]:
+    """Through the wire against ``direct_episodes``; the field server's vision ``noise`` (mm, deg)."""
     config = manager_task(manager, task if _takes_task(manager) else None)
     robots = make_scenario(config).num_agents
-    _, records = WiredRun(manager, task, robots, episodes, seed).run(None)
+    options = ("--noise-mm", str(noise[0]), "--noise-deg", str(noise[1]))
+    _, records = WiredRun(manager, task, robots, episodes, seed, field_options=options).run(None)
     wired = _outcomes(*(np.array([r[k] for r in records]) for k in ("success", "collision", "length")))
-    view = DeployView(manager, robots, config)  # the same policy, played directly
-    core = HierarchicalCore(config, num_fields=episodes, autoreset=False)
-    direct = play(core, view.policy, seed)
-    direct_out = _outcomes(direct["success"], direct["collision"], direct["length"])
+    direct_out = _outcomes(
+        *direct_episodes(DeployView(manager, robots, config).policy, config, episodes, seed)
+    )
     return {
         "bench": "deploy task",
         "manager": label,
         "task": task,
         "episodes": episodes,
+        "noise_mm": noise[0],
+        "noise_deg": noise[1],
         **{f"wire_{k}": round(v, 3) for k, v in wired.items()},
         **{f"eval_{k}": round(v, 3) for k, v in direct_out.items()},
         "success_gap_points": round(100 * (wired["success"] - direct_out["success"]), 1),
     }
 
 
+ROWS = ("tracking", "latency", "task")
+
+
 def deploy_rows(
-    run: str | None, seconds: float, episodes: int, priority: int = PRIORITY
+    run: str | None,
+    seconds: float,
+    episodes: int,
+    priority: int = PRIORITY,
+    noise: tuple[float, float] = (2.0, 0.5),
+    rows: tuple[str, ...] = ROWS,
 ) -> Iterator[dict[str, Any]]:
-    """Every row of ``hier-ssl bench deploy``, yielded as each finishes."""
-    yield tracking_error()
-    with tempfile.TemporaryDirectory() as folder:
-        for robots, task in LATENCY_FIELDS.items():
-            network = str(untrained_export(Path(folder), task))
-            yield latency_row(network, "network (untrained)", robots, seconds, priority)
-            yield latency_row("sampling", "sampling", robots, seconds, priority)
-    for task in ("obstacle", "crossing"):
-        yield task_row("sampling", "sampling", task, episodes)
-    if run is not None:
-        yield task_row(run, Path(run).name, manager_task(run).scenario_name, episodes)
+    """The ``rows`` (of ``ROWS``) of ``hier-ssl bench deploy``, yielded as each finishes."""
+    if "tracking" in rows:
+        yield tracking_error()
+    if "latency" in rows:
+        with tempfile.TemporaryDirectory() as folder:
+            for robots, task in LATENCY_FIELDS.items():
+                network = str(untrained_export(Path(folder), task))
+                yield latency_row(network, "network (untrained)", robots, seconds, priority)
+                yield latency_row("sampling", "sampling", robots, seconds, priority)
+    if "task" in rows:
+        for task in ("obstacle", "crossing"):
+            yield task_row("sampling", "sampling", task, episodes, noise=noise)
+        if run is not None:
+            yield task_row(run, Path(run).name, manager_task(run).scenario_name, episodes, noise=noise)
 
 
-__all__ = ["deploy_rows", "latency_row", "task_row", "tracking_error", "untrained_export"]
+__all__ = [
+    "ROWS",
+    "deploy_rows",
+    "direct_episodes",
+    "latency_row",
+    "task_row",
+    "tracking_error",
+    "untrained_export",
+]

@@ -10,8 +10,9 @@ once a second. The controlled robots are team ``team`` ids 0..M-1, the obstacles
 as robot firmware does.
 
 Episodes: after a reset the robots stand for ``settle`` s while the cameras publish, then each controlled
-robot's target goes to the controller's control socket (JSON lines) and the episode runs to success,
-collision or ``max_steps``, scored by the task's rules, one record per robot.
+robot's target goes to the controller's control socket (JSON lines); the world steps from the first
+period in which every controlled robot has been commanded since (or ``COMMAND_TIMEOUT`` later) and the
+episode runs to success, collision or ``max_steps``, scored by the task's rules, one record per robot.
 """
 
 from __future__ import annotations
@@ -169,7 +170,7 @@ class FieldServer:
         pending: list[tuple[float, int, bytes]] = []  # (send time, order, packet)
         clock, episode, frame = time.monotonic, 0, 0
         live, start = self._reset(episode), clock()
-        next_step, next_frame, running = start + STEP, start, False
+        next_step, next_frame, running, sent = start + STEP, start, False, None
         try:
             while not stop.is_set() and (episodes is None or episode < episodes):
                 timeout = max(0.0, min(next_step, next_frame, pending[0][0] if pending else np.inf) - clock())
@@ -185,9 +186,15 @@ class FieldServer:
                     continue
                 next_step += STEP
                 self.capture_time = time.time()  # the world as it stands now: stepped below, or still
-                if not running and now - start >= self.settle:
+                if sent is None and now - start >= self.settle:
                     self._send_targets(control)
-                    running = True
+                    self._read_grsim()  # commands sent before the targets were taken: not the first ones
+                    self._read_simulation()
+                    sent = clock()
+                # The first step waits for the controller's first commands (at most COMMAND_TIMEOUT), as
+                # the core's first control step already carries the worker's command.
+                if not running and sent is not None:
+                    running = (self.commanded > sent).all() or now - sent > COMMAND_TIMEOUT
                 if running:
                     live, ended = self._step(live, now)
                     if ended:
@@ -196,7 +203,7 @@ class FieldServer:
                             if on_record is not None:
                                 on_record(record)
                         episode += 1
-                        live, start, running = self._reset(episode), now, False
+                        live, start, running, sent = self._reset(episode), now, False, None
         finally:
             selector.close()
             if control is not None:

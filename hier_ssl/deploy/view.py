@@ -32,6 +32,7 @@ from hier_ssl.envs.planners import make_planner
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.world.field import get_field
+from hier_ssl.world.frames import cap_speed
 from hier_ssl.world.physics import RobotSpec, RobotState
 
 EXPORTED = (".pt", ".onnx")
@@ -157,7 +158,8 @@ class DeployView:
             else resolve_worker(config.worker, RobotSpec(), config.dt)
         )
         self.worker.reset(np.arange(n))
-        self.reach = np.array(get_field(config.field).wall_half_extent) - RobotSpec().radius
+        self.robot, self.dt = RobotSpec(), config.dt
+        self.reach = np.array(get_field(config.field).wall_half_extent) - self.robot.radius
         # The core's arrays: its decoding writes sub-goals there, the observation reads targets there.
         self.target, self.subgoal = self.core.target, self.core.subgoal
 
@@ -211,6 +213,20 @@ class DeployView:
         vel[:, :m] = np.stack([field.real, field.imag], axis=-1)
         spin[:, :m] = sent[..., 2]
         return RobotState(state.pos, state.angle, vel, spin)
+
+    def respond(self, vel: np.ndarray, spin: np.ndarray, sent: np.ndarray, angle: np.ndarray) -> tuple:
+        """The controlled robots' velocities (N, M, 2) m/s and spins (N, M) rad/s one period after ``sent``
+        (N, M, 3) robot-frame commands at headings ``angle`` (N, M), as the world's robots answer them:
+        the command capped at the speed limits, reached at no more than the acceleration limits."""
+        spec, dt = self.robot, self.dt
+        heading = np.exp(1j * angle)
+        goal = cap_speed((sent[..., 0] + 1j * sent[..., 1]) * heading, np.array(spec.max_speed))
+        change = goal - (vel[..., 0] + 1j * vel[..., 1])
+        change = cap_speed(change, np.array(spec.max_accel * dt))
+        new = vel[..., 0] + 1j * vel[..., 1] + change
+        step = spec.max_ang_accel * dt
+        goal_spin = np.clip(sent[..., 2], -spec.max_ang_speed, spec.max_ang_speed)
+        return np.stack([new.real, new.imag], axis=-1), spin + np.clip(goal_spin - spin, -step, step)
 
     def commands(self, state: RobotState) -> np.ndarray:
         """The worker's commands (N, M, 3) toward the held sub-goals: (forward, left, w), robot frame."""

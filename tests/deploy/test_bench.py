@@ -3,9 +3,16 @@ through the wire against the same manager played directly."""
 
 from __future__ import annotations
 
-from hier_ssl.cli import build_parser
-from hier_ssl.deploy.bench import latency_row, task_row
+import numpy as np
+
+from hier_ssl.cli import build_parser, main
+from hier_ssl.deploy.bench import direct_episodes, latency_row, task_row
+from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.loop import PRIORITY
+from hier_ssl.deploy.view import manager_task
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.play import play
 
 
 def test_a_latency_row_times_frames_to_commands() -> None:
@@ -16,13 +23,38 @@ def test_a_latency_row_times_frames_to_commands() -> None:
 
 
 def test_a_task_row_compares_the_wire_with_the_direct_loop() -> None:
-    row = task_row("direct", "direct", "proposed", episodes=1, seed=2)
+    row = task_row("direct", "direct", "proposed", episodes=1, seed=2, noise=(0.0, 0.0))
     assert row["wire_success"] == row["eval_success"] == 1.0  # nothing to hit on the Proposed task
-    assert row["success_gap_points"] == 0.0
+    assert row["success_gap_points"] == 0.0 and row["noise_mm"] == 0.0
     assert abs(row["wire_median_length"] - row["eval_median_length"]) < 0.5 * row["eval_median_length"]
 
 
 def test_the_bench_command_takes_its_options() -> None:
     args = build_parser().parse_args(["bench", "deploy", "--json", "--episodes", "3", "--seconds", "2"])
     assert (args.json, args.episodes, args.seconds, args.run) == (True, 3, 2.0, None)
-    assert args.priority == PRIORITY
+    assert (args.priority, args.noise_mm, args.noise_deg, args.rows) == (
+        PRIORITY,
+        2.0,
+        0.5,
+        "tracking,latency,task",
+    )
+    assert main(["bench", "deploy", "--rows", "tracking,speed"]) == 1
+
+
+def test_the_direct_episodes_are_the_field_servers_episodes() -> None:
+    # Episode e of the field server is a one-field core reset with seed + e; a core of many fields draws
+    # other starts from the same seed.
+    config = manager_task("sampling", "obstacle")
+    server = FieldServer(config, vision_port=9, seed=7)
+    server._reset(3)
+    core = HierarchicalCore(config, num_fields=1, autoreset=False)
+    core.reset(7 + 3)
+    np.testing.assert_array_equal(server.core.world.state.pos, core.world.state.pos)
+    batch = HierarchicalCore(config, num_fields=4, autoreset=False)
+    batch.reset(7)
+    assert not np.allclose(batch.world.state.pos[3], core.world.state.pos[0])
+    server.close()
+    policy = make_planner("sampling", config)
+    success, collision, length = direct_episodes(policy, config, 2, 7)
+    assert success.shape == collision.shape == length.shape == (2, 1)
+    assert length[1, 0] == play(core, policy, 8)["length"][0, 0]

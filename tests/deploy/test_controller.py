@@ -10,6 +10,7 @@ from hier_ssl.deploy.controller import MAX_AGE, Controller
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.deploy.wire import Detection, DetectionFrame
+from hier_ssl.world.physics import World
 
 
 def _controller(
@@ -82,8 +83,17 @@ def test_bad_targets_are_refused_by_name(robot: object, target: object, message:
         _controller().set_target(robot, target)
 
 
-@pytest.mark.parametrize(("feedback", "speeds"), [("command", [0.1, 0.2, 0.3]), ("tracked", [0.1, 0.1, 0.1])])
-def test_the_worker_steers_from_the_last_command_or_the_tracked_velocity(feedback: str, speeds: list) -> None:
+@pytest.mark.parametrize(
+    ("feedback", "speeds", "after"),
+    [
+        ("model", [0.1, 0.175, 0.25], 0.25),  # the robot gains 0.075 m/s a period (3 m/s^2), then brakes
+        ("command", [0.1, 0.2, 0.3], 0.1),
+        ("tracked", [0.1, 0.1, 0.1], 0.1),
+    ],
+)
+def test_the_worker_steers_from_the_modelled_robot_the_last_command_or_the_tracked_velocity(
+    feedback: str, speeds: list, after: float
+) -> None:
     # The paper worker adds 0.1 m/s a period to the velocity it steers from; the robot is seen standing.
     controller = _controller(feedback=feedback)
     controller.set_target(0, [2.0, 0.0, 0.0])
@@ -92,9 +102,34 @@ def test_the_worker_steers_from_the_last_command_or_the_tracked_velocity(feedbac
         _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
         got.append(controller.tick(k * 0.025 + 0.001)[0][1])
     np.testing.assert_allclose(got, speeds, atol=1e-9)
-    assert controller.tick(1.0) == [(0, 0.0, 0.0, 0.0)]  # out of sight: stopped, and steered from rest
+    assert controller.tick(1.0) == [(0, 0.0, 0.0, 0.0)]  # out of sight: stopped
     _see(controller, 1.01, (0, 0.0, 0.0, 0.0))
-    assert controller.tick(1.011)[0][1] == pytest.approx(0.1)
+    assert controller.tick(1.011)[0][1] == pytest.approx(after)
+
+
+def test_the_modelled_robot_answers_commands_as_the_world_does() -> None:
+    world = World(1, 1)
+    world.set_state(np.array([0]), np.zeros((1, 1, 2)), np.zeros((1, 1)))
+    view = DeployView("direct", 1, manager_task("direct", "proposed"))
+    vel, spin = np.zeros((1, 1, 2)), np.zeros((1, 1))
+    # Accelerating while turning, braking, then past the acceleration limit in both axes.
+    for command in [(1.0, 0.5, 3.0)] * 6 + [(0.0, 0.0, 0.0)] * 3 + [(2.4, -1.0, 0.0)] * 4:
+        sent = np.array(command)[None, None]
+        vel, spin = view.respond(vel, spin, sent, world.state.angle.copy())
+        state = world.step(sent)
+        np.testing.assert_allclose(vel, state.vel, atol=1e-6)
+        np.testing.assert_allclose(spin, state.ang_vel, atol=1e-6)
+
+
+def test_a_new_target_takes_the_modelled_velocity_from_the_tracker() -> None:
+    controller = _controller(feedback="model")
+    controller.set_target(0, [2.0, 0.0, 0.0])
+    for k in range(3):  # the model believes the robot speeds up: 0.225 m/s
+        _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
+        controller.tick(k * 0.025 + 0.001)
+    controller.set_target(0, [2.0, 0.0, 0.0])  # e.g. a new episode: the robot was put down, standing
+    _see(controller, 0.075, (0, 0.0, 0.0, 0.0))
+    assert controller.tick(0.076)[0][1] == pytest.approx(0.1)
 
 
 def test_robots_must_be_distinct() -> None:

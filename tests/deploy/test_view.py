@@ -9,15 +9,23 @@ import numpy as np
 import pytest
 
 from hier_ssl.deploy.bench import untrained_export
+from hier_ssl.deploy.controller import Controller
+from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, load_exported, manager_task
+from hier_ssl.deploy.wire import Detection, DetectionFrame
 from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.policies.export import export_manager
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Each task's untrained run, exported as TorchScript (manager.pt) and ONNX (manager.onnx)."""
     folder = tmp_path_factory.mktemp("runs")
-    return {task: untrained_export(folder, task) for task in ("obstacle", "crossing")}
+    files = {task: untrained_export(folder, task) for task in ("obstacle", "crossing")}
+    for exported in files.values():
+        export_manager(exported.parent, "onnx")
+    return files
 
 
 def _rows(count: int, seed: int = 0) -> np.ndarray:
@@ -72,9 +80,12 @@ def test_missing_robots_stand_in_the_far_corner() -> None:
         assert (state.vel[0, 1] == 0).all()
 
 
+@pytest.mark.parametrize("suffix", [".pt", ".onnx"])
 @pytest.mark.parametrize(("task", "robots"), [("obstacle", 2), ("crossing", 6)])
-def test_an_exported_file_decides_as_its_run(runs: dict[str, Path], task: str, robots: int) -> None:
-    exported = runs[task]
+def test_an_exported_file_decides_as_its_run(
+    runs: dict[str, Path], task: str, robots: int, suffix: str
+) -> None:
+    exported = runs[task].with_suffix(suffix)
     run = str(exported.parent)
     config = manager_task(run)
     by_run, by_file = (
@@ -115,3 +126,35 @@ def test_unknown_managers_and_counts_are_named() -> None:
     assert (
         DeployView("sampling", 4, task_config("formation", num_agents=6)).m == 4
     )  # a scenario takes any count
+
+
+def test_an_onnx_manager_drives_the_controller_as_its_torchscript_twin_and_its_run(
+    runs: dict[str, Path],
+) -> None:
+    # Two controlled robots and two others driving across, seen every period for 20 periods (decisions at
+    # periods 0 and 16): the commands of the three managers agree.
+    exported = runs["obstacle"]
+    managers = [str(exported.parent), str(exported), str(exported.with_suffix(".onnx"))]
+    controllers = [
+        Controller(DeployView(manager, 2, manager_task(manager)), Tracker(), "blue", [0, 1])
+        for manager in managers
+    ]
+    commands = []
+    for controller in controllers:
+        controller.set_target(0, [1.5, 0.5, 0.0])
+        controller.set_target(1, [-1.5, -0.5, 1.0])
+        sent = []
+        for k in range(20):
+            t = k * 0.025
+            seen = (
+                Detection("blue", 0, -1.5 + 0.02 * k, 0.0, 0.0),
+                Detection("blue", 1, 1.5 - 0.02 * k, 0.2, 3.0),
+                Detection("yellow", 0, 0.0, -1.0 + 0.03 * k, 1.57),
+                Detection("yellow", 1, 0.5, 1.0, 0.0),
+            )
+            controller.on_frame(DetectionFrame(t, t, 0, seen), arrival=t)
+            sent.append([c[1:] for c in controller.tick(t + 0.001)])
+        commands.append(np.array(sent))
+    assert np.abs(commands[0]).max() > 0.1  # the robots drive
+    np.testing.assert_allclose(commands[2], commands[1], atol=1e-4)  # ONNX against TorchScript
+    np.testing.assert_allclose(commands[2], commands[0], atol=1e-3)  # and against the run directory

@@ -12,12 +12,28 @@ import pytest
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.field import Cameras, FieldServer, camera_frames, camera_strips
+from hier_ssl.deploy.loop import DeployLoop
 from hier_ssl.deploy.proto import ssl_simulation_pb2
 from hier_ssl.deploy.view import manager_task
 from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
+
+
+def one_episode(loop: DeployLoop, server: FieldServer) -> dict:
+    """One field-server episode with the deploy loop ticking in a thread beside it; both closed after."""
+    stop = threading.Event()
+    thread = threading.Thread(target=loop.run, args=(stop,))
+    thread.start()
+    try:
+        [record] = server.run(1, threading.Event())
+    finally:
+        stop.set()
+        thread.join()
+        server.close()
+        loop.close()
+    return record
 
 
 def test_cameras_overlap_drop_and_blur_what_they_see() -> None:
@@ -94,16 +110,7 @@ def test_an_episode_through_the_wire_ends_on_its_target(kind: str) -> None:
         task_config("proposed"), loop.vision.getsockname()[1], control_port=loop.control.port, seed=4
     )
     loop.sender.address = ("127.0.0.1", server.grsim_port if kind == "grsim" else server.simulation_port)
-    stop = threading.Event()
-    thread = threading.Thread(target=loop.run, args=(stop,))
-    thread.start()
-    try:
-        [record] = server.run(1, threading.Event())
-    finally:
-        stop.set()
-        thread.join()
-        server.close()
-        loop.close()
+    record = one_episode(loop, server)
     assert record["success"] and not record["collision"]
     assert 20 < record["length"] < 400  # control steps of 25 ms
     stats = loop.stats
@@ -133,16 +140,7 @@ def test_a_noiseless_episode_through_the_wire_starts_as_the_directly_played_one(
         return out
 
     server.core.control_step = recorded
-    stop = threading.Event()
-    thread = threading.Thread(target=loop.run, args=(stop,))
-    thread.start()
-    try:
-        [record] = server.run(1, threading.Event())
-    finally:
-        stop.set()
-        thread.join()
-        server.close()
-        loop.close()
+    record = one_episode(loop, server)
     core = HierarchicalCore(config, num_fields=1, autoreset=False)
     direct = play(core, make_planner("direct", config), 4, record=[0])
     path = np.array(direct["trajectories"][0]["robots"])[1:, 0]

@@ -51,6 +51,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         self.workers = [f"worker_{i}" for i in range(m)] if cfg.expose_worker else []
         self.obstacle_agents = [f"obstacle_{j}" for j in range(k)] if cfg.expose_obstacles else []
         self.possible_agents = self.managers + self.workers + self.obstacle_agents
+        self._known = frozenset(self.possible_agents)
         # The controlled robot each manager and worker agent stands for.
         self._robot = {a: int(a.rsplit("_", 1)[1]) for a in self.managers + self.workers}
         self.per_control_step = cfg.expose_worker or cfg.expose_obstacles
@@ -68,6 +69,7 @@ class HierarchicalSSLEnv(ParallelEnv):
             self._obs_spaces[agent] = box(-1.2, 1.2, (OBSTACLE_AGENT_OBS_DIM,))
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
         self.state_space = box(-CLIP, CLIP, (state_dim(m, k),))
+        self._act_shapes = {a: space.shape for a, space in self._act_spaces.items()}
         self.agents: list[str] = []
         self._started = False  # reset() was called: an empty ``agents`` means the episode is over
         self._trail: list[np.ndarray] = []  # the controlled robots' positions (M, 2) after each step
@@ -113,18 +115,18 @@ class HierarchicalSSLEnv(ParallelEnv):
         wrapper sends one for every agent); once every agent has left, a step returns five empty dicts."""
         if not self._started:
             raise RuntimeError("step() before reset(): call reset() first")
-        unknown = set(actions) - set(self.possible_agents)
-        if unknown:
+        if not actions.keys() <= self._known:
             raise ValueError(
-                f"actions for agents this env does not have: {sorted(unknown)}; agents: "
-                f"{self.possible_agents}"
+                f"actions for agents this env does not have: {sorted(actions.keys() - self._known)}; "
+                f"agents: {self.possible_agents}"
             )
         if not self.agents:
             return {}, {}, {}, {}, {}
-        missing = set(self.agents) - set(actions)
+        missing = [a for a in self.agents if a not in actions]
         if missing:
             raise ValueError(f"no action for live agents {sorted(missing)}")
-        checked = {a: check_action(a, actions[a], self._act_spaces[a].shape) for a in self.agents}
+        shapes = self._act_shapes
+        checked = {a: check_action(a, actions[a], shapes[a]) for a in self.agents}
         batch = np.zeros((1, self.core.num_agents, self.core.act_dim))
         for agent in self.managers:
             if agent in checked:

@@ -3,81 +3,84 @@
 A sub-goal is (x, y, theta, vx, vy) in the field frame, shape (N, R, 5); a command is (vx, vy, w) in the
 robot's own frame, shape (N, R, 3), which is what an SSL robot's firmware takes.
 
-Both workers run once per control step for every field, so at one field their cost is numpy's per-call
-overhead, not arithmetic: 2-D vectors are complex numbers (a rotation is one multiply or divide),
-constants are 0-d arrays (a Python float operand is converted on every call), operands share one dtype,
-and results are new arrays (numpy's overlap check makes an in-place update of a one-element array slower).
+Both workers run once per control step for every robot of every field. Written as numpy operations on
+(N, R) arrays, a step of one field was some 35 calls each costing numpy's per-call overhead (a fifth of a
+PettingZoo step); each worker is instead one compiled loop over the robots (numba), a few scalar lines per
+robot, the same at every N. The sub-goal is seen along the line to it: (along, across) components of a
+velocity are its projections on the unit vector ``(ex, ey)`` pointing to the sub-goal and on that vector
+turned 90 deg to the left.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-from types import SimpleNamespace
 
+import numba
 import numpy as np
 
-from hier_ssl.world.frames import as_complex, as_float, cap_speed, wrap_angle
+from hier_ssl.world.frames import as_float
 from hier_ssl.world.physics import RobotState
 
-_COMPLEX = np.dtype(np.complex128)
+# Compiled once per argument layout and cached on disk next to this module (numba's ``cache``).
+_jit = numba.njit(cache=True)
+# Along x at the sub-goal itself: the 1e-12 m nudge makes the line's direction the field's x axis there
+# instead of 0 / 0, and turns it by at most 1e-12 / dist rad elsewhere.
+_NUDGE = 1e-12
 
 
-def _constants(**values: complex) -> SimpleNamespace:
-    return SimpleNamespace(**{name: np.array(value) for name, value in values.items()})
+@_jit
+def _line(px: float, py: float, gx: float, gy: float) -> tuple[float, float, float]:
+    """Distance from (px, py) to the sub-goal (gx, gy), and the unit vector (ex, ey) pointing to it."""
+    dx, dy = gx - px, gy - py
+    nx = dx + _NUDGE
+    size = math.hypot(nx, dy)
+    return math.hypot(dx, dy), nx / size, dy / size
 
 
-_K = _constants(zero=0.0, nudge=1e-12 + 0j)
+@_jit
+def _along(x: float, y: float, ex: float, ey: float) -> tuple[float, float]:
+    """Field-frame vector (x, y) as (along, across) the line of unit vector (ex, ey)."""
+    return x * ex + y * ey, y * ex - x * ey
 
 
-def _goal_axes(
-    state: RobotState, subgoal: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The sub-goal seen along the line to it.
-
-    Returns dist (N, R), the unit vector ``ex`` (N, R) complex pointing to the sub-goal, and the robot's
-    and the sub-goal's velocities in the (along, across) frame of that line, as complex (N, R): real part
-    along ``ex``, imaginary part 90 deg to its left.
-    """
-    delta = (subgoal[..., 0:2] - state.pos).view(_COMPLEX)[..., 0]
-    dist = np.abs(delta)
-    # z / |z| written out, as numpy >= 2 computes its complex sign (hypot, then each part divided: the same
-    # bits); numpy < 2's sign is the sign of the real part. The 1e-12 m nudge along x makes the axis the
-    # field's x axis at the sub-goal itself instead of 0 / 0, and turns it by at most 1e-12 / dist rad
-    # elsewhere.
-    nudged = delta + _K.nudge
-    size = np.hypot(nudged.real, nudged.imag)
-    ex = np.empty_like(nudged)
-    ex.real, ex.imag = nudged.real / size, nudged.imag / size
-    # Dividing by a unit complex number rotates by minus its angle: into the (along, across) frame.
-    return dist, ex, as_complex(state.vel) / ex, as_complex(subgoal[..., 3:5]) / ex
+@_jit
+def _to_robot(along: float, across: float, ex: float, ey: float, heading: complex) -> tuple[float, float]:
+    """(along, across) the line as a vector in the frame of a robot at ``heading`` (exp(i angle))."""
+    x, y = along * ex - across * ey, along * ey + across * ex
+    c, s = heading.real, heading.imag
+    return x * c + y * s, y * c - x * s
 
 
-def _heading_error(state: RobotState, subgoal: np.ndarray) -> np.ndarray:
-    """Sub-goal heading minus robot heading, wrapped to [-pi, pi). Shape (N, R)."""
-    return wrap_angle(subgoal[..., 2] - state.angle)
+@_jit
+def _capped(along: float, across: float, max_speed: float) -> tuple[float, float]:
+    """The vector scaled down to ``max_speed`` where faster, direction kept."""
+    speed = math.hypot(along, across)
+    if speed <= max_speed:
+        return along, across
+    scale = max_speed / speed
+    return along * scale, across * scale
 
 
-def _command(state: RobotState, vel: np.ndarray, spin: np.ndarray) -> np.ndarray:
-    """Field-frame velocities ``vel`` (N, R) complex and spins (N, R) as robot-frame commands (N, R, 3)."""
-    out = np.empty(spin.shape + (3,))
-    np.divide(vel, state.heading, out=out[..., 0:2].view(_COMPLEX)[..., 0])
-    out[..., 2] = spin
-    return out
+@_jit
+def _wrap(angle: float) -> float:
+    """``angle`` mapped to [-pi, pi), as ``hier_ssl.world.frames.wrap_angle``."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+@_jit
+def _clamp(value: float, bound: float) -> float:
+    return max(min(value, bound), -bound)
 
 
 class _Scripted:
-    """What both scripted workers share: no memory, constants (``_gains``) held as 0-d arrays, and the
-    sub-goal seen along the line to it (``_goal_axes``), from which ``_steer`` makes the commands."""
+    """What both scripted workers share: no memory, gains as one float64 array in ``_gains()``'s order, and
+    a compiled ``_kernel(pos, angle, vel, ang_vel, heading, subgoal, gains, out)`` writing the commands."""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "_k", _constants(**self._gains()))
+        object.__setattr__(self, "_k", np.array(list(self._gains().values()), dtype=np.float64))
 
     def _gains(self) -> dict[str, float]:
-        raise NotImplementedError
-
-    def _steer(
-        self, k: SimpleNamespace, state: RobotState, subgoal: np.ndarray, *axes: np.ndarray
-    ) -> np.ndarray:
         raise NotImplementedError
 
     def reset(self, fields: np.ndarray) -> None:
@@ -85,8 +88,11 @@ class _Scripted:
 
     def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
         """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
-        subgoal = as_float(subgoal)
-        return self._steer(self._k, state, subgoal, *_goal_axes(state, subgoal))
+        out = np.empty(state.angle.shape + (3,))
+        type(self)._kernel(
+            state.pos, state.angle, state.vel, state.ang_vel, state.heading, as_float(subgoal), self._k, out
+        )
+        return out
 
 
 @dataclass(frozen=True)
@@ -111,40 +117,46 @@ class PaperGoToPoint(_Scripted):
         return {
             "dt": self.dt,
             "dv": self.dv,
-            "minus_dv": -self.dv,
             "two_brake_accel": 2 * self.brake_accel,
             "max_speed": self.max_speed,
             "angle_gain": self.angle_gain,
             "angle_deadband": self.angle_deadband,
         }
 
-    def _steer(
-        self, k: SimpleNamespace, state: RobotState, subgoal: np.ndarray, *axes: np.ndarray
-    ) -> np.ndarray:
-        dist, ex, v, goal_v = axes
-        v_along, goal_along = v.real, goal_v.real
-
-        # Both axes move towards the sub-goal's velocity, except that along the line the robot heads for the
-        # sub-goal at full speed unless moving away from it or within braking distance |v^2 - v_goal^2| /
-        # (2 a) (v * dist < 0 is v < 0 for dist > 0, and dist = 0 is always within braking distance).
-        change = goal_v - v
-        braking = np.abs(change.real * (v_along + goal_along)) / k.two_brake_accel
-        drive = (dist > braking) & (v_along >= _K.zero)
-        # The last step lands on the sub-goal rather than past it.
-        reach = np.maximum(goal_along, _K.zero) + dist / k.dt
-        np.copyto(change.real, k.max_speed - v_along, where=drive)
-
-        # +-dv per axis, both axes in one call on the (along, across) float pairs.
-        change = np.maximum(np.minimum(change.view(np.float64), k.dv), k.minus_dv)
-        v_new = v + change.view(_COMPLEX)
-        v_new.real = np.minimum(v_new.real, reach)
-        # Field frame, scaled down to max_speed where faster, direction kept (no division when none is).
-        vel = cap_speed(v_new * ex, k.max_speed)
-
-        error = _heading_error(state, subgoal)
-        spin = error * k.angle_gain
-        np.copyto(spin, _K.zero, where=np.abs(error) < k.angle_deadband)
-        return _command(state, vel, spin)
+    @staticmethod
+    @_jit
+    def _kernel(
+        pos: np.ndarray,
+        angle: np.ndarray,
+        vel: np.ndarray,
+        ang_vel: np.ndarray,
+        heading: np.ndarray,
+        subgoal: np.ndarray,
+        gains: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        dt, dv, two_brake_accel, max_speed = gains[0], gains[1], gains[2], gains[3]
+        angle_gain, angle_deadband = gains[4], gains[5]
+        for f in range(angle.shape[0]):
+            for i in range(angle.shape[1]):
+                goal = subgoal[f, i]
+                dist, ex, ey = _line(pos[f, i, 0], pos[f, i, 1], goal[0], goal[1])
+                v_along, v_across = _along(vel[f, i, 0], vel[f, i, 1], ex, ey)
+                goal_along, goal_across = _along(goal[3], goal[4], ex, ey)
+                # Both axes move towards the sub-goal's velocity, except that along the line the robot heads
+                # for the sub-goal at full speed unless moving away from it or within braking distance
+                # |v^2 - v_goal^2| / (2 a) (dist = 0 is always within braking distance).
+                change = goal_along - v_along
+                braking = abs(change * (v_along + goal_along)) / two_brake_accel
+                if dist > braking and v_along >= 0.0:
+                    change = max_speed - v_along
+                # +-dv per axis; the last step lands on the sub-goal rather than past it.
+                along = min(v_along + _clamp(change, dv), max(goal_along, 0.0) + dist / dt)
+                across = v_across + _clamp(goal_across - v_across, dv)
+                along, across = _capped(along, across, max_speed)
+                out[f, i, 0], out[f, i, 1] = _to_robot(along, across, ex, ey, heading[f, i])
+                error = _wrap(goal[2] - angle[f, i])
+                out[f, i, 2] = 0.0 if abs(error) < angle_deadband else error * angle_gain
 
 
 @dataclass(frozen=True)
@@ -167,42 +179,46 @@ class BangBangGoToPoint(_Scripted):
     margin: float = 0.9
 
     def _gains(self) -> dict[str, float]:
-        step, spin_step = self.max_accel * self.dt, self.max_ang_accel * self.dt
         return {
             "dt": self.dt,
-            "step": step,
-            "minus_step": -step,
-            "step_sq": step**2,
+            "step": self.max_accel * self.dt,
             "two_brake": 2 * self.margin * self.max_accel,
             "max_speed": self.max_speed,
             "two_ang_brake": 2 * self.margin * self.max_ang_accel,
             "max_ang_speed": self.max_ang_speed,
-            "spin_step": spin_step,
-            "minus_spin_step": -spin_step,
+            "spin_step": self.max_ang_accel * self.dt,
         }
 
-    def _steer(
-        self, k: SimpleNamespace, state: RobotState, subgoal: np.ndarray, *axes: np.ndarray
-    ) -> np.ndarray:
-        dist, ex, v, goal_v = axes
-        goal_along = goal_v.real
-
-        # Across first: as much of this step's velocity change as it needs, the rest is left for along.
-        dv_across = np.maximum(np.minimum(goal_v.imag - v.imag, k.step), k.minus_step)
-        step_along = np.sqrt(np.maximum(k.step_sq - np.square(dv_across), _K.zero))
-
-        # Along: the braking curve, the speed limit, and landing on the sub-goal in the last step.
-        desired = np.minimum(np.sqrt(np.square(goal_along) + dist * k.two_brake), k.max_speed)
-        desired = np.minimum(desired, np.maximum(goal_along, _K.zero) + dist / k.dt)
-        dv_along = np.maximum(np.minimum(desired - v.real, step_along), -step_along)
-        v_new = np.empty_like(v)
-        v_new.real = v.real + dv_along
-        v_new.imag = v.imag + dv_across
-        vel = v_new * ex
-
-        error = _heading_error(state, subgoal)
-        size = np.abs(error)
-        turn = np.minimum(np.sqrt(size * k.two_ang_brake), k.max_ang_speed)
-        turn = np.copysign(np.minimum(turn, size / k.dt), error)
-        change = np.maximum(np.minimum(turn - state.ang_vel, k.spin_step), k.minus_spin_step)
-        return _command(state, vel, state.ang_vel + change)
+    @staticmethod
+    @_jit
+    def _kernel(
+        pos: np.ndarray,
+        angle: np.ndarray,
+        vel: np.ndarray,
+        ang_vel: np.ndarray,
+        heading: np.ndarray,
+        subgoal: np.ndarray,
+        gains: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        dt, step, two_brake, max_speed = gains[0], gains[1], gains[2], gains[3]
+        two_ang_brake, max_ang_speed, spin_step = gains[4], gains[5], gains[6]
+        for f in range(angle.shape[0]):
+            for i in range(angle.shape[1]):
+                goal = subgoal[f, i]
+                dist, ex, ey = _line(pos[f, i, 0], pos[f, i, 1], goal[0], goal[1])
+                v_along, v_across = _along(vel[f, i, 0], vel[f, i, 1], ex, ey)
+                goal_along, goal_across = _along(goal[3], goal[4], ex, ey)
+                # Across first: as much of this step's velocity change as it needs, the rest goes along.
+                dv_across = _clamp(goal_across - v_across, step)
+                step_along = math.sqrt(max(step * step - dv_across * dv_across, 0.0))
+                # Along: the braking curve, the speed limit, and landing on the sub-goal in the last step.
+                desired = min(math.sqrt(goal_along * goal_along + dist * two_brake), max_speed)
+                desired = min(desired, max(goal_along, 0.0) + dist / dt)
+                along = v_along + _clamp(desired - v_along, step_along)
+                out[f, i, 0], out[f, i, 1] = _to_robot(along, v_across + dv_across, ex, ey, heading[f, i])
+                # Heading: the same law with the angular limits.
+                error = _wrap(goal[2] - angle[f, i])
+                turn = min(min(math.sqrt(abs(error) * two_ang_brake), max_ang_speed), abs(error) / dt)
+                spin = ang_vel[f, i]
+                out[f, i, 2] = spin + _clamp(math.copysign(turn, error) - spin, spin_step)

@@ -9,8 +9,9 @@ of walls and each other (overwriting a dynamic body's velocity every step lets i
 
 All state crosses this boundary as arrays with a leading (fields, robots) pair of axes, read and written
 with ``pymunk.batch``'s iterators in one call per space each; there is no per-body Python on the hot path.
-At one field a step costs numpy's and pymunk's per-call overheads rather than arithmetic, which is what
-the layout of the hot path (``FastSpace``, ``World._prepare``) is about.
+At one field a step costs numpy's and pymunk's per-call overheads rather than arithmetic: what a step
+computes per robot (the commands as capped field-frame velocities, the state read back) is one compiled
+loop each (``hier_ssl.world.exchange``), and the calls into pymunk are made once (``FastSpace``).
 """
 
 from __future__ import annotations
@@ -19,16 +20,14 @@ import numpy as np
 import pymunk
 
 from hier_ssl.world.blocks import ROBOT, FieldBlock, block_bounds
+from hier_ssl.world.exchange import unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
-from hier_ssl.world.frames import _COMPLEX, all_finite, as_complex, cap_speed, wrap_angle
+from hier_ssl.world.frames import _COMPLEX, all_finite
 from hier_ssl.world.robot import RobotSpec, RobotState
 from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
-# What ``World._prepare`` makes: views of the blocks' memory and constants, made again for a copy.
-_PREPARED = set("_read_rows _velocity_rows _robot_vel _robot_spin _control_vel _control_spin".split())
-# At one field numpy's per-call overhead is the whole cost of an operation, and it doubles when an operand
-# is a Python scalar, of another dtype, strided or broadcast from a non-0-d array: the hot path keeps to
-# contiguous arrays of one shape and dtype, and 0-d constants.
+# What ``World._prepare`` makes: buffers and constants, made again for a copy.
+_PREPARED = {"_read_rows", "_velocity_rows", "_limits"}
 
 
 class World:
@@ -113,29 +112,13 @@ class World:
         return spots - spots.mean(axis=0)
 
     def _prepare(self, hx: float, hy: float) -> None:
-        """Buffers, views into them and constants of the hot path, made once.
-
-        numpy costs about twice as much per call when an operand is strided or broadcast than when all are
-        contiguous and of one shape, or 0-d: the state is copied out of the blocks' rows into one
-        contiguous array per read, and constants are full-shape or 0-d arrays.
-        """
+        """The read and write buffers of the hot path and its constants, made once."""
         n, r, spec = self.num_fields, self.num_robots, self.robot
         self._read_rows = np.zeros((n, r, 6))
         # Each block's velocity rows are copied from these, [..., 0, :] robots, [..., 1, :] control bodies.
         self._velocity_rows = np.zeros((n, r, 2, 3))
-        self._robot_vel, self._robot_spin = self._velocity_rows[:, :, 0, 0:2], self._velocity_rows[:, :, 0, 2]
-        self._control_vel = as_complex(self._velocity_rows[:, :, 1, 0:2])
-        self._control_spin = self._velocity_rows[:, :, 1, 2]
-
-        self._command_shape = (n, r, 3)
-        self._i_angle = np.zeros((n, r), dtype=_COMPLEX)
-        self._field_offsets = np.ascontiguousarray(np.broadcast_to(self.offsets[:, None, :], (n, r, 2)))
-        wall_limit = np.broadcast_to(np.array([hx, hy]) - spec.radius, (n, r, 2))
-        self._wall_hi, self._wall_lo = wall_limit.copy(), -wall_limit
-        self._clear = self._wall_hi - 1e-9
-        self._max_speed = np.array(spec.max_speed)
-        self._max_spin, self._min_spin = np.array(spec.max_ang_speed), np.array(-spec.max_ang_speed)
-        self._zero, self._dt = np.array(0.0), np.array(self.dt)
+        reach = (hx - spec.radius, hy - spec.radius)
+        self._limits = np.array([spec.max_speed, spec.max_ang_speed, self.dt, *reach])
 
     # -- pickling and copying -----------------------------------------------------------------------------
 
@@ -175,13 +158,12 @@ class World:
         return self._state_of_rows()
 
     def _state_of_rows(self) -> RobotState:
-        rows = self._read_rows
-        angle = wrap_angle(rows[..., 2])
-        # exp(i angle) as ``heading`` makes it, for the next step's robot-to-field rotation and the workers:
-        # the real part of the exponent stays 0.
-        self._i_angle.imag = angle
-        pos = rows[..., 0:2] - self._field_offsets
-        return RobotState(pos, angle, rows[..., 3:5].copy(), rows[..., 5].copy(), np.exp(self._i_angle))
+        """A new state from the rows of the last read (a state is replaced, never changed)."""
+        shape = (self.num_fields, self.num_robots)
+        pos, vel = np.empty((*shape, 2)), np.empty((*shape, 2))
+        angle, ang_vel, heading = np.empty(shape), np.empty(shape), np.empty(shape, dtype=_COMPLEX)
+        unpack_rows(self._read_rows, self.offsets, pos, angle, vel, ang_vel, heading)
+        return RobotState(pos, angle, vel, ang_vel, heading)
 
     def set_state(
         self,
@@ -255,44 +237,23 @@ class World:
         tell which robots touched which robot or wall during any substep of this period, ``robot_touch``
         (N, R) which touched any robot.
         """
-        command = np.ascontiguousarray(command, dtype=np.float64)
-        if command.shape != self._command_shape:
-            raise ValueError(f"command has shape {command.shape}, expected {self._command_shape}")
+        command = np.asarray(command, dtype=np.float64)
+        expected = (self.num_fields, self.num_robots, 3)
+        if command.shape != expected:
+            raise ValueError(f"command has shape {command.shape}, expected {expected}")
         if not all_finite(command):
             f, i = np.argwhere(~np.isfinite(command).all(axis=-1))[0]
             raise ValueError(f"command holds NaN or infinite values (field {f}, robot {i})")
         state = self.state
-
-        # Control bodies: the command turned into the field frame and capped at the speed limits.
-        target = cap_speed(command[..., 0:2].view(_COMPLEX)[..., 0] * state.heading, self._max_speed)
-        # (Results are assigned into strided views of the velocity rows: a ufunc writing there is slower.)
-        self._control_vel[...] = target
-        self._control_spin[...] = np.maximum(np.minimum(command[..., 2], self._max_spin), self._min_spin)
-        # Robots keep their velocity, less what would carry them into a wall within this period.
-        self._robot_vel[...] = self._speculative_wall_stop(state.pos, state.vel)
-        self._robot_spin[...] = state.ang_vel
-
+        rows = self._velocity_rows
+        velocity_rows(command, state.heading, state.pos, state.vel, state.ang_vel, self._limits, rows)
         if self._contacts_set:
             self.robot_contacts.fill(False)
             self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
             self._contacts_set = False
         for block in self.blocks:
-            block.advance(self._velocity_rows[block.fields], self._sub_dt, self.substeps)
+            block.advance(rows[block.fields], self._sub_dt, self.substeps)
             block.read(self._read_rows[block.fields])
         self.state = self._state_of_rows()
         return self.state
-
-    def _speculative_wall_stop(self, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
-        """Robot velocities (N, R, 2) less the part that would carry a robot into a wall within this
-        period: an inelastic wall impact resolved before it happens. pymunk detects contacts only
-        after moving bodies, so without this a robot at 2.5 m/s would sink v * dt into a wall before the
-        contact pushes back.
-        """
-        # Most steps no robot would reach a wall: then nothing changes (the margin covers rounding).
-        if not np.count_nonzero(np.abs(pos + vel * self._dt) >= self._clear):
-            return vel
-        room_hi = np.maximum(self._wall_hi - pos, self._zero) / self._dt
-        # -limit - pos is exactly -(limit + pos): the lower bound is the upper one mirrored, bit for bit.
-        room_lo = np.minimum(self._wall_lo - pos, self._zero) / self._dt
-        return np.maximum(np.minimum(vel, room_hi), room_lo)

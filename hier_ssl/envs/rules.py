@@ -8,6 +8,7 @@ each agent's action, once, as it enters.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from hier_ssl.config import TaskSettings
@@ -19,7 +20,8 @@ from hier_ssl.manager.rewards import (
     distance_reward,
     measured_errors,
     obstacle_distance,
-    pose_errors,
+    pose_error,
+    shaping_term,
 )
 from hier_ssl.manager.success import collided, pose_reached, robot_settled
 from hier_ssl.world.frames import all_finite
@@ -27,6 +29,24 @@ from hier_ssl.world.frames import all_finite
 # What a decision fixes for its control steps: whether each measured pose names its target (...) bool, and
 # R_d + R_theta (...).
 Held = tuple[np.ndarray, np.ndarray]
+
+
+@numba.njit(cache=True)
+def _held(
+    subgoal: np.ndarray,
+    target: np.ndarray,
+    d_th: float,
+    theta_th: float,
+    reached: np.ndarray,
+    shaping: np.ndarray,
+) -> None:
+    """``Rules.hold`` of the action-centric tasks as one compiled loop over the rows (B, 5) of sub-goals
+    and targets: whether each sub-goal is on its target (d < d_th, delta < theta_th, as ``pose_reached``)
+    and R_d + R_theta, written into ``reached`` and ``shaping`` (B,)."""
+    for b in range(target.shape[0]):
+        d, delta = pose_error(subgoal[b], target[b])
+        reached[b] = d < d_th and delta < theta_th
+        shaping[b] = shaping_term(d, delta, d_th, theta_th)
 
 
 def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
@@ -66,7 +86,10 @@ class Rules:
         (..., 5); None for the Baseline task, which measures the robot every step."""
         if self.task == "baseline":
             return None
-        return self._pose(*pose_errors(subgoal, target))
+        rows = (subgoal.reshape(-1, 5), target.reshape(-1, 5), float(self.d_th), float(self.theta_th))
+        reached, shaping = np.empty(target.shape[:-1], dtype=bool), np.empty(target.shape[:-1])
+        _held(*rows, reached.reshape(-1), shaping.reshape(-1))
+        return reached, shaping
 
     def __call__(
         self,

@@ -19,9 +19,13 @@ and `obstacle_obs_slice`, not by bare column numbers.
 from __future__ import annotations
 
 import functools
+import math
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
+
+from hier_ssl.world.frames import as_float
 
 MANAGER_OBS_BASE_DIM = 13
 OBSTACLE_OBS_DIM = 5
@@ -112,23 +116,40 @@ def manager_observation(
         (N, 13 + 5K) float32, laid out as in the module docstring.
     """
     n, k = obs_pos.shape[:2]
-    # One concatenation in layout order and one division by a row of scales (1 for sin and cos): on the
-    # few rows of one field a numpy call costs more than its arithmetic, and a block written into a
-    # strided slice of the output costs four times a new array.
-    t_sin, t_cos = np.sin(target[:, 2:3]), np.cos(target[:, 2:3])
-    r_sin, r_cos = np.sin(angle[:, None]), np.cos(angle[:, None])
-    blocks = (target[:, 0:2], t_sin, t_cos, target[:, 3:5], pos, r_sin, r_cos, vel, ang_vel[:, None])
-    if k:
-        blocks += (np.concatenate((obs_pos, obs_vel, obs_ang_vel[..., None]), axis=2).reshape(n, -1),)
-    obs = np.concatenate(blocks, axis=1) / _scales(k, float(max_pos), float(max_v), float(max_w))
-    low, high = _bounds(float(clip))
-    return np.minimum(np.maximum(obs, low), high).astype(np.float32)
+    obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k), dtype=np.float32)
+    arrays = (target, pos, angle, vel, ang_vel, obs_pos, obs_vel, obs_ang_vel)
+    scales = _scales(k, float(max_pos), float(max_v), float(max_w))
+    _observation_rows(*(as_float(a) for a in arrays), scales, float(clip), obs)
+    return obs
 
 
-@functools.lru_cache(maxsize=8)
-def _bounds(clip: float) -> tuple[np.ndarray, np.ndarray]:
-    """-clip and clip as 0-d arrays (a Python float operand costs numpy a conversion on every call)."""
-    return np.array(-clip), np.array(clip)
+@numba.njit(cache=True)
+def _observation_rows(
+    target: np.ndarray,
+    pos: np.ndarray,
+    angle: np.ndarray,
+    vel: np.ndarray,
+    ang_vel: np.ndarray,
+    obs_pos: np.ndarray,
+    obs_vel: np.ndarray,
+    obs_ang_vel: np.ndarray,
+    scales: np.ndarray,
+    clip: float,
+    out: np.ndarray,
+) -> None:
+    """``manager_observation``'s rows written into ``out`` (N, 13 + 5K) float32, in one compiled loop (one
+    call whatever N: at one field numpy's per-call overhead, not the arithmetic, was the cost)."""
+    raw = np.empty(out.shape[1])  # one row before scaling, in layout order
+    for b in range(out.shape[0]):
+        raw[0:2], raw[4:6] = target[b, 0:2], target[b, 3:5]
+        raw[2], raw[3] = math.sin(target[b, 2]), math.cos(target[b, 2])
+        raw[6:8], raw[8], raw[9] = pos[b], math.sin(angle[b]), math.cos(angle[b])
+        raw[10:12], raw[12] = vel[b], ang_vel[b]
+        for j in range(obs_pos.shape[1]):
+            slot = raw[MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * j :]
+            slot[0:2], slot[2:4], slot[4] = obs_pos[b, j], obs_vel[b, j], obs_ang_vel[b, j]
+        for column in range(raw.shape[0]):
+            out[b, column] = min(max(raw[column] / scales[column], -clip), clip)
 
 
 @functools.lru_cache(maxsize=64)

@@ -16,10 +16,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hier_ssl.world.frames import as_float, wrap_angle
+from hier_ssl.world.frames import as_float, wrap, wrap_angle
 
 DIST_THRESHOLD = 0.05  # D_th, m
 ANGLE_THRESHOLD = math.radians(5.0)  # theta_th, rad
@@ -68,6 +69,14 @@ def pose_errors(pose_a: np.ndarray, pose_b: np.ndarray) -> tuple[np.ndarray, np.
     # One subtraction of (x, y, theta): the same differences as ``_errors`` takes, in a call less.
     diff = pose_a[..., 0:3] - pose_b[..., 0:3]
     return vector_length(diff[..., 0:2]), np.abs(wrap_angle(diff[..., 2]))
+
+
+@numba.njit(cache=True)
+def pose_error(pose_a: np.ndarray, pose_b: np.ndarray) -> tuple[float, float]:
+    """``pose_errors`` of one pair of poses (>= 3,), for the compiled per-robot loops: the same operations
+    (tests/manager/test_rewards.py holds the two equal)."""
+    dx, dy = pose_a[0] - pose_b[0], pose_a[1] - pose_b[1]
+    return math.sqrt(dx * dx + dy * dy), abs(wrap(pose_a[2] - pose_b[2]))
 
 
 def measured_errors(
@@ -121,6 +130,15 @@ def angle_reward(delta: ArrayLike, theta_th: float = ANGLE_THRESHOLD) -> np.ndar
     reward = np.divide(delta, _MINUS_PI, out=np.empty_like(delta))
     np.copyto(reward, _ANGLE_BONUS, where=delta <= theta_th)
     return reward
+
+
+@numba.njit(cache=True)
+def shaping_term(d: float, delta: float, d_th: float, theta_th: float) -> float:
+    """R_d + R_theta of one distance d (m) and angle difference delta (rad): ``distance_reward`` plus
+    ``angle_reward`` on one value each, for the compiled per-robot loops (tests/manager/test_rewards.py
+    holds them equal)."""
+    r_d = DIST_BONUS if d <= d_th else -d
+    return r_d + (ANGLE_BONUS if delta <= theta_th else delta / -math.pi)
 
 
 def obstacle_reward(o: ArrayLike) -> np.ndarray:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from hier_ssl.world.frames import as_float
+from hier_ssl.world.frames import as_float, wrap
 from hier_ssl.world.physics import RobotState
 
 # Compiled once per argument layout and cached on disk next to this module (numba's ``cache``).
@@ -60,12 +60,6 @@ def _capped(along: float, across: float, max_speed: float) -> tuple[float, float
         return along, across
     scale = max_speed / speed
     return along * scale, across * scale
-
-
-@_jit
-def _wrap(angle: float) -> float:
-    """``angle`` mapped to [-pi, pi), as ``hier_ssl.world.frames.wrap_angle``."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 @_jit
@@ -155,7 +149,7 @@ class PaperGoToPoint(_Scripted):
                 across = v_across + _clamp(goal_across - v_across, dv)
                 along, across = _capped(along, across, max_speed)
                 out[f, i, 0], out[f, i, 1] = _to_robot(along, across, ex, ey, heading[f, i])
-                error = _wrap(goal[2] - angle[f, i])
+                error = wrap(goal[2] - angle[f, i])
                 out[f, i, 2] = 0.0 if abs(error) < angle_deadband else error * angle_gain
 
 
@@ -218,7 +212,7 @@ class BangBangGoToPoint(_Scripted):
                 along = v_along + _clamp(desired - v_along, step_along)
                 out[f, i, 0], out[f, i, 1] = _to_robot(along, v_across + dv_across, ex, ey, heading[f, i])
                 # Heading: the same law with the angular limits.
-                error = _wrap(goal[2] - angle[f, i])
+                error = wrap(goal[2] - angle[f, i])
                 turn = min(min(math.sqrt(abs(error) * two_ang_brake), max_ang_speed), abs(error) / dt)
                 spin = ang_vel[f, i]
                 out[f, i, 2] = spin + _clamp(math.copysign(turn, error) - spin, spin_step)

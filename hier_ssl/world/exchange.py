@@ -12,6 +12,8 @@ import math
 import numba
 import numpy as np
 
+from hier_ssl.world.frames import wrap
+
 
 @numba.njit(cache=True)
 def velocity_rows(
@@ -68,7 +70,7 @@ def unpack_rows(
         for i in range(rows.shape[1]):
             row = rows[f, i]
             pos[f, i, 0], pos[f, i, 1] = row[0] - offsets[f, 0], row[1] - offsets[f, 1]
-            a = (row[2] + math.pi) % (2 * math.pi) - math.pi
+            a = wrap(row[2])
             angle[f, i], heading[f, i] = a, complex(math.cos(a), math.sin(a))
             vel[f, i, 0], vel[f, i, 1], ang_vel[f, i] = row[3], row[4], row[5]
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -29,6 +30,13 @@ def as_float(values: ArrayLike) -> np.ndarray:
 def wrap_angle(angle: ArrayLike) -> np.ndarray:
     """Angles (any shape, rad) mapped to [-pi, pi)."""
     return (as_float(angle) + _PI) % _TWO_PI - _PI
+
+
+@numba.njit(cache=True)
+def wrap(angle: float) -> float:
+    """One angle (rad) mapped to [-pi, pi): ``wrap_angle`` for the compiled per-robot loops, the same
+    operations on one value (tests/world/test_frames.py holds the two equal)."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def all_finite(values: np.ndarray) -> bool:

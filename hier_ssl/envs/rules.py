@@ -8,22 +8,26 @@ each agent's action, once, as it enters.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
 from hier_ssl.config import TaskSettings
 from hier_ssl.manager.rewards import (
+    HIT_REWARD,
+    SUCCESS_REWARD,
     RewardOptions,
     angle_reward,
     check_task,
-    combine_rewards,
     distance_reward,
     measured_errors,
-    obstacle_distance,
+    nearest_distance,
+    obstacle_term,
     pose_error,
     shaping_term,
 )
-from hier_ssl.manager.success import collided, pose_reached, robot_settled
+from hier_ssl.manager.success import pose_reached
 from hier_ssl.world.frames import all_finite
 
 # What a decision fixes for its control steps: whether each measured pose names its target (...) bool, and
@@ -63,9 +67,10 @@ class Rules:
     """Success, collision and reward of one control step for ``task`` ("baseline", "proposed" or
     "obstacle": the rules of ``hier_ssl.manager`` that score a robot) with ``config``'s settings.
 
-    The settings are checked here and held as 0-d arrays: a Python float operand costs numpy a conversion
-    on every call, and on the few rows of one field the calls are the cost. The action-centric tasks measure
-    the sub-goal, which a decision fixes for its control steps: ``hold`` computes that part once a decision.
+    The settings are checked here (``RewardOptions``) and held in the form the compiled loops below take:
+    on the few rows of one field numpy's per-call overhead, not the arithmetic, was the cost, so each of
+    ``hold`` and ``__call__`` is one loop over the robots. The action-centric tasks measure the sub-goal,
+    which a decision fixes for its control steps: ``hold`` computes that part once a decision.
     """
 
     def __init__(self, task: str, config: TaskSettings) -> None:
@@ -74,8 +79,11 @@ class Rules:
         modes = (config.success_mode, config.hit_mode)
         self.options = RewardOptions(*modes, config.success_weight, config.hit_weight, config.obstacle_from)
         self.d_th, self.theta_th = np.array(config.d_th), np.array(np.deg2rad(config.theta_th_deg))
-        self.speed_th = np.array(config.speed_th)
-        self.collision_distance = np.array(config.collision_distance)
+        paid = (config.success_weight * SUCCESS_REWARD, config.hit_weight * HIT_REWARD)
+        self._settings = np.array([config.d_th, config.speed_th, config.collision_distance, *paid])
+        replace = (config.success_mode == "replace", config.hit_mode == "replace")
+        task_flags = (task != "baseline", replace[0], task == "obstacle", config.obstacle_from == "robot")
+        self._flags = (*task_flags, replace[1])
 
     def _pose(self, d: np.ndarray, delta: np.ndarray) -> Held:
         reached = pose_reached(d, delta, self.d_th, self.theta_th)
@@ -111,19 +119,64 @@ class Rules:
         if held is None:
             held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
         reached, shaping = held
-        # Success needs the measured pose on the target first; the robot is looked at only then.
-        success = reached.copy()
-        if np.count_nonzero(reached):
-            success &= robot_settled(self.task, target, pos, vel, self.d_th, self.speed_th)
-        # Without another robot in the field there is nothing to hit.
-        hit = collided(pos, others, self.collision_distance) | touching if others.shape[-2] else touching
-        # A hit fails the episode, also on the control step that would have been a success.
-        success = success > hit
-        nearest = None
-        if self.task == "obstacle":
-            nearest = obstacle_distance(self.options.obstacle_from, subgoal, pos, others)
-        reward, _ = combine_rewards({"pose": shaping}, success, self.options, nearest, hit)
+        lead = target.shape[:-1]
+        reward, success, hit = np.empty(lead), np.empty(lead, dtype=bool), np.empty(lead, dtype=bool)
+        others = others.reshape(reward.size, others.shape[-2], 2)  # (B, J, 2), J = 0 allowed
+        rows = (reached.reshape(-1), shaping.reshape(-1), target.reshape(-1, 5), subgoal.reshape(-1, 5))
+        rows += (pos.reshape(-1, 2), vel.reshape(-1, 2), others, touching.reshape(-1))
+        _score(*rows, self._settings, self._flags, reward.reshape(-1), success.reshape(-1), hit.reshape(-1))
         return reward, success, hit
+
+
+@numba.njit(cache=True)
+def _score(
+    reached: np.ndarray,
+    shaping: np.ndarray,
+    target: np.ndarray,
+    subgoal: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    others: np.ndarray,
+    touching: np.ndarray,
+    settings: np.ndarray,
+    flags: tuple[bool, bool, bool, bool, bool],
+    reward: np.ndarray,
+    success: np.ndarray,
+    hit: np.ndarray,
+) -> None:
+    """``Rules.__call__`` as one compiled loop over the rows (B,): the rules of ``robot_settled``,
+    ``collided``, ``obstacle_distance`` and ``combine_rewards``, their operations in their order
+    (tests/envs/test_rules.py holds the results equal to theirs, bit for bit).
+
+    Shapes: reached, shaping, touching (B,); target, subgoal (B, 5); pos, vel (B, 2); others (B, J, 2).
+    ``settings``: d_th, speed_th, collision distance, R_t paid, R_hit paid; ``flags``: success needs the
+    robot near the target (action-centric tasks), success replaces the shaping, the obstacle task's
+    terms, R_obst measured from the robot (not the sub-goal), a hit replaces the other terms.
+    """
+    d_th, speed_th, collision_distance, success_paid, hit_paid = settings
+    near_target, replace_success, obstacle_task, from_robot, replace_hit = flags
+    for b in range(reward.shape[0]):
+        nearest = nearest_distance(pos[b, 0], pos[b, 1], others[b])  # +inf without another robot
+        hit[b] = nearest < collision_distance or touching[b]
+        # Success needs the measured pose on the target and the robot settled; a hit fails it.
+        done = reached[b] and not hit[b]
+        if done:
+            done = math.sqrt(vel[b, 0] * vel[b, 0] + vel[b, 1] * vel[b, 1]) < speed_th
+        if done and near_target:
+            dx, dy = pos[b, 0] - target[b, 0], pos[b, 1] - target[b, 1]
+            done = math.sqrt(dx * dx + dy * dy) < d_th
+        success[b] = done
+        pose = 0.0 if replace_success and done else shaping[b]
+        paid = success_paid if done else 0.0
+        if not obstacle_task:
+            reward[b] = pose + paid
+            continue
+        if not from_robot:
+            nearest = nearest_distance(subgoal[b, 0], subgoal[b, 1], others[b])
+        obstacle = obstacle_term(nearest)
+        if replace_hit and hit[b]:
+            pose, paid, obstacle = 0.0, 0.0, 0.0
+        reward[b] = pose + paid + obstacle + (hit_paid if hit[b] else 0.0)
 
 
 __all__ = ["Held", "Rules", "check_action"]

@@ -38,8 +38,7 @@ OBSTACLE_FROM = ("subgoal", "robot")
 REWARD_TERMS = ("distance", "angle", "success", "obstacle", "hit")
 
 _DIST_BONUS, _ANGLE_BONUS = np.array(DIST_BONUS), np.array(ANGLE_BONUS)
-_MINUS_PI, _MINUS_HALF = np.array(-np.pi), np.array(-0.5)
-_MINUS_SQRT_2PI, _ZERO, _INF = np.array(-math.sqrt(2.0 * math.pi)), np.array(0.0), np.array(np.inf)
+_MINUS_PI, _ZERO, _INF = np.array(-np.pi), np.array(0.0), np.array(np.inf)
 
 
 def vector_length(xy: np.ndarray) -> np.ndarray:
@@ -105,6 +104,18 @@ def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndar
     return np.sqrt(np.minimum.reduce(square[..., 0] + square[..., 1], axis=-1, initial=_INF))
 
 
+@numba.njit(cache=True)
+def nearest_distance(x: float, y: float, obs_pos: np.ndarray) -> float:
+    """``nearest_obstacle_distance`` of one point (x, y) to obstacles ``obs_pos`` (K, 2), for the compiled
+    loops: the root of the least square, +inf where K = 0 (tests/manager/test_rewards.py holds the two
+    equal)."""
+    least = math.inf
+    for j in range(obs_pos.shape[0]):
+        dx, dy = obs_pos[j, 0] - x, obs_pos[j, 1] - y
+        least = min(least, dx * dx + dy * dy)
+    return math.sqrt(least)
+
+
 def obstacle_distance(
     obstacle_from: str, subgoal: np.ndarray, robot_pos: np.ndarray, obs_pos: np.ndarray
 ) -> np.ndarray:
@@ -141,10 +152,24 @@ def shaping_term(d: float, delta: float, d_th: float, theta_th: float) -> float:
     return r_d + (ANGLE_BONUS if delta <= theta_th else delta / -math.pi)
 
 
+@numba.njit(cache=True)
+def obstacle_term(o: float) -> float:
+    """R_obst of one distance o (m, may be +inf), for ``obstacle_reward`` and the compiled loops."""
+    return math.exp(o * o * -0.5) / -math.sqrt(2.0 * math.pi)
+
+
+@numba.njit(cache=True)
+def _obstacle_terms(o: np.ndarray, out: np.ndarray) -> None:
+    for b in range(o.shape[0]):
+        out[b] = obstacle_term(o[b])
+
+
 def obstacle_reward(o: ArrayLike) -> np.ndarray:
     """R_obst = -N(o; 0, 1) = -exp(-o^2 / 2) / sqrt(2 pi). o: any shape, m (may be +inf)."""
     o = np.asarray(o, dtype=np.float64)
-    return np.exp(np.square(o) * _MINUS_HALF) / _MINUS_SQRT_2PI
+    out = np.empty(o.shape)
+    _obstacle_terms(o.reshape(-1), out.reshape(-1))
+    return out
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ from functools import partial
 from operator import itemgetter
 from typing import Any
 
+import numba
 import numpy as np
 
 from hier_ssl.config import TaskConfig
@@ -29,15 +30,41 @@ from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.envs.step_guard import abandon, hold
-from hier_ssl.manager import cpad_increment, manager_observation
+from hier_ssl.manager import manager_observation
 from hier_ssl.manager.actions import SubgoalDecoder
 from hier_ssl.manager.neighbours import neighbour_observation
+from hier_ssl.manager.rewards import pose_error
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.worker.observation import controlled_worker_observation, scale_command
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotState, World
 
-_ONE, _NO_DECISION = np.array(1.0), np.array(0)
+
+@numba.njit(cache=True)
+def _take_decisions(
+    action: np.ndarray,
+    decoded: np.ndarray,
+    live: np.ndarray,
+    subgoal: np.ndarray,
+    decisions: np.ndarray,
+    cpad: np.ndarray,
+    clipped: np.ndarray,
+) -> None:
+    """The ``live`` (N, M) robots take their ``decoded`` sub-goals (N, M, 5) in place of ``subgoal``: their
+    ``decisions`` count one more, ``cpad`` grows by the sub-goal's move (``cpad_increment``; not at a
+    robot's first decision, whose held sub-goal was its own start pose) and ``clipped`` (N, M) counts the
+    values of ``action`` (N, M, A) outside [-1, 1] (0 where not live). One compiled loop over the robots."""
+    for f in range(live.shape[0]):
+        for i in range(live.shape[1]):
+            clipped[f, i] = 0
+            if not live[f, i]:
+                continue
+            for value in action[f, i]:
+                clipped[f, i] += abs(value) > 1.0
+            if decisions[f, i] > 0:
+                cpad[f, i] += pose_error(decoded[f, i], subgoal[f, i])[0]
+            subgoal[f, i] = decoded[f, i]
+            decisions[f, i] += 1
 
 
 @dataclass
@@ -118,7 +145,7 @@ class HierarchicalCore:
         self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
         self.ep_cpad = np.zeros((n, m))
         self._held = None  # the rules' part that sub-goals and targets fix (``Rules.hold``)
-        self._nobody, self._no_clips = np.zeros((n, m), dtype=bool), np.zeros((n, m), dtype=np.int64)
+        self._nobody = np.zeros((n, m), dtype=bool)
         self._no_stats = self._stats(np.zeros(0, dtype=np.int64), self._nobody, self._nobody)
 
     @property
@@ -220,15 +247,9 @@ class HierarchicalCore:
         field or the target frame (``action_frame``); values outside [-1, 1] are clipped, sub-goals to the
         field. Returns how many values were clipped per robot (N, M), 0 where not live."""
         n, m = live.shape
-        outside = np.abs(action) > _ONE
-        clipped = live * np.add.reduce(outside, axis=2) if np.count_nonzero(outside) else self._no_clips
-        subgoal = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
-        subgoal = subgoal.reshape(n, m, 5)
-        moved = cpad_increment(self.subgoal[..., 0:2], subgoal[..., 0:2])
-        np.add(self.ep_cpad, moved, out=self.ep_cpad, where=live & (self.decisions > _NO_DECISION))
-        np.copyto(self.subgoal, subgoal, where=live[..., None])
-        # A new array of one dtype (see ``step``).
-        self.decisions = self.decisions + live.astype(np.int64)
+        decoded = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
+        clipped, held = np.empty((n, m), dtype=np.int64), (self.subgoal, self.decisions, self.ep_cpad)
+        _take_decisions(action, decoded.reshape(n, m, 5), live, *held, clipped)
         self._hold()
         return clipped
 

@@ -119,7 +119,7 @@ def manager_observation(
     obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k), dtype=np.float32)
     arrays = (target, pos, angle, vel, ang_vel, obs_pos, obs_vel, obs_ang_vel)
     scales = _scales(k, float(max_pos), float(max_v), float(max_w))
-    _observation_rows(*(as_float(a) for a in arrays), scales, float(clip), obs)
+    _observation_rows(*map(as_float, arrays), scales, float(clip), obs)
     return obs
 
 

@@ -92,14 +92,10 @@ class PublicCodeRandom:
 
     def __call__(self, pos: np.ndarray, angle: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         n = len(angle)
-        cmd = np.concatenate(
-            [
-                rng.uniform(-self.max_speed, self.max_speed, (n, 2)),
-                rng.uniform(-self.max_spin, self.max_spin, (n, 1)),
-            ],
-            axis=-1,
-        )
-        cmd[self._still] = 0.0
+        cmd = np.empty((n, 3))
+        cmd[:, 0:2] = rng.uniform(-self.max_speed, self.max_speed, (n, 2))
+        cmd[:, 2:3] = rng.uniform(-self.max_spin, self.max_spin, (n, 1))
+        np.copyto(cmd, 0.0, where=self._still[:, None])
         return cmd
 
 

@@ -22,10 +22,10 @@ from functools import partial
 from operator import itemgetter
 from typing import Any
 
-import numba
 import numpy as np
 
 from hier_ssl.config import TaskConfig
+from hier_ssl.envs.decisions import take_decisions
 from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
@@ -33,38 +33,10 @@ from hier_ssl.envs.step_guard import abandon, hold
 from hier_ssl.manager import manager_observation
 from hier_ssl.manager.actions import SubgoalDecoder
 from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.manager.rewards import pose_error
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.worker.observation import controlled_worker_observation, scale_command
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotState, World
-
-
-@numba.njit(cache=True)
-def _take_decisions(
-    action: np.ndarray,
-    decoded: np.ndarray,
-    live: np.ndarray,
-    subgoal: np.ndarray,
-    decisions: np.ndarray,
-    cpad: np.ndarray,
-    clipped: np.ndarray,
-) -> None:
-    """The ``live`` (N, M) robots take their ``decoded`` sub-goals (N, M, 5) in place of ``subgoal``: their
-    ``decisions`` count one more, ``cpad`` grows by the sub-goal's move (``cpad_increment``; not at a
-    robot's first decision, whose held sub-goal was its own start pose) and ``clipped`` (N, M) counts the
-    values of ``action`` (N, M, A) outside [-1, 1] (0 where not live). One compiled loop over the robots."""
-    for f in range(live.shape[0]):
-        for i in range(live.shape[1]):
-            clipped[f, i] = 0
-            if not live[f, i]:
-                continue
-            for value in action[f, i]:
-                clipped[f, i] += abs(value) > 1.0
-            if decisions[f, i] > 0:
-                cpad[f, i] += pose_error(decoded[f, i], subgoal[f, i])[0]
-            subgoal[f, i] = decoded[f, i]
-            decisions[f, i] += 1
 
 
 @dataclass
@@ -249,7 +221,7 @@ class HierarchicalCore:
         n, m = live.shape
         decoded = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
         clipped, held = np.empty((n, m), dtype=np.int64), (self.subgoal, self.decisions, self.ep_cpad)
-        _take_decisions(action, decoded.reshape(n, m, 5), live, *held, clipped)
+        take_decisions(action, decoded.reshape(n, m, 5), live, *held, clipped)
         self._hold()
         return clipped
 

@@ -35,7 +35,7 @@ def wrap_angle(angle: ArrayLike) -> np.ndarray:
 @numba.njit(cache=True)
 def wrap(angle: float) -> float:
     """One angle (rad) mapped to [-pi, pi): ``wrap_angle`` for the compiled per-robot loops, the same
-    operations on one value (tests/world/test_frames.py holds the two equal)."""
+    operations on one value (tests/manager/test_rewards.py holds the two equal)."""
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 

@@ -13,12 +13,17 @@ from hier_ssl.manager.rewards import (
     angle_reward,
     combine_rewards,
     distance_reward,
+    nearest_distance,
+    nearest_obstacle_distance,
     obstacle_reward,
+    pose_error,
     pose_errors,
+    shaping_term,
     task_reward,
     vector_length,
     wrap_angle,
 )
+from hier_ssl.world.frames import wrap
 
 GAUSS_0 = 1 / math.sqrt(2 * math.pi)  # 0.398942: N(0; 0, 1)
 GAUSS_1 = math.exp(-0.5) / math.sqrt(2 * math.pi)  # 0.241971: N(1; 0, 1)
@@ -210,3 +215,25 @@ def test_a_summed_shaping_term_gives_the_same_total_bit_for_bit(modes: tuple[str
         total, terms = combine_rewards(parts, success, options, *extra)
         np.testing.assert_array_equal(combine_rewards(summed, success, options, *extra)[0], total)
         np.testing.assert_allclose(sum(terms.values()), total)
+
+
+def test_the_scalar_rules_of_the_compiled_loops_are_the_array_functions_bit_for_bit() -> None:
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(-4, 4, (500, 5)), rng.uniform(-4, 4, (500, 5))
+    a[:50, 0:3] = b[:50, 0:3]  # on the target
+    a[50:60, 2] = b[50:60, 2] + math.pi  # half a turn away
+    edges = [-math.pi, math.pi, 0.0, -0.0, 3 * math.pi, -3 * math.pi]
+    turns = np.concatenate([rng.uniform(-20, 20, 500), edges])
+    assert [wrap(t) for t in turns] == wrap_angle(turns).tolist()
+    d, delta = pose_errors(a, b)
+    pairs = list(zip(d.tolist(), delta.tolist(), strict=True))
+    assert [pose_error(x, y) for x, y in zip(a, b, strict=True)] == pairs
+    d_th, theta_th = 0.05, math.radians(5)
+    d = np.concatenate([d, [0.0, d_th, d_th + 1e-9]])
+    delta = np.concatenate([delta, [0.0, theta_th, theta_th + 1e-9]])
+    shaping = distance_reward(d, d_th) + angle_reward(delta, theta_th)
+    assert [shaping_term(x, y, d_th, theta_th) for x, y in zip(d, delta, strict=True)] == shaping.tolist()
+    others = rng.uniform(-4, 4, (500, 3, 2))
+    nearest = nearest_obstacle_distance(a[:, 0:2], others)
+    assert [nearest_distance(p[0], p[1], o) for p, o in zip(a, others, strict=True)] == nearest.tolist()
+    assert nearest_distance(0.0, 0.0, np.zeros((0, 2))) == math.inf

@@ -135,19 +135,24 @@ def _decode_rows(
     (at one field numpy's per-call overhead, not the arithmetic, was the cost). ``target`` (N, 5) is read
     in the target frame only."""
     for b in range(action.shape[0]):
-        a = np.minimum(np.maximum(action[b], -1.0), 1.0)
-        sin, cos = a[-2], a[-1]
+        a = action[b]
+        x, y, sin, cos = _unit(a[0]), _unit(a[1]), _unit(a[-2]), _unit(a[-1])
         if target_frame:
-            a[0:2] = a[0:2] ** 3
-            cos += 1.0  # cos is last in both forms
-        out[b, 0:2] = a[0:2] * half
-        out[b, 2] = math.atan2(sin, cos)
+            x, y, cos = math.pow(x, 3.0), math.pow(y, 3.0), cos + 1.0  # cos is last in both forms
+        out[b, 0], out[b, 1], out[b, 2] = x * half[0], y * half[1], math.atan2(sin, cos)
         if velocity:
-            out[b, 3:5] = a[2:4] * max_v
+            out[b, 3], out[b, 4] = _unit(a[2]) * max_v, _unit(a[3]) * max_v
         if target_frame:
-            out[b, 0:2] = np.minimum(np.maximum(out[b, 0:2] + target[b, 0:2], -half), half)
+            for axis in range(2):
+                out[b, axis] = min(max(out[b, axis] + target[b, axis], -half[axis]), half[axis])
             turn = out[b, 2] + target[b, 2]
             out[b, 2] = math.atan2(math.sin(turn), math.cos(turn))
+
+
+@numba.njit(cache=True)
+def _unit(value: float) -> float:
+    """``value`` clipped to [-1, 1]."""
+    return max(min(value, 1.0), -1.0)
 
 
 def encode_subgoal(

@@ -244,9 +244,16 @@ class VectorRun:
 
         from hier_ssl.envs.vector import TorchVectorEnv
 
+        config = task_config(self.task, frame_skip=self.frame_skip)
+        # One field's first step loads the compiled per-robot loops (numba, with LLVM): memory taken once
+        # a process, not per field.
+        warm = TorchVectorEnv(config, 1)
+        warm.reset(seed=self.seed)
+        warm.step(torch.zeros(warm.num_envs, warm.num_actions))
+        del warm
         gc.collect()  # what an earlier run left is freed before, not while, this one is measured
         before = resident_bytes()
-        self.env = env = TorchVectorEnv(task_config(self.task, frame_skip=self.frame_skip), self.n_fields)
+        self.env = env = TorchVectorEnv(config, self.n_fields)
         self.core, world = env.core, env.core.world
         world_step, self._in_world = world.step, [0.0]
 

@@ -83,7 +83,7 @@ class _Scripted:
     def __call__(self, state: RobotState, subgoal: np.ndarray) -> np.ndarray:
         """Commands (N, R, 3) for robots ``state`` (N, R) to reach ``subgoal`` (N, R, 5)."""
         out = np.empty(state.angle.shape + (3,))
-        type(self)._kernel(
+        self._kernel(
             state.pos, state.angle, state.vel, state.ang_vel, state.heading, as_float(subgoal), self._k, out
         )
         return out

@@ -79,6 +79,11 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
         "in training), the last command, or the tracked velocity",
     )
     _priority_option(deploy)
+    deploy.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="tick on each world step's frames, for a field server in lockstep (hier-ssl field --lockstep)",
+    )
     deploy.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     deploy.set_defaults(func=_deploy)
 
@@ -103,6 +108,7 @@ def _deploy(args: argparse.Namespace) -> int:
         args.frame_skip,
         args.worker_feedback,
         args.priority,
+        args.lockstep,
     )
     _one_thread(args.manager)
     loop = build_loop(settings)
@@ -155,6 +161,12 @@ def add_field(subparsers: argparse._SubParsersAction) -> None:
         "--episodes", type=positive_int, default=None, help="stop after so many (default never)"
     )
     field.add_argument("--seed", type=int, default=0)
+    field.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="step the world once per command period, waiting for the commands (at most 100 ms), instead "
+        "of every 25 ms of wall-clock time; the controller runs with deploy --lockstep",
+    )
     field.set_defaults(func=_field)
 
 
@@ -181,6 +193,7 @@ def _field(args: argparse.Namespace) -> int:
         args.simulation_port,
         args.control,
         args.seed,
+        lockstep=args.lockstep,
     )
     ports = {"vision_port": args.vision_port, "grsim_port": server.grsim_port}
     print(json.dumps({"task": args.task, **ports, "simulation_port": server.simulation_port}), flush=True)

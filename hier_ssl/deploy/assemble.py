@@ -66,6 +66,7 @@ class DeploySettings:
     frame_skip: int | None = None
     feedback: str = "model"
     priority: int = PRIORITY
+    lockstep: bool = False
 
 
 def build_loop(settings: DeploySettings) -> DeployLoop:
@@ -82,7 +83,15 @@ def build_loop(settings: DeploySettings) -> DeployLoop:
     control = None
     if settings.control_port is not None:
         control = ControlServer(settings.control_port, controller.set_target)
-    return DeployLoop(controller, vision, settings.source, sender, control, priority=settings.priority)
+    return DeployLoop(
+        controller,
+        vision,
+        settings.source,
+        sender,
+        control,
+        priority=settings.priority,
+        lockstep=settings.lockstep,
+    )
 
 
 __all__ = ["DeploySettings", "build_loop", "parse_robots", "parse_targets"]

@@ -10,7 +10,8 @@
   sampling planner, with 1 robot (Obstacle task) and 6 (formation: 6 controlled robots, 6 moving
   obstacles).
 - ``task``: success, collisions and median episode length (control steps) of the Obstacle task and of
-  crossing driven through field server -> packets -> tracker -> manager -> commands -> field server,
+  crossing driven through field server -> packets -> tracker -> manager -> commands -> field server (the
+  field server and the loop in lockstep: one world step per command, as the direct loop steps),
   against the same manager played directly by ``hier_ssl.envs.play`` (what ``hier-ssl eval`` runs) on
   the same episodes (``direct_episodes``), and a run's own task for ``run``; ``success_gap_points`` is
   through the wire minus direct.
@@ -116,7 +117,8 @@ def untrained_export(folder: Path, task: str = "obstacle") -> Path:
 
 
 class WiredRun:
-    """A field server process on ``task`` and the controller loop of ``manager`` here, over 127.0.0.1."""
+    """A field server process on ``task`` and the controller loop of ``manager`` here, over 127.0.0.1,
+    both free-running or both in ``lockstep``."""
 
     def __init__(
         self,
@@ -127,11 +129,12 @@ class WiredRun:
         seed: int = 0,
         priority: int = PRIORITY,
         field_options: tuple[str, ...] = (),
+        lockstep: bool = False,
     ) -> None:
         settings = DeploySettings(
             manager, "127.0.0.1:0", "grsim:127.0.0.1:9", "blue", list(range(robots)), {}, control_port=0
         )
-        settings.priority = priority
+        settings.priority, settings.lockstep = priority, lockstep
         settings.task = task if _takes_task(manager) else None
         self.loop = build_loop(settings)
         command = [
@@ -152,7 +155,7 @@ class WiredRun:
             str(seed),
         ]
         command += ["--episodes", str(episodes)] if episodes else []
-        command += field_options
+        command += [*field_options, "--lockstep"] if lockstep else field_options
         self.field = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
         ports = json.loads(self.field.stdout.readline())
         self.loop.sender.address = ("127.0.0.1", ports["grsim_port"])
@@ -220,25 +223,34 @@ def direct_episodes(
 def task_row(
     manager: str, label: str, task: str, episodes: int, seed: int = 0, noise: tuple[float, float] = (2.0, 0.5)
 ) -> dict[str, Any]:
-    """Through the wire against ``direct_episodes``; the field server's vision ``noise`` (mm, deg)."""
+    """Through the wire (field server in lockstep) against ``direct_episodes``; the field server's vision
+    ``noise`` (mm, deg). The gap's standard error treats the wire's and the direct loop's robots as
+    independent samples (a chaotic episode's two plays part early); robots of one episode are not."""
     config = manager_task(manager, task if _takes_task(manager) else None)
     robots = make_scenario(config).num_agents
     options = ("--noise-mm", str(noise[0]), "--noise-deg", str(noise[1]))
-    _, records = WiredRun(manager, task, robots, episodes, seed, field_options=options).run(None)
+    _, records = WiredRun(manager, task, robots, episodes, seed, field_options=options, lockstep=True).run(
+        None
+    )
     wired = _outcomes(*(np.array([r[k] for r in records]) for k in ("success", "collision", "length")))
     direct_out = _outcomes(
         *direct_episodes(DeployView(manager, robots, config).policy, config, episodes, seed)
     )
+    samples = episodes * robots
+    variance = sum(p * (1 - p) for p in (wired["success"], direct_out["success"])) / samples
     return {
         "bench": "deploy task",
         "manager": label,
         "task": task,
         "episodes": episodes,
+        "robot_samples": samples,
+        "field_clock": "lockstep",
         "noise_mm": noise[0],
         "noise_deg": noise[1],
         **{f"wire_{k}": round(v, 3) for k, v in wired.items()},
         **{f"eval_{k}": round(v, 3) for k, v in direct_out.items()},
         "success_gap_points": round(100 * (wired["success"] - direct_out["success"]), 1),
+        "success_gap_se_points": round(100 * float(np.sqrt(variance)), 1),
     }
 
 

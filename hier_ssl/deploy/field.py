@@ -13,12 +13,22 @@ Episodes: after a reset the robots stand for ``settle`` s while the cameras publ
 robot's target goes to the controller's control socket (JSON lines); the world steps from the first
 period in which every controlled robot has been commanded since (or ``COMMAND_TIMEOUT`` later) and the
 episode runs to success, collision or ``max_steps``, scored by the task's rules, one record per robot.
+
+Lockstep (``lockstep``): the world steps once per command period instead of on its own clock. After each
+step every camera publishes the frames of the step's period at once (capture time: the world's own clock,
+25 ms a step), then the world waits for a command of every controlled robot, or ``COMMAND_TIMEOUT`` so that
+a lost command cannot stall it, and steps once. Two free-running clocks (the world's steps, the
+controller's ticks) let one command act for no step or for two; in lockstep each acts for exactly one, as
+in ``hier-ssl eval``, so the through-the-wire episodes follow the directly played ones. The controller
+ticks on the frames (``hier-ssl deploy --lockstep``). grSim and a real field run on their own clocks: the
+free-running mode is the one that stands in for them.
 """
 
 from __future__ import annotations
 
 import heapq
 import json
+import math
 import selectors
 import socket
 import threading
@@ -106,8 +116,8 @@ def camera_frames(
 
 
 class FieldServer:
-    """Serves one field of ``config`` over 127.0.0.1 (module docstring). Ports 0 pick free ones, read back
-    as ``grsim_port`` and ``simulation_port``."""
+    """Serves one field of ``config`` over 127.0.0.1 (module docstring), free-running or in ``lockstep``.
+    Ports 0 pick free ones, read back as ``grsim_port`` and ``simulation_port``."""
 
     def __init__(
         self,
@@ -120,11 +130,18 @@ class FieldServer:
         control_port: int | None = None,
         seed: int = 0,
         settle: float = 0.15,
+        lockstep: bool = False,
     ) -> None:
         if team not in TEAMS:
             raise ValueError(f"team {team!r}: expected one of {TEAMS}")
+        self.team, self.cameras, self.lockstep = team, cameras or Cameras(), lockstep
+        if lockstep and (self.cameras.rate * STEP < 1 or self.cameras.latency > 0):
+            raise ValueError(
+                f"lockstep: every camera must see every world step (rate >= {1 / STEP:g} Hz) and the world "
+                f"waits for the commands (latency 0), got rate {self.cameras.rate} Hz, latency "
+                f"{self.cameras.latency} s"
+            )
         self.core = HierarchicalCore(config, num_fields=1, autoreset=False)
-        self.team, self.cameras = team, cameras or Cameras()
         self.m, self.k = self.core.num_agents, self.core.num_obstacles
         other = TEAMS[1 - TEAMS.index(team)]
         self.labels = [(team, i) for i in range(self.m)] + [(other, j) for j in range(self.k)]
@@ -158,57 +175,108 @@ class FieldServer:
     def run(
         self, episodes: int | None, stop: threading.Event, on_record: Callable[[dict], None] | None = None
     ) -> list[dict[str, Any]]:
-        """Play ``episodes`` episodes (None: until ``stop``) in real time; one record per robot, each also
-        handed to ``on_record`` as its episode ends."""
-        selector = selectors.DefaultSelector()
-        selector.register(self.grsim, selectors.EVENT_READ, self._read_grsim)
-        selector.register(self.simulation, selectors.EVENT_READ, self._read_simulation)
+        """Play ``episodes`` episodes (None: until ``stop``), in real time or in lockstep; one record per
+        robot, each also handed to ``on_record`` as its episode ends."""
+        self.selector = selectors.DefaultSelector()
+        self.selector.register(self.grsim, selectors.EVENT_READ, self._read_grsim)
+        self.selector.register(self.simulation, selectors.EVENT_READ, self._read_simulation)
         control = None
         if self.control_port is not None:
             control = socket.create_connection((LOOPBACK, self.control_port), timeout=1.0)
         records: list[dict[str, Any]] = []
+
+        def ended(episode: int) -> None:
+            for record in self._records(episode):
+                records.append(record)
+                if on_record is not None:
+                    on_record(record)
+
+        try:
+            play = self._run_lockstep if self.lockstep else self._run_free
+            play(episodes, stop, control, ended)
+        finally:
+            self.selector.close()
+            if control is not None:
+                control.close()
+        return records
+
+    def _serve(self, timeout: float) -> None:
+        """Take the commands that come within ``timeout`` s."""
+        for key, _ in self.selector.select(timeout):
+            key.data()
+
+    def _run_free(
+        self, episodes: int | None, stop: threading.Event, control: Any, ended: Callable[[int], None]
+    ) -> None:
+        """The world steps every ``STEP`` s of wall-clock time; the cameras publish at their rate."""
         pending: list[tuple[float, int, bytes]] = []  # (send time, order, packet)
         clock, episode, frame = time.monotonic, 0, 0
         live, start = self._reset(episode), clock()
         next_step, next_frame, running, sent = start + STEP, start, False, None
-        try:
-            while not stop.is_set() and (episodes is None or episode < episodes):
-                timeout = max(0.0, min(next_step, next_frame, pending[0][0] if pending else np.inf) - clock())
-                for key, _ in selector.select(timeout):
-                    key.data()
-                now = clock()
-                while pending and pending[0][0] <= now:
-                    self.out.sendto(heapq.heappop(pending)[2], self.vision_to)
-                if now >= next_frame:
-                    frame = self._capture(frame, pending, now)
-                    next_frame += 1.0 / self.cameras.rate
-                if now < next_step:
-                    continue
-                next_step += STEP
-                self.capture_time = time.time()  # the world as it stands now: stepped below, or still
-                if sent is None and now - start >= self.settle:
-                    self._send_targets(control)
-                    self._read_grsim()  # commands sent before the targets were taken: not the first ones
-                    self._read_simulation()
-                    sent = clock()
-                # The first step waits for the controller's first commands (at most COMMAND_TIMEOUT), as
-                # the core's first control step already carries the worker's command.
-                if not running and sent is not None:
-                    running = (self.commanded > sent).all() or now - sent > COMMAND_TIMEOUT
-                if running:
-                    live, ended = self._step(live, now)
-                    if ended:
-                        for record in self._records(episode):
-                            records.append(record)
-                            if on_record is not None:
-                                on_record(record)
-                        episode += 1
-                        live, start, running, sent = self._reset(episode), now, False, None
-        finally:
-            selector.close()
-            if control is not None:
-                control.close()
-        return records
+        while not stop.is_set() and (episodes is None or episode < episodes):
+            self._serve(max(0.0, min(next_step, next_frame, pending[0][0] if pending else np.inf) - clock()))
+            now = clock()
+            while pending and pending[0][0] <= now:
+                self.out.sendto(heapq.heappop(pending)[2], self.vision_to)
+            if now >= next_frame:
+                frame = self._capture(frame, pending, now)
+                next_frame += 1.0 / self.cameras.rate
+            if now < next_step:
+                continue
+            next_step += STEP
+            self.capture_time = time.time()  # the world as it stands now: stepped below, or still
+            if sent is None and now - start >= self.settle:
+                self._send_targets(control)
+                self._read_grsim()  # commands sent before the targets were taken: not the first ones
+                self._read_simulation()
+                sent = clock()
+            # The first step waits for the controller's first commands (at most COMMAND_TIMEOUT), as
+            # the core's first control step already carries the worker's command.
+            if not running and sent is not None:
+                running = (self.commanded > sent).all() or now - sent > COMMAND_TIMEOUT
+            if running:
+                live, over = self._step(live, now)
+                if over:
+                    ended(episode)
+                    episode += 1
+                    live, start, running, sent = self._reset(episode), now, False, None
+
+    def _run_lockstep(
+        self, episodes: int | None, stop: threading.Event, control: Any, ended: Callable[[int], None]
+    ) -> None:
+        """The world's clock advances ``STEP`` per world step (world time ``step * STEP`` from the start):
+        after the frames of a step the world waits for every controlled robot's command, at most
+        ``COMMAND_TIMEOUT`` of wall-clock time, and steps once. While the robots settle the world stands
+        and its clock runs at wall-clock speed."""
+        clock, episode, frame, step, epoch = time.monotonic, 0, 0, 0, time.time()
+        while not stop.is_set() and (episodes is None or episode < episodes):
+            live, over = self._reset(episode), False
+            for _ in range(round(self.settle / STEP)):
+                frame, step, until = self._publish(frame, step, epoch), step + 1, clock() + STEP
+                while clock() < until:
+                    self._serve(until - clock())
+            self._send_targets(control)
+            while not (over or stop.is_set()):
+                frame, step, published = self._publish(frame, step, epoch), step + 1, clock()
+                while not (self.commanded > published).all() and clock() - published <= COMMAND_TIMEOUT:
+                    self._serve(max(0.0, published + COMMAND_TIMEOUT - clock()))
+                live, over = self._step(live, clock())
+            if over:
+                ended(episode)
+                episode += 1
+
+    def _publish(self, frame: int, step: int, epoch: float) -> int:
+        """Lockstep: the frames of world step ``step`` (world time ``epoch + step * STEP``), sent now: each
+        camera's frames whose capture falls in the step's period at the camera's rate (one or two at 60
+        Hz, always at least one: the controller ticks on them); the next frame number."""
+        self.capture_time = epoch + step * STEP
+        t0, t1 = (round(k * STEP * self.cameras.rate, 9) for k in (step, step + 1))
+        pending: list[tuple[float, int, bytes]] = []
+        for _ in range(math.ceil(t1) - math.ceil(t0)):
+            frame = self._capture(frame, pending, 0.0)
+        for _, _, packet in sorted(pending):
+            self.out.sendto(packet, self.vision_to)
+        return frame
 
     def _reset(self, episode: int) -> np.ndarray:
         self.core.reset(self.seed + episode)
@@ -242,6 +310,8 @@ class FieldServer:
         ]
 
     def _capture(self, frame: int, pending: list, now: float) -> int:
+        """Every camera's frame of the world as it stands, queued in ``pending`` to go out ``latency`` s
+        after ``now``; a geometry packet once every ``rate`` frames; the next frame number."""
         s = self.core.world.state
         frames = camera_frames(
             s.pos[0], s.angle[0], self.labels, self.cameras, self.strips, self.capture_time, self.rng

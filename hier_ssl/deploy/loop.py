@@ -12,6 +12,13 @@ a tick computes for about a millisecond, and on cores shared with other processe
 training) the time-sharing scheduler let them run first, which was the whole latency tail (6 robots,
 load 2-3 on two cores: p99 22-40 ms under time-sharing, 2.2 ms under SCHED_FIFO; no garbage collection
 fell in a slow tick). The loop sleeps in ``select`` between ticks, so it takes a core only for its ticks.
+
+Lockstep (a field server that steps its world once per command, ``hier-ssl field --lockstep``): the field's
+clock is the frames' capture time, and it stands still until the commands come. The loop then ticks once
+per world time instead of once per 25 ms of its own clock: as soon as every camera it has seen sent a
+frame of a newer capture time (or ``GATHER`` after the first of them), predicting to that time, not to its
+own clock: the world did not move on while the frame travelled. Without new frames for ``PERIOD + WAIT``
+it ticks on its own clock as in the free-running mode, so the safety stop holds.
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from math import inf
 
 from hier_ssl.deploy.controller import Controller
 from hier_ssl.deploy.net import CommandSender, ControlServer, receive
@@ -34,6 +42,7 @@ WAIT = 0.010  # s a tick waits past its due time for a camera frame
 WARMUP_TICKS = 40  # the first second's latencies are not kept: TorchScript's first runs are slower
 STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
 PRIORITY = 10  # SCHED_FIFO priority: above every time-shared process, below interrupt threads (50)
+GATHER = 0.002  # s lockstep waits for the other cameras' frames of a world time (they go out together)
 
 
 def _raise_priority(priority: int) -> tuple[str, Callable[[], None]]:
@@ -69,10 +78,42 @@ class LoopStats:
     scheduling: str = ""
 
 
+@dataclass
+class WorldTime:
+    """Lockstep: the newest capture time seen (``time``), the cameras that sent a frame of it (``seen``) out
+    of all cameras seen (``cameras``), the arrival of its first and newest frames, and the capture time of
+    the last tick (``ticked``)."""
+
+    time: float = -inf
+    cameras: set[int] = field(default_factory=set)
+    seen: set[int] = field(default_factory=set)
+    first: float = 0.0
+    newest: float = 0.0
+    ticked: float = -inf
+
+    def add(self, frame: DetectionFrame, arrival: float) -> None:
+        self.cameras.add(frame.camera)
+        if frame.t_capture > self.time:
+            self.time, self.seen, self.first = frame.t_capture, set(), arrival
+        if frame.t_capture == self.time:
+            self.seen.add(frame.camera)
+            self.newest = arrival
+
+    def pending(self) -> bool:
+        """Whether frames of a world time not ticked on yet have come."""
+        return self.time > self.ticked
+
+    def ready(self, now: float) -> bool:
+        """Whether to tick on the newest world time at monotonic ``now``: every camera's frame of it came,
+        or ``GATHER`` passed since the first."""
+        return self.pending() and (self.seen >= self.cameras or now - self.first >= GATHER)
+
+
 class DeployLoop:
     """``controller`` fed from ``vision`` (datagrams from ``source`` only), commands out through
     ``sender``, targets in through ``control`` (optional); its thread runs at SCHED_FIFO ``priority``
-    (0: time-shared) while ``run`` runs."""
+    (0: time-shared) while ``run`` runs; ``lockstep`` for a field server that waits for the commands
+    (module docstring)."""
 
     def __init__(
         self,
@@ -83,6 +124,7 @@ class DeployLoop:
         control: ControlServer | None = None,
         clock: Callable[[], float] = time.monotonic,
         priority: int = PRIORITY,
+        lockstep: bool = False,
     ) -> None:
         if not 0 <= priority <= 99:
             raise ValueError(f"priority {priority}: expected 0 (time-shared) or a SCHED_FIFO priority 1..99")
@@ -90,6 +132,7 @@ class DeployLoop:
         self.controller, self.vision, self.source = controller, vision, source
         self.sender, self.control, self.clock = sender, control, clock
         self.stats = LoopStats()
+        self.world = WorldTime() if lockstep else None
         self.selector = selectors.DefaultSelector()
         self.selector.register(vision, selectors.EVENT_READ, "vision")
         self.selector.register(sender.sock, selectors.EVENT_READ, "response")
@@ -103,16 +146,20 @@ class DeployLoop:
         due = start + PERIOD
         try:
             while not stop.is_set() and (duration is None or self.clock() - start < duration):
-                timeout = max(0.0, due + WAIT - self.clock())
+                wake = due + WAIT
+                if self.world is not None and self.world.pending():
+                    wake = min(wake, self.world.first + GATHER)
                 arrival = None
-                for key, _ in self.selector.select(timeout):
+                for key, _ in self.selector.select(max(0.0, wake - self.clock())):
                     arrival = self._handle(key) or arrival
                 now = self.clock()
-                if now >= due + WAIT or (now >= due and arrival is not None):
-                    self._send(self.controller.tick(now))
-                    if arrival is not None and self.stats.ticks >= WARMUP_TICKS:
-                        self.stats.latencies.append(self.clock() - arrival)
-                    self.stats.ticks += 1
+                if self.world is not None and self.world.ready(now):
+                    # The world waits for this tick: predict to the frames' time, not to this clock's.
+                    self.world.ticked, arrival = self.world.time, self.world.newest
+                    self._tick(arrival, arrival)
+                    due = self.clock() + PERIOD
+                elif now >= due + WAIT or (self.world is None and now >= due and arrival is not None):
+                    self._tick(now, arrival)
                     due = due + PERIOD if due + PERIOD > now else now + PERIOD
         finally:
             for _ in range(STOP_COPIES):
@@ -120,6 +167,13 @@ class DeployLoop:
             self.selector.close()
             restore()
         return self.stats
+
+    def _tick(self, now: float, arrival: float | None) -> None:
+        """Send the controller's commands of monotonic time ``now``; keep the latency from ``arrival``."""
+        self._send(self.controller.tick(now))
+        if arrival is not None and self.stats.ticks >= WARMUP_TICKS:
+            self.stats.latencies.append(self.clock() - arrival)
+        self.stats.ticks += 1
 
     def close(self) -> None:
         """Close the loop's sockets (after ``run``)."""
@@ -157,6 +211,8 @@ class DeployLoop:
                 continue
             if isinstance(parsed, DetectionFrame):
                 self.controller.on_frame(parsed, arrival)
+                if self.world is not None:
+                    self.world.add(parsed, arrival)
                 self.stats.frames += 1
                 newest = arrival
             else:
@@ -180,4 +236,4 @@ class DeployLoop:
         self.stats.moving_commands += sum(any(c[1:]) for c in commands)
 
 
-__all__ = ["PERIOD", "PRIORITY", "WAIT", "DeployLoop", "LoopStats"]
+__all__ = ["GATHER", "PERIOD", "PRIORITY", "WAIT", "DeployLoop", "LoopStats", "WorldTime"]

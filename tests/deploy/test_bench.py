@@ -22,11 +22,12 @@ def test_a_latency_row_times_frames_to_commands() -> None:
     assert row["scheduling"].startswith(("fifo 10", "time-shared (not permitted"))
 
 
-def test_a_task_row_compares_the_wire_with_the_direct_loop() -> None:
+def test_a_task_row_compares_the_wire_in_lockstep_with_the_direct_loop() -> None:
     row = task_row("direct", "direct", "proposed", episodes=1, seed=2, noise=(0.0, 0.0))
     assert row["wire_success"] == row["eval_success"] == 1.0  # nothing to hit on the Proposed task
-    assert row["success_gap_points"] == 0.0 and row["noise_mm"] == 0.0
-    assert abs(row["wire_median_length"] - row["eval_median_length"]) < 0.5 * row["eval_median_length"]
+    assert row["success_gap_points"] == row["success_gap_se_points"] == 0.0 and row["noise_mm"] == 0.0
+    assert row["field_clock"] == "lockstep" and row["robot_samples"] == 1
+    assert row["wire_median_length"] == row["eval_median_length"]  # one world step per command
 
 
 def test_the_bench_command_takes_its_options() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import socket
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -118,19 +119,17 @@ def test_an_episode_through_the_wire_ends_on_its_target(kind: str) -> None:
     assert stats.field_size == wire.FieldSize(6.0, 4.0, 0.3)
 
 
-def test_a_noiseless_episode_through_the_wire_starts_as_the_directly_played_one() -> None:
-    # The same seeded episode, field server -> packets -> tracker -> manager -> worker -> commands, and
-    # played by hier_ssl.envs.play: the world's first step waits for the first command and the worker
-    # steers from the modelled robot, so the paths agree to 0.2 mm over the first steps. Later the two
-    # free-running 25 ms clocks (the field's steps, the loop's ticks) drift apart: a command may act for
-    # no step or for two, which the direct loop never does, and the paths part by millimetres.
+def wired_and_direct(lockstep: bool, rate: float = 60.0) -> tuple[np.ndarray, np.ndarray, dict, dict]:
+    """The same seeded noiseless episode of ``direct`` on "proposed", field server -> packets -> tracker
+    -> manager -> worker -> commands, and played by ``hier_ssl.envs.play``: the robot's positions (steps,
+    2) after each world step of each, the field server's record and the direct loop's outcome."""
     config = manager_task("direct", "proposed")
     settings = DeploySettings("direct", "127.0.0.1:0", "grsim:127.0.0.1:9", "blue", [0], {}, control_port=0)
-    settings.task = "proposed"
+    settings.task, settings.lockstep = "proposed", lockstep
     loop = build_loop(settings)
-    cameras = Cameras(pos_noise=0.0, angle_noise=0.0)
+    cameras = Cameras(rate=rate, pos_noise=0.0, angle_noise=0.0)
     port = loop.vision.getsockname()[1]
-    server = FieldServer(config, port, "blue", cameras, control_port=loop.control.port, seed=4)
+    server = FieldServer(config, port, "blue", cameras, control_port=loop.control.port, seed=4, lockstep=lockstep)
     loop.sender.address = ("127.0.0.1", server.grsim_port)
     wired, step = [], server.core.control_step
 
@@ -144,6 +143,47 @@ def test_a_noiseless_episode_through_the_wire_starts_as_the_directly_played_one(
     core = HierarchicalCore(config, num_fields=1, autoreset=False)
     direct = play(core, make_planner("direct", config), 4, record=[0])
     path = np.array(direct["trajectories"][0]["robots"])[1:, 0]
-    gap = np.linalg.norm(np.array(wired[:40]) - path[:40], axis=1)
+    return np.array(wired), path, record, direct
+
+
+def test_a_noiseless_episode_through_the_wire_starts_as_the_directly_played_one() -> None:
+    # The world's first step waits for the first command and the worker steers from the modelled robot,
+    # so the paths agree to 0.2 mm over the first steps. Later the two free-running 25 ms clocks (the
+    # field's steps, the loop's ticks) drift apart: a command may act for no step or for two, which the
+    # direct loop never does, and the paths part by millimetres.
+    wired, path, record, direct = wired_and_direct(lockstep=False)
+    gap = np.linalg.norm(wired[:40] - path[:40], axis=1)
     assert gap[:3].max() < 2e-4 and gap.max() < 0.05
     assert abs(record["length"] - direct["length"][0, 0]) <= 5
+
+
+@pytest.mark.parametrize("rate", [40.0, 60.0])
+def test_a_noiseless_episode_in_lockstep_follows_the_directly_played_one_step_for_step(rate: float) -> None:
+    # Each command acts for exactly one world step and the controller predicts to the frames' time: the
+    # wire's path is the direct one but for the tracker's filtering of noiseless detections.
+    wired, path, record, direct = wired_and_direct(lockstep=True, rate=rate)
+    assert record["success"] and record["length"] == direct["length"][0, 0] == len(wired)
+    gap = np.linalg.norm(wired - path[: len(wired)], axis=1)
+    assert gap.max() < 5e-4  # 0.27 mm measured at either rate, over 80 steps
+
+
+def test_a_lockstep_world_steps_on_without_commands_after_the_timeout() -> None:
+    server = FieldServer(task_config("proposed"), vision_port=9, seed=0, lockstep=True, settle=0.05)
+    stop = threading.Event()
+    thread = threading.Thread(target=server.run, args=(None, stop))
+    thread.start()
+    try:
+        time.sleep(0.65)  # settle, then a step every COMMAND_TIMEOUT (0.1 s) that no command ends early
+    finally:
+        stop.set()
+        thread.join()
+        server.close()
+    assert 4 <= server.core.steps[0] <= 6
+    assert server.frames_sent >= 2 * 6  # two cameras, each step's frames and the settling ones
+
+
+def test_lockstep_refuses_cameras_that_miss_world_steps_or_lag() -> None:
+    with pytest.raises(ValueError, match="got rate 30.0 Hz, latency 0.0 s"):
+        FieldServer(task_config("proposed"), 9, cameras=Cameras(rate=30.0), lockstep=True)
+    with pytest.raises(ValueError, match="latency 0.02 s"):
+        FieldServer(task_config("proposed"), 9, cameras=Cameras(latency=0.02), lockstep=True)

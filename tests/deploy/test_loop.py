@@ -15,7 +15,7 @@ import pytest
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
-from hier_ssl.deploy.loop import PRIORITY, DeployLoop
+from hier_ssl.deploy.loop import GATHER, PRIORITY, DeployLoop, WorldTime
 from hier_ssl.deploy.net import MAX_LINE
 
 FUZZED = 10_000
@@ -225,3 +225,19 @@ def test_the_loop_ticks_under_the_real_time_scheduler_where_permitted_and_restor
 def test_a_priority_out_of_range_is_refused_naming_it(robots: Robots) -> None:
     with pytest.raises(ValueError, match="priority 100"):
         _loop(robots, priority=100)
+
+
+def test_lockstep_ticks_once_per_world_time_when_every_camera_sent_its_frame() -> None:
+    world = WorldTime()
+    assert not world.ready(0.0)
+    world.add(wire.DetectionFrame(1.0, 1.0, 0, ()), 10.0)
+    world.add(wire.DetectionFrame(1.0, 1.0, 1, ()), 10.001)
+    assert world.ready(10.001) and world.newest == 10.001
+    world.ticked = 1.0
+    world.add(wire.DetectionFrame(1.0, 1.0, 1, ()), 10.002)  # a second frame of the world time ticked on
+    assert not world.ready(10.002)
+    world.add(wire.DetectionFrame(1.025, 1.025, 0, ()), 10.01)
+    assert not world.ready(10.01)  # camera 1's frame of 1.025 has not come yet
+    assert world.ready(10.01 + GATHER)  # and is not waited for longer
+    world.add(wire.DetectionFrame(1.0, 1.0, 1, ()), 10.011)  # an older world time: not the newest
+    assert world.seen == {0} and world.newest == 10.01

@@ -129,7 +129,9 @@ def wired_and_direct(lockstep: bool, rate: float = 60.0) -> tuple[np.ndarray, np
     loop = build_loop(settings)
     cameras = Cameras(rate=rate, pos_noise=0.0, angle_noise=0.0)
     port = loop.vision.getsockname()[1]
-    server = FieldServer(config, port, "blue", cameras, control_port=loop.control.port, seed=4, lockstep=lockstep)
+    server = FieldServer(
+        config, port, "blue", cameras, control_port=loop.control.port, seed=4, lockstep=lockstep
+    )
     loop.sender.address = ("127.0.0.1", server.grsim_port)
     wired, step = [], server.core.control_step
 

@@ -20,6 +20,7 @@ import json
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +54,7 @@ def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray],
             module = torch.jit.load(str(path), _extra_files=extra)
 
         def call(rows: np.ndarray) -> np.ndarray:
-            with torch.no_grad():
+            with torch.inference_mode():
                 return module(torch.from_numpy(rows)).numpy()
 
         return call, json.loads(extra["layout.json"])
@@ -76,17 +77,19 @@ def exported_rows(target: np.ndarray, state: RobotState, m: int) -> np.ndarray:
     own = np.concatenate(
         [state.pos[:, :m], state.angle[:, :m, None], state.vel[:, :m], state.ang_vel[:, :m, None]], axis=2
     )
-    motion = np.concatenate([state.pos, state.vel, state.ang_vel[..., None]], axis=2)  # (N, R, 5)
-    blocks = []
-    for i in range(m):
-        others = [j for j in range(r) if j != i]
-        block = motion[:, others]
-        if m > 1:
-            flag = (np.array(others) < m).astype(np.float64)
-            block = np.concatenate([block, np.broadcast_to(flag[None, :, None], (n, r - 1, 1))], axis=2)
-        blocks.append(block.reshape(n, -1))
-    rows = np.concatenate([target, own, np.stack(blocks, axis=1)], axis=2)
+    motion = [state.pos, state.vel, state.ang_vel[..., None]]  # (N, R, 5) once joined
+    others = _others(m, r)  # (M, R - 1): robot i's others in order
+    if m > 1:
+        motion.append(np.broadcast_to((np.arange(r) < m).astype(np.float64)[None, :, None], (n, r, 1)))
+    block = np.concatenate(motion, axis=2)[:, others]  # (N, M, R - 1, 5 or 6)
+    rows = np.concatenate([target, own, block.reshape(n, m, -1)], axis=2)
     return rows.reshape(n * m, -1).astype(np.float32)
+
+
+@lru_cache(maxsize=8)
+def _others(m: int, r: int) -> np.ndarray:
+    """(M, R - 1) the indices of every robot but i, in order, for each of the first ``m`` of ``r``."""
+    return np.array([[j for j in range(r) if j != i] for i in range(m)], dtype=np.int64)
 
 
 def manager_task(

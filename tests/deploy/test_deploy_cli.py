@@ -163,3 +163,15 @@ def test_targets_from_a_yaml_file(tmp_path: Path) -> None:
     path.write_text("- 1\n")
     with pytest.raises(ValueError, match="expected a mapping"):
         parse_targets(str(path))
+
+
+def test_the_deploy_commands_give_torch_one_openmp_thread_before_it_loads() -> None:
+    # Set after torch has loaded, one thread still leaves OpenMP's pool of one thread per core, which a
+    # call after the loop's sleep waited on; the variable has to be there when torch loads.
+    env = {k: v for k, v in ENV.items() if k != "OMP_NUM_THREADS"}
+    script = (
+        "from hier_ssl.cli.deploy import _one_thread; _one_thread(); import torch; "
+        "print(torch.get_num_threads(), 'omp_get_max_threads() : 1' in torch.__config__.parallel_info())"
+    )
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "True"]

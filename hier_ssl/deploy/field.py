@@ -257,6 +257,10 @@ class FieldServer:
                     self._serve(until - clock())
             self._send_targets(control)
             while not (over or stop.is_set()):
+                # A command queued now answers older frames (a controller's tick on its own clock): it
+                # acts, but is not this step's.
+                self._read_grsim()
+                self._read_simulation()
                 frame, step, published = self._publish(frame, step, epoch), step + 1, clock()
                 while not (self.commanded > published).all() and clock() - published <= COMMAND_TIMEOUT:
                     self._serve(max(0.0, published + COMMAND_TIMEOUT - clock()))

@@ -17,8 +17,10 @@ Lockstep (a field server that steps its world once per command, ``hier-ssl field
 clock is the frames' capture time, and it stands still until the commands come. The loop then ticks once
 per world time instead of once per 25 ms of its own clock: as soon as every camera it has seen sent a
 frame of a newer capture time (or ``GATHER`` after the first of them), predicting to that time, not to its
-own clock: the world did not move on while the frame travelled. Without new frames for ``PERIOD + WAIT``
-it ticks on its own clock as in the free-running mode, so the safety stop holds.
+own clock: the world did not move on while the frame travelled. A tick on its own clock would count a
+period the world did not step (the decisions' cadence, the modelled velocities would run ahead of it), so
+it comes only once no new frame has come for the controller's ``max_age`` + ``WAIT`` (60 ms), when every
+robot is out of sight and gets its stop (within 100 ms, as in the free-running mode).
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ WAIT = 0.010  # s a tick waits past its due time for a camera frame
 WARMUP_TICKS = 40  # the first second's latencies are not kept: TorchScript's first runs are slower
 STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
 PRIORITY = 10  # SCHED_FIFO priority: above every time-shared process, below interrupt threads (50)
-GATHER = 0.002  # s lockstep waits for the other cameras' frames of a world time (they go out together)
+GATHER = 0.02  # s lockstep waits at most for the other cameras' frames of a world time (they go out together)
 
 
 def _raise_priority(priority: int) -> tuple[str, Callable[[], None]]:
@@ -157,7 +159,7 @@ class DeployLoop:
                     # The world waits for this tick: predict to the frames' time, not to this clock's.
                     self.world.ticked, arrival = self.world.time, self.world.newest
                     self._tick(arrival, arrival)
-                    due = self.clock() + PERIOD
+                    due = self.clock() + self.controller.max_age
                 elif now >= due + WAIT or (self.world is None and now >= due and arrival is not None):
                     self._tick(now, arrival)
                     due = due + PERIOD if due + PERIOD > now else now + PERIOD

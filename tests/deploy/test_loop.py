@@ -58,7 +58,9 @@ def robots() -> Iterator[Robots]:
     receiver.close()
 
 
-def _loop(robots: Robots, source: str = "127.0.0.1", priority: int = PRIORITY) -> DeployLoop:
+def _loop(
+    robots: Robots, source: str = "127.0.0.1", priority: int = PRIORITY, lockstep: bool = False
+) -> DeployLoop:
     settings = DeploySettings(
         "direct",
         "127.0.0.1:0",
@@ -70,6 +72,7 @@ def _loop(robots: Robots, source: str = "127.0.0.1", priority: int = PRIORITY) -
         control_port=0,
         task="proposed",
         priority=priority,
+        lockstep=lockstep,
     )
     return build_loop(settings)
 
@@ -238,6 +241,27 @@ def test_lockstep_ticks_once_per_world_time_when_every_camera_sent_its_frame() -
     assert not world.ready(10.002)
     world.add(wire.DetectionFrame(1.025, 1.025, 0, ()), 10.01)
     assert not world.ready(10.01)  # camera 1's frame of 1.025 has not come yet
-    assert world.ready(10.01 + GATHER)  # and is not waited for longer
+    assert not world.ready(10.01 + GATHER / 2) and world.ready(10.011 + GATHER)  # nor for longer
     world.add(wire.DetectionFrame(1.0, 1.0, 1, ()), 10.011)  # an older world time: not the newest
     assert world.seen == {0} and world.newest == 10.01
+
+
+def test_in_lockstep_the_loop_ticks_once_per_world_step_and_stops_a_robot_out_of_sight(
+    robots: Robots,
+) -> None:
+    # A world that takes 40 ms of wall-clock time per 25 ms step: one command per step, none on the loop's
+    # own clock while frames come; once they stop, the stop within 100 ms.
+    running = Running(_loop(robots, lockstep=True))
+    try:
+        steps = 15
+        for k in range(steps):
+            sent = time.monotonic()
+            running.send(_frame(100.0 + k * 0.025))
+            time.sleep(0.04)
+        time.sleep(0.3)
+    finally:
+        running.close()
+    moving = robots.moving()
+    assert len(moving) == steps and sent < moving[-1][0] < sent + 0.02  # the last step's command
+    after = [(t, c) for t, c in robots.received if t > moving[-1][0]]
+    assert all(not any(c[0][1:]) for t, c in after) and after[0][0] - sent < 0.1

@@ -175,3 +175,11 @@ def test_the_deploy_commands_give_torch_one_openmp_thread_before_it_loads() -> N
     )
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["1", "True"]
+
+
+def test_lockstep_is_an_option_of_both_commands_and_off_by_default() -> None:
+    parser = cli.build_parser()
+    deploy = ["deploy", "sampling", "--vision", "127.0.0.1:10006", "--commands", "grsim", "--team", "blue"]
+    deploy += ["--robots", "0"]
+    assert not parser.parse_args(deploy).lockstep and parser.parse_args([*deploy, "--lockstep"]).lockstep
+    assert not parser.parse_args(["field"]).lockstep and parser.parse_args(["field", "--lockstep"]).lockstep

@@ -315,7 +315,7 @@ class FieldServer:
 
     def _capture(self, frame: int, pending: list, now: float) -> int:
         """Every camera's frame of the world as it stands, queued in ``pending`` to go out ``latency`` s
-        after ``now``; a geometry packet once every ``rate`` frames; the next frame number."""
+        after ``now``; a geometry packet with every ``rate``-th round of frames; the next frame number."""
         s = self.core.world.state
         frames = camera_frames(
             s.pos[0], s.angle[0], self.labels, self.cameras, self.strips, self.capture_time, self.rng

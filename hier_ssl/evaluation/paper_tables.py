@@ -6,7 +6,9 @@ episodes) under a family ("paper family": the public code's settings, ``configs/
 ``configs/<task>/``), a checkpoint ("final" or "best") and an action rule ("sampled", as the paper's test
 script, or "mean"). Each cell is the median over seeds of the runs' figures, with the seeds' min - max.
 Per-run figures are episode medians (length, both CPADs), rates (success, collision), the median ratio of
-episode time to the time-optimal bound over successful episodes, and the training wall time.
+episode time to the time-optimal bound over successful episodes, and the training wall time. A row keeps
+only those cells (``summarise``), so the CSV holds all of it: ``read_csv`` gives back the rows it was
+written from, which is how ``hier-ssl reproduce`` keeps the rows it does not evaluate again.
 
 The paper's own row puts its published medians (1000 episodes of its final models, sampled actions) in the
 same columns: its CPAD column was computed by its public code, so it stands under "CPAD, public code".
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -89,19 +92,6 @@ PAPER_RESULTS: dict[tuple[str, str], dict[str, Any]] = {
 }
 
 
-@dataclass
-class Row:
-    """One line of a task's table; ``records`` hold one evaluation record per seed (``make_record``'s keys
-    plus ``train_wall_s`` for learned managers)."""
-
-    task: str
-    setup: str
-    source: str  # "paper", "paper family", "defaults", or "planner"
-    policy: str = "-"  # "final", "best", or "-" (planners, the paper's own row)
-    actions: str = "-"  # "sampled", "mean", or "-"
-    records: list[dict[str, Any]] = field(default_factory=list)
-
-
 # (column title, how to read a record's figure) in table order; None where a record lacks the figure.
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("Success %", "success_rate"),
@@ -114,6 +104,26 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 )
 _PERCENT = {"success_rate", "collision_rate"}
 _DIGITS = {"episode_length": 0, "cpad": 2, "cpad_public": 2, "optimal_ratio_median": 2, "train_wall_s": 1}
+
+
+@dataclass
+class Row:
+    """One line of a task's table: per column of ``COLUMNS`` (by key) the (median, min, max) over its
+    ``seeds`` training seeds, NaN where the row has no figure, rounded to the CSV's 4 decimals, so that a row
+    read back from the CSV prints as the one summarised from evaluation records."""
+
+    task: str
+    setup: str
+    source: str  # "paper", "paper family", "defaults", or "planner"
+    policy: str = "-"  # "final", "best", or "-" (planners, the paper's own row)
+    actions: str = "-"  # "sampled", "mean", or "-"
+    seeds: int = 0  # 0 for the paper's own row and the planners'
+    spreads: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+
+    @property
+    def key(self) -> tuple[str, str, str, str, str]:
+        """What names the row in a table: (task, setup, source, policy, actions)."""
+        return self.task, self.setup, self.source, self.policy, self.actions
 
 
 def figure(record: dict[str, Any], key: str) -> float:
@@ -146,13 +156,25 @@ def spread(values: Sequence[float]) -> tuple[float, float, float]:
     return float(np.median(kept)), float(min(kept)), float(max(kept))
 
 
+def summarise(
+    task: str, setup: str, source: str, policy: str, actions: str, records: Sequence[dict[str, Any]]
+) -> Row:
+    """The row of ``records``: one evaluation record per training seed (``make_record``'s keys plus
+    ``train_wall_s`` for learned managers; the paper's own row and a planner's: one record)."""
+    seeds = 0 if source in ("paper", "planner") else len(records)
+    spreads = {
+        key: tuple(round(v, 4) for v in spread([figure(r, key) for r in records])) for _, key in COLUMNS
+    }
+    return Row(task, setup, source, policy, actions, seeds, spreads)
+
+
 def _cell(row: Row, key: str) -> str:
-    median, low, high = spread([figure(r, key) for r in row.records])
+    median, low, high = row.spreads[key]
     if median != median:
         return "-"
     digits = 1 if key in _PERCENT else _DIGITS[key]
     text = f"{median:.{digits}f}"
-    return text if len(row.records) < 2 or low == high else f"{text} ({low:.{digits}f} - {high:.{digits}f})"
+    return text if row.seeds < 2 or low == high else f"{text} ({low:.{digits}f} - {high:.{digits}f})"
 
 
 def markdown(rows: Sequence[Row]) -> str:
@@ -163,7 +185,7 @@ def markdown(rows: Sequence[Row]) -> str:
         out += [f"### {task.capitalize()}\n", "| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
         for row in (r for r in rows if r.task == task):
             policy = row.policy if row.actions == "-" else f"{row.policy}, {row.actions}"
-            seeds = "-" if row.source in ("paper", "planner") else str(len(row.records))
+            seeds = "-" if row.source in ("paper", "planner") else str(row.seeds)
             name = SETUP_TITLES.get(row.setup, row.setup)
             cells = [name, row.source, policy, seeds, *(_cell(row, key) for _, key in COLUMNS)]
             out.append("| " + " | ".join(cells) + " |")
@@ -171,18 +193,67 @@ def markdown(rows: Sequence[Row]) -> str:
     return "\n".join(out)
 
 
+def _csv_head() -> list[str]:
+    stats = [f"{key}_{stat}" for _, key in COLUMNS for stat in ("median", "min", "max")]
+    return ["task", "setup", "source", "policy", "actions", "seeds", *stats]
+
+
 def csv_text(rows: Sequence[Row]) -> str:
     """The same rows as CSV: for every column its median, min and max over seeds."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    stats = [f"{key}_{stat}" for _, key in COLUMNS for stat in ("median", "min", "max")]
-    writer.writerow(["task", "setup", "source", "policy", "actions", "seeds", *stats])
+    writer.writerow(_csv_head())
     for row in rows:
-        values = [v for _, key in COLUMNS for v in spread([figure(r, key) for r in row.records])]
-        cells = ["" if v != v else round(v, 4) for v in values]
-        seeds = 0 if row.source in ("paper", "planner") else len(row.records)
-        writer.writerow([row.task, row.setup, row.source, row.policy, row.actions, seeds, *cells])
+        cells = ["" if v != v else v for _, key in COLUMNS for v in row.spreads[key]]
+        writer.writerow([*row.key, row.seeds, *cells])
     return buffer.getvalue()
+
+
+def read_csv(text: str) -> list[Row]:
+    """The rows of a ``csv_text`` output, in its order (``csv_text(read_csv(text)) == text``)."""
+    lines = list(csv.reader(io.StringIO(text)))
+    if not lines or lines[0] != _csv_head():
+        raise ValueError(f"not a paper-tables CSV: header {lines[0] if lines else None!r}")
+    rows = []
+    for number, cells in enumerate(lines[1:], start=2):
+        if len(cells) != len(lines[0]):
+            raise ValueError(f"paper-tables CSV line {number}: {len(cells)} cells, expected {len(lines[0])}")
+        values = [float(v) if v else float("nan") for v in cells[6:]]
+        spreads = {key: tuple(values[3 * i : 3 * i + 3]) for i, (_, key) in enumerate(COLUMNS)}
+        rows.append(Row(*cells[:5], int(cells[5]), spreads))
+    return rows
+
+
+def header(episodes: int, seed: int, contact: dict[str, float]) -> str:
+    """The Markdown's text above the tables: what they hold, on which ``episodes`` (seed ``seed``), and per
+    task the share of its episodes that begin in contact."""
+    starts = ", ".join(f"{task} {100 * share:.1f} %" for task, share in contact.items())
+    return (
+        '# "Planning the path with Reinforcement Learning": the paper\'s tables and ours\n\n'
+        "Written by `hier-ssl reproduce` (hier_ssl/runs/reproduce.py). "
+        "Every manager of a task plays the same "
+        f"{episodes} episodes (seed {seed}), drawn as the paper's public code draws them; learned managers "
+        "act with their own interface, frame skip and worker; the planners decide every 16 control steps. "
+        "*paper*: the paper's published numbers (final models, sampled actions). *paper family*: our runs "
+        "of the public code's settings (configs/paper/); *defaults*: our runs of our defaults (configs/, "
+        'docs/research-notes.md "Deviations from the paper"). *Policy*: the checkpoint training ended with '
+        "(final) or "
+        "the one model selection kept (best), acting with sampled or mean actions.\n\n"
+        "Cells: the median over training seeds of each run's figure, with the seeds' min - max. A run's "
+        "figures: success and collision rates, the median episode length in control steps of 25 ms (1200 "
+        "= timeout), the median CPAD as the paper defines it (sum of the sub-goal's moves) and as its "
+        "public code computes it (square root of the sum of squared moves: the paper's tables), the median "
+        "time over the time-optimal bound (successful episodes), the training wall time (2-core machine, "
+        "usually beside another run).\n\n"
+        f"Episodes that begin inside the collision distance (start 0.2 m from the target, obstacle on the "
+        f"midpoint) end as collisions for every manager: {starts or 'none'}.\n\n"
+    )
+
+
+def header_episodes(text: str) -> tuple[int, int] | None:
+    """(episodes, seed) that a Markdown ``header`` names; None where it names none."""
+    found = re.search(r"same (\d+) episodes \(seed (\d+)\)", text)
+    return (int(found[1]), int(found[2])) if found else None
 
 
 __all__ = [
@@ -194,7 +265,11 @@ __all__ = [
     "Row",
     "csv_text",
     "figure",
+    "header",
+    "header_episodes",
     "markdown",
     "paper_record",
+    "read_csv",
     "spread",
+    "summarise",
 ]

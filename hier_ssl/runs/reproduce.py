@@ -31,7 +31,18 @@ from hier_ssl.envs import parse_config
 from hier_ssl.evaluation.compare import load_manager
 from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.evaluation.figures import figure3, label_outcomes, pick_episode
-from hier_ssl.evaluation.paper_tables import SETUPS, TASKS, Row, csv_text, markdown, paper_record
+from hier_ssl.evaluation.paper_tables import (
+    SETUPS,
+    TASKS,
+    Row,
+    csv_text,
+    header,
+    header_episodes,
+    markdown,
+    paper_record,
+    read_csv,
+    summarise,
+)
 from hier_ssl.evaluation.report import make_record
 from hier_ssl.runs.jobs import Job
 from hier_ssl.runs.launch import launch
@@ -46,6 +57,12 @@ VARIANTS = {
     "defaults": (("best", False), ("final", False)),
 }
 PLANNER_ROWS = ("direct", "sampling", "trajectory")
+# A setup's rows in table order, as (source, policy, actions): the paper's own, then each family's variants.
+ROW_ORDER = (("paper", "final", "sampled"),) + tuple(
+    (FAMILY_TITLES[family], which, "sampled" if sample else "mean")
+    for family in FAMILIES
+    for which, sample in VARIANTS[family]
+)
 # What fixes the episodes a manager plays (not how it acts): taken from the paper family's config.
 EPISODE_KEYS = (
     "field",
@@ -163,41 +180,70 @@ def evaluate_run(
     return record
 
 
-def table_rows(
+def learned_rows(
     runs: Sequence[Planned], count: int, seed: int, cache: Path, config_dir: str | Path | None, progress: bool
-) -> tuple[list[Row], dict[str, float]]:
-    """The tables' rows for the finished runs of ``runs`` (others are left out), the paper's own rows and
-    the planners'; and per task the share of its episodes that begin in contact."""
-    rows, contact = [], {}
+) -> list[Row]:
+    """The rows of the finished runs of ``runs`` (others are left out), every variant of each family."""
+    rows = []
     for task in dict.fromkeys(run.task for run in runs):
         episodes = episodes_of(task, config_dir)
         for setup in dict.fromkeys(run.setup for run in runs if run.task == task):
-            rows.append(Row(task, setup, "paper", "final", "sampled", [paper_record(task, setup)]))
             for family in FAMILIES:
                 done = [r for r in runs if (r.task, r.setup, r.family) == (task, setup, family)]
                 done = [r for r in done if (r.run_dir / EVAL_FILE).is_file()]
                 for which, sample in VARIANTS[family] if done else ():
                     records = [evaluate_run(r, which, sample, episodes, count, seed, cache) for r in done]
                     actions = "sampled" if sample else "mean"
-                    rows.append(Row(task, setup, FAMILY_TITLES[family], which, actions, records))
+                    rows.append(summarise(task, setup, FAMILY_TITLES[family], which, actions, records))
                     if progress:
                         print(
                             f"  {task}/{setup} {family} {which} {actions}: {len(records)} run(s)", flush=True
                         )
-        planner_env = episodes.model_copy(update={"frame_skip": 16})
+    return rows
+
+
+def planner_rows(
+    tasks: Sequence[str], count: int, seed: int, config_dir: str | Path | None
+) -> tuple[list[Row], dict[str, float]]:
+    """The planners' rows of ``tasks`` (deciding every 16 control steps) and per task the share of its
+    episodes that begin in contact."""
+    rows, contact = [], {}
+    for task in tasks:
+        planner_env = episodes_of(task, config_dir).model_copy(update={"frame_skip": 16})
         for name in PLANNER_ROWS:
             result = evaluate(load_manager(name, planner_env), planner_env, count, seed)
-            rows.append(Row(task, "-", "planner", name, "-", [make_record(name, result)]))
+            rows.append(summarise(task, "-", "planner", name, "-", [make_record(name, result)]))
             contact[task] = result["start_contact_rate"]
     return rows, contact
+
+
+def _order(row: Row) -> tuple[int, int, int]:
+    if row.source == "planner":
+        return TASKS.index(row.task), len(SETUPS), PLANNER_ROWS.index(row.policy)
+    return TASKS.index(row.task), SETUPS.index(row.setup), ROW_ORDER.index(row.key[2:])
+
+
+def merge(configs: Sequence[tuple[str, str]], evaluated: Sequence[Row], old: Sequence[Row]) -> list[Row]:
+    """The tables' rows but the planners', in table order: the learned rows ``evaluated``, those of ``old``
+    (an earlier table's) whose key ``evaluated`` lacks, and the paper's own row of every (task, setup) of
+    ``configs`` (the plan's) or of the learned rows."""
+    fresh = {row.key for row in evaluated}
+    kept = [r for r in old if r.source in FAMILY_TITLES.values() and r.key not in fresh]
+    for row in kept:
+        if row.task not in TASKS or row.setup not in SETUPS or row.key[2:] not in ROW_ORDER:
+            raise ValueError(f"earlier paper-tables.csv: row {row.key} is not one reproduce writes")
+    learned = [*evaluated, *kept]
+    present = dict.fromkeys([*configs, *((r.task, r.setup) for r in learned)])
+    paper = [summarise(t, s, "paper", "final", "sampled", [paper_record(t, s)]) for t, s in present]
+    return sorted([*paper, *learned], key=_order)
 
 
 def write_figures(
     runs: Sequence[Planned], results: Path, config_dir: str | Path | None, seed: int
 ) -> list[Path]:
-    """Fig. 3 per task: one episode (of the recorded ones most managers solve, the one where their paths
-    differ most) played by each family's first finished FSCAPS run (paper family: final policy, sampled;
-    defaults: best) and by the planners."""
+    """Fig. 3 per task with a finished FSCAPS run in ``runs``: one episode (of the recorded ones most
+    managers solve, the one where their paths differ most) played by each family's first finished FSCAPS
+    run (paper family: final policy, sampled; defaults: best) and by the planners."""
     paths = []
     for task in dict.fromkeys(run.task for run in runs):
         episodes = episodes_of(task, config_dir)
@@ -209,6 +255,8 @@ def write_figures(
                 acting = acting_config(done[0].config.task_config, episodes)
                 policy = load_manager(done[0].run_dir, acting, which, sample, seed)
                 panels.append((f"{FAMILY_TITLES[family]} FSCAPS", acting, policy))
+        if not panels:  # the planners alone would replace a figure an earlier run drew
+            continue
         planner_env = episodes.model_copy(update={"frame_skip": 16})
         panels += [(name, planner_env, load_manager(name, planner_env)) for name in PLANNER_ROWS]
         recorded = []
@@ -282,47 +330,53 @@ def reproduce(
     train: bool = True,
 ) -> Path:
     """Train what is missing (unless ``train`` is False), evaluate every finished run, write
-    ``results``/paper-tables.md, .csv and the figures; returns the Markdown file's path."""
+    ``results``/paper-tables.md, .csv and the figures; returns the Markdown file's path.
+
+    The tables hold more than the plan's runs when ``results``/paper-tables.csv exists (an earlier table,
+    on the same episodes: its Markdown must name the same ``episodes`` and ``eval_seed``): a learned row
+    the plan evaluated replaces the earlier one of the same (task, setup, source, policy, actions), even
+    with fewer seeds finished; the earlier learned rows the plan did not evaluate are kept as they were.
+    The paper's own rows, the planners' and the share of starts in contact are written for every task
+    the merged tables hold (the planners evaluated again), rows in the paper's order. Figures are drawn
+    for the plan's tasks with a finished FSCAPS run; the Markdown links every figure of the tables' tasks
+    found in ``results``."""
     out, results = Path(out), Path(results)
     runs = plan(families, only, seeds, out, config_dir, overrides)
+    old = _earlier_rows(results, episodes, eval_seed)
     if train:
         jobs = [Job(run.config, run.run_dir) for run in runs]
         launch(jobs, launch_options or LaunchOptions(), progress=progress, tune_dir=out / "tune")
     if progress:
         print(f"evaluating on {episodes} episodes per task (seed {eval_seed})", flush=True)
-    rows, contact = table_rows(runs, episodes, eval_seed, out / "evals", config_dir, progress)
+    evaluated = learned_rows(runs, episodes, eval_seed, out / "evals", config_dir, progress)
+    rows = merge([(run.task, run.setup) for run in runs], evaluated, old)
+    tasks = list(dict.fromkeys(row.task for row in rows))
+    planners, contact = planner_rows(tasks, episodes, eval_seed, config_dir)
+    rows = sorted([*rows, *planners], key=_order)
     results.mkdir(parents=True, exist_ok=True)
     (results / "paper-tables.csv").write_text(csv_text(rows))
-    figures = write_figures(runs, results, config_dir, eval_seed) + write_curves(runs, results)
-    text = _header(episodes, eval_seed, contact) + markdown(rows)
-    text += "\n" + "\n".join(f"![{p.stem}]({p.name})" for p in figures) + "\n"
+    write_figures(runs, results, config_dir, eval_seed)
+    write_curves(runs, results)
+    figures = [results / f"{kind}-{task}.png" for kind in ("fig3", "curves") for task in tasks]
+    text = header(episodes, eval_seed, contact) + markdown(rows)
+    text += "\n" + "\n".join(f"![{p.stem}]({p.name})" for p in figures if p.is_file()) + "\n"
     path = results / "paper-tables.md"
     path.write_text(text)
     return path
 
 
-def _header(episodes: int, seed: int, contact: dict[str, float]) -> str:
-    starts = ", ".join(f"{task} {100 * share:.1f} %" for task, share in contact.items())
-    return (
-        '# "Planning the path with Reinforcement Learning": the paper\'s tables and ours\n\n'
-        "Written by `hier-ssl reproduce` (hier_ssl/runs/reproduce.py). "
-        "Every manager of a task plays the same "
-        f"{episodes} episodes (seed {seed}), drawn as the paper's public code draws them; learned managers "
-        "act with their own interface, frame skip and worker; the planners decide every 16 control steps. "
-        "*paper*: the paper's published numbers (final models, sampled actions). *paper family*: our runs "
-        "of the public code's settings (configs/paper/); *defaults*: our runs of our defaults (configs/, "
-        'docs/research-notes.md "Deviations from the paper"). *Policy*: the checkpoint training ended with '
-        "(final) or "
-        "the one model selection kept (best), acting with sampled or mean actions.\n\n"
-        "Cells: the median over training seeds of each run's figure, with the seeds' min - max. A run's "
-        "figures: success and collision rates, the median episode length in control steps of 25 ms (1200 "
-        "= timeout), the median CPAD as the paper defines it (sum of the sub-goal's moves) and as its "
-        "public code computes it (square root of the sum of squared moves: the paper's tables), the median "
-        "time over the time-optimal bound (successful episodes), the training wall time (2-core machine, "
-        "usually beside another run).\n\n"
-        f"Episodes that begin inside the collision distance (start 0.2 m from the target, obstacle on the "
-        f"midpoint) end as collisions for every manager: {starts or 'none'}.\n\n"
-    )
+def _earlier_rows(results: Path, episodes: int, seed: int) -> list[Row]:
+    """The rows of ``results``/paper-tables.csv, if any, checked to be of the same episodes as these."""
+    table, report = results / "paper-tables.csv", results / "paper-tables.md"
+    if not table.is_file():
+        return []
+    played = header_episodes(report.read_text()) if report.is_file() else None
+    if played not in (None, (episodes, seed)):
+        raise ValueError(
+            f"{report}: its rows played {played[0]} episodes (seed {played[1]}), not {episodes} (seed "
+            f"{seed}); evaluate alike or write to another --results folder"
+        )
+    return read_csv(table.read_text())
 
 
 __all__ = [
@@ -331,6 +385,7 @@ __all__ = [
     "VARIANTS",
     "Planned",
     "default_seeds",
+    "merge",
     "plan",
     "plot_curves",
     "reproduce",

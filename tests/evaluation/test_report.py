@@ -20,7 +20,14 @@ from hier_ssl.evaluation.figures import (
     path_spread,
     pick_episode,
 )
-from hier_ssl.evaluation.paper_tables import PAPER_RESULTS, Row, csv_text, markdown, paper_record
+from hier_ssl.evaluation.paper_tables import (
+    PAPER_RESULTS,
+    csv_text,
+    markdown,
+    paper_record,
+    read_csv,
+    summarise,
+)
 from hier_ssl.evaluation.report import csv_table, latex_table, markdown_table, table_cells
 from hier_ssl.manager import cpad, min_time_to_pose
 from hier_ssl.runs import jobs as launch_module
@@ -79,8 +86,8 @@ def test_paper_tables_put_the_papers_numbers_beside_the_median_and_spread_over_s
         for s, c, w in ((0.99, 0.01, 600.0), (0.95, 0.03, 660.0), (0.97, 0.0, 540.0))
     ]
     rows = [
-        Row("obstacle", "fscaps", "paper", "final", "sampled", [paper_record("obstacle", "fscaps")]),
-        Row("obstacle", "fscaps", "defaults", "best", "mean", seeds),
+        summarise("obstacle", "fscaps", "paper", "final", "sampled", [paper_record("obstacle", "fscaps")]),
+        summarise("obstacle", "fscaps", "defaults", "best", "mean", seeds),
     ]
     lines = markdown(rows).splitlines()
     # The paper's CPAD column is its public code's: it stands under that column, ours under both.
@@ -91,6 +98,29 @@ def test_paper_tables_put_the_papers_numbers_beside_the_median_and_spread_over_s
     )
     table = csv_text(rows).splitlines()
     assert table[2].startswith("obstacle,fscaps,defaults,best,mean,3,97.0,95.0,99.0,1.0,0.0,3.0,114.0,114.0")
+
+
+def test_paper_tables_read_back_from_the_csv_print_the_same() -> None:
+    # Figures 5e-5 either side of the CSV's rounding: a row printed unrounded would show a spread here.
+    seeds = [{**RECORD, "optimal_ratio_median": r, "train_wall_s": 61.23456} for r in (1.15497, 1.15503)]
+    planner = {k: v for k, v in RECORD.items() if k != "optimal_ratio_median"}
+    rows = [
+        summarise("proposed", "fscaps", "paper", "final", "sampled", [paper_record("proposed", "fscaps")]),
+        summarise("proposed", "fscaps", "paper family", "best", "mean", seeds),
+        summarise("proposed", "-", "planner", "direct", "-", [planner]),
+    ]
+    text = csv_text(rows)
+    again = read_csv(text)
+    assert [r.key for r in again] == [r.key for r in rows] and [r.seeds for r in again] == [0, 2, 0]
+    assert csv_text(again) == text and markdown(again) == markdown(rows)
+    assert (
+        "| FSCAPS | paper family | best, mean | 2 | 99.5 | 0.6 | 114 | 0.06 | - | 1.16 | 1.0 |"
+        in markdown(again)
+    )
+    with pytest.raises(ValueError, match="not a paper-tables CSV"):
+        read_csv(text.replace("seeds", "runs", 1))
+    with pytest.raises(ValueError, match="line 3: 5 cells"):
+        read_csv(text.replace(text.splitlines()[2], "proposed,fscaps,paper family,best,mean"))
 
 
 def test_recorded_episode_matches_the_metrics() -> None:
@@ -172,9 +202,8 @@ def test_pick_episode_prefers_episodes_most_managers_solve() -> None:
     assert pick_episode([half + both]) == 1
 
 
-def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def _fake_training(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """Training replaced by writing a finished run of an untrained tiny actor; returns the runs trained."""
     import torch
 
     from hier_ssl.config import dump_config
@@ -192,6 +221,13 @@ def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
         (run_dir / "eval.json").write_text(json.dumps({"train_wall_s": 60.0}))
 
     monkeypatch.setattr(launch_module, "train", fake_train)
+    return trained
+
+
+def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    trained = _fake_training(monkeypatch)
     args = {"only": ["proposed/fscaps"], "out": tmp_path / "runs", "results": tmp_path / "results"}
     args |= {"episodes": 3, "overrides": ["sac.hidden=[8, 8]"], "seeds": 1, "progress": False}
     report = reproduce_module.reproduce(**args)
@@ -210,6 +246,50 @@ def test_reproduce_trains_missing_runs_once_and_writes_the_tables(
     assert len(trained) == 2  # finished runs are skipped
     with pytest.raises(ValueError, match="not a paper configuration"):
         reproduce_module.reproduce(only=["proposed/sac"], out=tmp_path)
+
+
+def test_reproduce_keeps_the_rows_it_does_not_evaluate(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _fake_training(monkeypatch)
+    results = tmp_path / "results"
+    results.mkdir()
+    made_up = {**RECORD, "train_wall_s": 600.0}
+    earlier = [
+        summarise("proposed", "fscaps", "defaults", "best", "mean", [made_up] * 3),
+        summarise("baseline", "caps", "paper family", "final", "sampled", [made_up]),
+        summarise("proposed", "frame_skip", "defaults", "final", "mean", [made_up, RECORD]),
+    ]
+    (results / "paper-tables.csv").write_text(csv_text(earlier))
+    for name in ("fig3-baseline.png", "fig3-obstacle.png"):
+        (results / name).write_bytes(b"")  # an earlier figure of a task in the tables, one of a task not
+    args = {"families": ["defaults"], "only": ["proposed/fscaps"], "out": tmp_path / "runs"}
+    args |= {"results": results, "episodes": 3, "overrides": ["sac.hidden=[8, 8]"], "seeds": 1}
+    text = reproduce_module.reproduce(**args, progress=False).read_text()
+    rows = read_csv((results / "paper-tables.csv").read_text())
+    assert [r.key[:4] for r in rows] == [
+        ("baseline", "caps", "paper", "final"),
+        ("baseline", "caps", "paper family", "final"),
+        ("baseline", "-", "planner", "direct"),
+        ("baseline", "-", "planner", "sampling"),
+        ("baseline", "-", "planner", "trajectory"),
+        ("proposed", "frame_skip", "paper", "final"),
+        ("proposed", "frame_skip", "defaults", "final"),
+        ("proposed", "fscaps", "paper", "final"),
+        ("proposed", "fscaps", "defaults", "best"),
+        ("proposed", "fscaps", "defaults", "final"),
+        ("proposed", "-", "planner", "direct"),
+        ("proposed", "-", "planner", "sampling"),
+        ("proposed", "-", "planner", "trajectory"),
+    ]
+    assert csv_text([rows[1], rows[6]]) == csv_text(earlier[1:])  # kept as they were
+    assert rows[8].seeds == 1 and rows[8].spreads["train_wall_s"] == (1.0, 1.0, 1.0)  # the new run's
+    kept = markdown(earlier[1:]).splitlines()[4::6]
+    assert len(kept) == 2 and all(f"\n{line}\n" in text for line in kept)
+    assert "end as collisions for every manager: baseline 0.0 %, proposed 0.0 %." in text
+    assert text.endswith("![fig3-baseline](fig3-baseline.png)\n![fig3-proposed](fig3-proposed.png)\n")
+    with pytest.raises(ValueError, match="played 3 episodes \\(seed 0\\), not 4"):
+        reproduce_module.reproduce(**{**args, "episodes": 4}, train=False, progress=False)
 
 
 def test_pick_episode_shows_where_the_paths_differ_most() -> None:

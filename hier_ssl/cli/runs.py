@@ -143,7 +143,12 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
         help="configuration family: the public code's settings or ours (repeatable; default: both)",
     )
     rep.add_argument(
-        "--only", nargs="+", default=[], metavar="NAME", help="e.g. proposed/fscaps, obstacle (default: all)"
+        "--only",
+        nargs="+",
+        default=[],
+        metavar="NAME",
+        help="e.g. proposed/fscaps, obstacle (default: all); the rows of an existing RESULTS/paper-tables.csv "
+        "that these runs do not evaluate are kept, those they do are replaced, the planners re-evaluated",
     )
     rep.add_argument(
         "--seeds",

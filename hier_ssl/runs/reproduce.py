@@ -11,7 +11,8 @@ Every manager of a task plays the same ``episodes`` episodes (seed ``eval_seed``
 code draws them (its family's config: start 0.2 m from the target, the obstacle on the midpoint); each run
 acts with its own interface (observation, action form and frame, frame skip, worker). Writes
 ``results/paper-tables.md`` and ``.csv`` (``hier_ssl.evaluation.paper_tables``) and
-``results/fig3-<task>.png``.
+``results/fig3-<task>.png``; rows of an earlier ``paper-tables.csv`` that this plan does not evaluate
+are kept, so ``only`` reruns a few rows of the committed tables (``reproduce``).
 """
 
 from __future__ import annotations

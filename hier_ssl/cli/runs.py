@@ -147,8 +147,9 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         default=[],
         metavar="NAME",
-        help="e.g. proposed/fscaps, obstacle (default: all); the rows of an existing RESULTS/paper-tables.csv "
-        "that these runs do not evaluate are kept, those they do are replaced, the planners re-evaluated",
+        help="e.g. proposed/fscaps, obstacle (default: all); the rows of an existing "
+        "RESULTS/paper-tables.csv that these runs do not evaluate are kept, those they do are replaced, the "
+        "planners re-evaluated",
     )
     rep.add_argument(
         "--seeds",

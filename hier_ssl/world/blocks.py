@@ -29,7 +29,9 @@ _WALL_RADIUS = 0.01
 _VELOCITY = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY
 _STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | _VELOCITY
 # What ``FieldBlock._prepare`` makes: cffi call data and views of pymunk's memory, made again for a copy.
-_PREPARED = {"fast", "robot_rows", "write_velocity", "velocity_rows", "write_state", "state_rows"}
+_PREPARED = {"fast", "robot_rows", "write_velocity", "velocity_rows", "write_state", "state_rows"} | {
+    "_controls_at"
+}
 Handler = Callable[[pymunk.Arbiter, pymunk.Space, object], None]
 
 
@@ -47,9 +49,9 @@ class FieldBlock:
     Bodies sit at the World's field ``offsets`` (F, 2), so a field's coordinates and their rounding do
     not depend on its block. ``owners`` maps each shape to its (field, robot) index in the World, robot -1
     for walls; ``joints`` lists the block's joints. After ``fast.read()``, ``robot_rows`` (C, R, 6) holds
-    each robot's x, y, angle, vx, vy, w; ``velocity_rows`` (C, R, 2, 3) and ``state_rows`` (C, R, 2, 6)
-    are what ``write_velocity()`` and ``write_state()`` write, [..., 0, :] to the robots and [..., 1, :]
-    to their control bodies.
+    each robot's x, y, angle, vx, vy, w; ``velocity_rows`` and ``state_rows``, each a pair of views (C, R, 3)
+    and (C, R, 6), are what ``write_velocity()`` and ``write_state()`` write to the robots and to their
+    control bodies.
     """
 
     def __init__(
@@ -74,8 +76,9 @@ class FieldBlock:
         self.space.collision_bias = 0.5 ** (1.0 / sub_dt)
         self.owners: dict[pymunk.Shape, tuple[int, int]] = {}
         self.joints: list[pymunk.Constraint] = []
-        robots, controls = self._build(offsets, field, robot, parked)
-        self._check_body_order(robots, controls, sub_dt)
+        self._bodies = self._build(offsets, field, robot, parked)
+        # pymunk.batch lists the space's static body once the space has stepped.
+        self.space.step(sub_dt)
         self.space.on_collision(ROBOT, ROBOT, pre_solve=handlers[0])
         self.space.on_collision(ROBOT, WALL, pre_solve=handlers[1])
         self._prepare()
@@ -99,12 +102,17 @@ class FieldBlock:
                 body.position = (ox + parked[i, 0], oy + parked[i, 1])
                 disc = pymunk.Circle(body, spec.radius)
                 disc.collision_type, disc.friction, disc.elasticity = ROBOT, 0.2, 0.0
-                control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+                # A static body: Chipmunk's joints act on any body's velocity, but it moves (a sine and a
+                # cosine each substep) only dynamic and kinematic ones; this one's pose is never read.
+                control = pymunk.Body(body_type=pymunk.Body.STATIC)
                 control.position = body.position
                 pivot = pymunk.PivotJoint(control, body, (0, 0), (0, 0))
                 pivot.max_bias, pivot.max_force = 0.0, spec.mass * spec.max_accel
                 gear = pymunk.GearJoint(control, body, 0.0, 1.0)
                 gear.max_bias, gear.max_force = 0.0, moment * spec.max_ang_accel
+                # max_bias 0 clamps the joints' position bias to zero; error_bias 0 makes it zero before
+                # the clamp, with the same signs, and spares a pow per joint and substep.
+                pivot.error_bias = gear.error_bias = 0.0
                 self.space.add(body, disc, control, pivot, gear)
                 self.joints += [pivot, gear]
                 self.owners[disc] = (f, i)
@@ -112,30 +120,33 @@ class FieldBlock:
                 controls.append(control)
         return robots, controls
 
-    def _check_body_order(
-        self, robots: list[pymunk.Body], controls: list[pymunk.Body], sub_dt: float
-    ) -> None:
-        # pymunk.batch lists bodies in insertion order and adds the static body once the space has
-        # stepped. Checked once here, that order lets every per-step access be a strided view instead of
-        # a gather through index arrays.
-        self.space.step(sub_dt)
+    def _body_order(self) -> int:
+        """The row of the first control body. pymunk.batch lists the robots (dynamic) in insertion order,
+        then the static bodies: the space's own (first once a wall is added, last in a copy) and the control
+        bodies in insertion order. Checked whenever the views are made, so that every per-step access is a
+        strided view instead of a gather through index arrays."""
         ids = pb.Buffer()
         pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, ids)
-        expected = [b.id for pair in zip(robots, controls, strict=True) for b in pair]
-        expected.append(self.space.static_body.id)
-        if np.frombuffer(ids.int_buf(), dtype=np.uintp).tolist() != expected:
+        order = np.frombuffer(ids.int_buf(), dtype=np.uintp).tolist()
+        robots, controls = ([body.id for body in group] for group in self._bodies)
+        static, n = self.space.static_body.id, len(robots)
+        if order[:n] != robots or order[n:] not in ([static, *controls], [*controls, static]):
             raise RuntimeError(
                 f"pymunk {pymunk.version} lists bodies in an unexpected order; this World needs "
-                "pymunk.batch to return robot, control, ..., static body"
+                "pymunk.batch to return the robots, then the static bodies in insertion order"
             )
+        return n + 1 if order[n] == static else n
 
-    def _pairs(self, rows: np.ndarray) -> np.ndarray:
-        """(rows, W) body rows as (C, R, 2, W): [..., 0, :] the robots, [..., 1, :] their control bodies."""
-        return rows[:-1].reshape(self.stop - self.start, self.num_robots, 2, rows.shape[-1])
+    def _pairs(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, W) body rows as two (C, R, W) views: the robots' and their control bodies'."""
+        c, r, w = self.stop - self.start, self.num_robots, rows.shape[-1]
+        at = self._controls_at
+        return rows[: c * r].reshape(c, r, w), rows[at : at + c * r].reshape(c, r, w)
 
     def _prepare(self) -> None:
+        self._controls_at = self._body_order()
         self.fast = FastSpace(self.space, _STATE, 6)
-        self.robot_rows = self._pairs(self.fast.rows)[:, :, 0]
+        self.robot_rows = self._pairs(self.fast.rows)[0]
         # The static body's row stays zero: a velocity written there throws robots out of their fields.
         self.write_velocity = self.fast.writer(_VELOCITY, np.zeros((len(self.fast.rows), 3)))
         self.velocity_rows = self._pairs(self.write_velocity.rows)
@@ -153,7 +164,8 @@ class FieldBlock:
     def advance(self, velocity: np.ndarray, dt: float, substeps: int) -> None:
         """Write ``velocity`` (C, R, 2, 3), the robots' and control bodies' (vx, vy, w), and step ``substeps``
         times ``dt``. The World reads each block right after: its bodies are still in cache."""
-        self.velocity_rows[...] = velocity
+        self.velocity_rows[0][...] = velocity[:, :, 0]
+        self.velocity_rows[1][...] = velocity[:, :, 1]
         self.write_velocity()
         self.fast.step(dt, substeps)
 
@@ -171,7 +183,7 @@ class FieldBlock:
         # The rows of the last read: no body has moved since (the World reads after every step and write).
         self.write_state.rows[:] = self.fast.rows
         local = fields[mine] - self.start
-        self.state_rows[local, :, 0] = packed[mine]
-        self.state_rows[local, :, 1] = packed[mine]
+        self.state_rows[0][local] = packed[mine]
+        self.state_rows[1][local] = packed[mine]
         self.write_state()
         return True

@@ -1,11 +1,12 @@
 """N independent SSL fields of R omnidirectional robots each, stepped together, in pymunk spaces of up to
 ``FIELDS_PER_SPACE`` fields (``hier_ssl.world.blocks``: one space for all would leave the cache).
 
-Every robot is a dynamic disc driven by a kinematic control body through a ``PivotJoint`` and a
-``GearJoint`` whose ``max_bias`` is 0 and whose ``max_force`` is bounded: the control body carries the
-commanded velocity, and the solver pulls the robot towards it with at most ``mass * max_accel`` of
-force. The acceleration limit is therefore physical, contacts win over the motors, and robots stay out
-of walls and each other (overwriting a dynamic body's velocity every step lets it tunnel through walls).
+Every robot is a dynamic disc driven by a control body (a static one: it has a velocity but never moves)
+through a ``PivotJoint`` and a ``GearJoint`` whose ``max_bias`` is 0 and whose ``max_force`` is bounded:
+the control body carries the commanded velocity, and the solver pulls the robot towards it with at most
+``mass * max_accel`` of force. The acceleration limit is therefore physical, contacts win over the
+motors, and robots stay out of walls and each other (overwriting a dynamic body's velocity every step
+lets it tunnel through walls).
 
 All state crosses this boundary as arrays with a leading (fields, robots) pair of axes, read and written
 with ``pymunk.batch``'s iterators in one call per space each; there is no per-body Python on the hot path.

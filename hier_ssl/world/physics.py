@@ -17,6 +17,8 @@ loop each (``hier_ssl.world.exchange``), and the calls into pymunk are made once
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pymunk
 
@@ -27,8 +29,8 @@ from hier_ssl.world.frames import _COMPLEX, all_finite
 from hier_ssl.world.robot import RobotSpec, RobotState
 from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
-# What ``World._prepare`` makes: buffers and constants, made again for a copy.
-_PREPARED = {"_read_rows", "_velocity_rows", "_limits"}
+# What ``World._prepare`` makes: buffers, constants and the threads, made again for a copy.
+_PREPARED = {"_read_rows", "_velocity_rows", "_limits", "_pool"}
 
 
 class World:
@@ -91,6 +93,7 @@ class World:
             )
             for b in block_bounds(self.num_fields)
         ]
+        self.threads = 1
         self._shape_owner = {shape: owner for block in self.blocks for shape, owner in block.owners.items()}
         self._joints = [joint for block in self.blocks for joint in block.joints]
         self._prepare(hx, hy)
@@ -120,6 +123,18 @@ class World:
         self._velocity_rows = np.zeros((n, r, 2, 3))
         reach = (hx - spec.radius, hy - spec.radius)
         self._limits = np.array([spec.max_speed, spec.max_ang_speed, self.dt, *reach])
+        self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
+
+    def use_threads(self, count: int) -> None:
+        """Step the blocks in ``count`` threads from the next step on: this one and ``count`` - 1 of a pool
+        (1, the default: this one alone). Chipmunk steps a space without holding Python's lock, so blocks
+        step on as many cores as are free; each block's result is bit for bit the same."""
+        if not (isinstance(count, int) and count >= 1):
+            raise ValueError(f"count must be an integer >= 1, got {count!r}")
+        if self._pool is not None:
+            self._pool.shutdown()
+        self.threads = count
+        self._pool = ThreadPoolExecutor(count - 1) if count > 1 else None
 
     # -- pickling and copying -----------------------------------------------------------------------------
 
@@ -253,8 +268,21 @@ class World:
             self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
             self._contacts_set = False
-        for block in self.blocks:
-            block.advance(rows[block.fields], self._sub_dt, self.substeps)
-            block.read(self._read_rows[block.fields])
+        if self._pool is None:
+            self._advance(self.blocks, rows)
+        else:
+            # Every thread takes every ``threads``-th block; the contact callbacks of different blocks
+            # write different fields' rows.
+            groups = [self.blocks[k :: self.threads] for k in range(self.threads)]
+            others = [self._pool.submit(self._advance, group, rows) for group in groups[1:]]
+            self._advance(groups[0], rows)
+            for other in others:
+                other.result()
         self.state = self._state_of_rows()
         return self.state
+
+    def _advance(self, blocks: list[FieldBlock], rows: np.ndarray) -> None:
+        """Write ``rows`` (N, R, 2, 3) into ``blocks``, step them and read them back, one after another."""
+        for block in blocks:
+            block.advance(rows[block.fields], self._sub_dt, self.substeps)
+            block.read(self._read_rows[block.fields])

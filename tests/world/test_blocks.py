@@ -74,3 +74,22 @@ def test_a_copied_world_in_blocks_steps_as_its_original(monkeypatch: pytest.Monk
         a, b = world.step(command), copied.step(command)
         np.testing.assert_array_equal(a.pos, b.pos)
         np.testing.assert_array_equal(copied.robot_contacts, world.robot_contacts)
+
+
+def test_blocks_stepped_in_threads_step_bit_for_bit_as_in_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(blocks, "FIELDS_PER_SPACE", 4)
+    alone, threaded = World(30, 2), World(30, 2)
+    threaded.use_threads(3)
+    a, b = _contact_run(alone), _contact_run(threaded)
+    assert any(x.any() for x in b[4::6]) and any(x.any() for x in b[5::6])  # robots touched robots, walls
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_array_equal(x, y)
+    command = np.full((30, 2, 3), 0.5)
+    copied = pickle.loads(pickle.dumps(threaded))  # the pool is made again, not pickled
+    assert copied.threads == 3
+    np.testing.assert_array_equal(copied.step(command).pos, threaded.step(command).pos)
+    alone.step(command)
+    threaded.use_threads(1)
+    np.testing.assert_array_equal(threaded.step(command).pos, alone.step(command).pos)
+    with pytest.raises(ValueError, match="count must be an integer >= 1, got 0"):
+        alone.use_threads(0)

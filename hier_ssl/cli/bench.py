@@ -230,13 +230,15 @@ class VectorRun:
     """The batched torch view of ``task`` over ``n_fields`` fields, built and reset, ready to be timed:
     ``run(count)`` makes ``count`` vector steps of uniform random actions (drawn beforehand, auto-reset)
     and returns (seconds, control steps of one field, seconds in ``World.step``) by ``clock``;
-    ``memory_per_field`` is the resident memory building and one step added, bytes per field."""
+    ``memory_per_field`` is the resident memory building and one step added, bytes per field. The world
+    steps its blocks in ``threads`` threads (``World.use_threads``)."""
 
     task: str
     n_fields: int
     frame_skip: int
     clock: Clock
     seed: int = 0
+    threads: int = 1
 
     def __post_init__(self) -> None:
         # here, not at the top: torch, for the vector bench alone
@@ -255,6 +257,7 @@ class VectorRun:
         before = resident_bytes()
         self.env = env = TorchVectorEnv(config, self.n_fields)
         self.core, world = env.core, env.core.world
+        world.use_threads(self.threads)
         world_step, self._in_world = world.step, [0.0]
 
         def timed_step(command: Any) -> Any:  # World.step, timed

@@ -84,6 +84,13 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
     versus.add_argument(
         "--steps", type=positive_int, default=None, help="control steps a round (default: about 0.5 s)"
     )
+    versus.add_argument(
+        "--threads",
+        type=positive_int,
+        default=1,
+        help="step the world's blocks in this many threads and give VMAS's torch as many: wall clock, "
+        "unpinned (default: 1, pinned to one core)",
+    )
     versus.set_defaults(func=_bench_compare)
     add_bench_deploy(
         targets.add_parser("deploy", help="deploy chain over 127.0.0.1: tracker error, latency, task success")
@@ -102,12 +109,14 @@ def _bench_view(args: argparse.Namespace) -> int:
 
 
 def _bench_compare(args: argparse.Namespace) -> int:
-    cpu = bench.pin_to_one_core()
+    if args.threads > 1 and args.cpu_time:
+        raise SystemExit("--cpu-time counts this thread alone: use the wall clock with --threads above 1")
+    cpu = bench.pin_to_one_core() if args.threads == 1 else None
     if not args.json:
-        where = f"CPU {cpu}" if cpu is not None else "one thread"
+        where = f"CPU {cpu}" if cpu is not None else f"{args.threads} thread(s), unpinned"
         vmas = "beside VMAS" if side_by_side.vmas_installed() else "(VMAS not installed: hier_ssl alone)"
         print(f"compare on {where}, {args.rounds} alternating rounds, best of each, {vmas}")
-    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps)
+    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps, args.threads)
     side_by_side.print_comparisons(records, args.json)
     return 0
 

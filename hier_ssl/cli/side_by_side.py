@@ -8,7 +8,8 @@ two, hier_ssl first, and each side's best round is kept. A control step is 0.025
 hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simulated second.
 
 Without VMAS installed (``pip install hier_ssl[bench]``) only hier_ssl's figures are printed; the
-PettingZoo view's steps per second at frame skip 1 are printed in both cases.
+PettingZoo view's steps per second at frame skip 1 are printed in both cases. With ``threads`` > 1 the
+world steps its blocks in that many threads and VMAS's torch gets as many (wall clock on that many cores).
 """
 
 from __future__ import annotations
@@ -38,11 +39,20 @@ class VmasRun:
     """A VMAS scenario over ``n_fields`` environments on the CPU, reset once; ``run(count)`` makes
     ``count`` steps of uniform random actions drawn beforehand and returns the seconds by ``clock``."""
 
-    def __init__(self, scenario: str, n_fields: int, options: dict[str, Any], clock: Clock, seed: int = 0):
+    def __init__(
+        self,
+        scenario: str,
+        n_fields: int,
+        options: dict[str, Any],
+        clock: Clock,
+        seed: int = 0,
+        threads: int = 1,
+    ):
         # here, not at the top: VMAS is optional (the bench extra), and it loads torch
         import torch
         import vmas
 
+        torch.set_num_threads(threads)
         self.clock = clock
         self.env = vmas.make_env(
             scenario, num_envs=n_fields, device="cpu", continuous_actions=True, seed=seed, **options
@@ -70,13 +80,14 @@ def compare_pair(
     rounds: int,
     clock: Clock,
     steps: int | None = None,
+    threads: int = 1,
 ) -> dict[str, Any]:
     """hier_ssl's ``task`` at frame skip 1 and, if installed, VMAS's ``scenario`` over ``n_fields``
     fields, ``rounds`` alternating rounds of ``steps`` control steps each (None: 200,000 robot-steps, about
-    half a second): the best of each side in field-steps/s and simulated seconds per second, and their
-    ratios (hier_ssl over VMAS)."""
-    hier = VectorRun(task, n_fields, 1, clock)
-    vmas_run = VmasRun(scenario, n_fields, options, clock) if vmas_installed() else None
+    half a second), each side on ``threads`` threads: the best of each side in field-steps/s and simulated
+    seconds per second, and their ratios (hier_ssl over VMAS)."""
+    hier = VectorRun(task, n_fields, 1, clock, threads=threads)
+    vmas_run = VmasRun(scenario, n_fields, options, clock, threads=threads) if vmas_installed() else None
     count = steps or max(5, round(200_000 / (n_fields * hier.robots_per_field)))
     best, best_vmas = 0.0, 0.0
     for _ in range(rounds):
@@ -88,6 +99,7 @@ def compare_pair(
         "bench": "compare",
         "task": task,
         "n_fields": n_fields,
+        "threads": threads,
         "robots_per_field": hier.robots_per_field,
         "steps_per_s": round(best, 1),
         "sim_s_per_s": round(best * HIER_DT, 1),
@@ -104,16 +116,16 @@ def compare_pair(
 
 
 def comparisons(
-    sizes: Sequence[int], rounds: int, clock: Clock, steps: int | None = None
+    sizes: Sequence[int], rounds: int, clock: Clock, steps: int | None = None, threads: int = 1
 ) -> Iterator[dict[str, Any]]:
     """The PettingZoo view at frame skip 1 for ``PETTINGZOO_TASKS`` (``bench_env``), then every pair at
-    every N (``compare_pair``)."""
+    every N (``compare_pair``, on ``threads`` threads)."""
     for task in PETTINGZOO_TASKS:
         result = bench_env(1, task, decisions=steps, clock=clock)
         yield {"bench": "env", "task": task, "n_fields": 1, "steps_per_s": round(result.steps_per_s, 1)}
     for n in sizes:
         for task, scenario, options in PAIRS:
-            yield compare_pair(task, scenario, options, n, rounds, clock, steps)
+            yield compare_pair(task, scenario, options, n, rounds, clock, steps, threads)
 
 
 def describe(record: dict[str, Any]) -> str:

@@ -60,6 +60,21 @@ def test_compare_without_vmas_prints_hier_ssl_alone(
         assert "vmas_steps_per_s" not in record
 
 
+def test_compare_in_threads_steps_the_world_in_them_on_the_wall_clock(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(side_by_side, "vmas_installed", lambda: False)
+    monkeypatch.setattr(side_by_side, "PAIRS", side_by_side.PAIRS[:1])
+    built = []
+    monkeypatch.setattr(bench.World, "use_threads", lambda world, count: built.append(count))
+    argv = ["bench", "compare", "--json", "--sizes", "2", "--rounds", "1", "--steps", "3", "--threads", "2"]
+    assert cli.main(argv) == 0
+    record = json.loads(capsys.readouterr().out.splitlines()[-1])
+    assert (record["task"], record["threads"], built) == ("obstacle", 2, [2])
+    with pytest.raises(SystemExit, match="--cpu-time counts this thread alone"):
+        cli.main([*argv, "--cpu-time"])
+
+
 def test_compare_beside_vmas_gives_both_sides_and_their_ratios() -> None:
     pytest.importorskip("vmas")
     record = side_by_side.compare_pair("obstacle", "navigation", {"n_agents": 2}, 2, 2, time.perf_counter, 3)

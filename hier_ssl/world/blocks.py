@@ -43,6 +43,13 @@ def block_bounds(num_fields: int) -> list[tuple[int, int]]:
     return list(zip(edges[:-1], edges[1:], strict=True))
 
 
+def _wall_ends(offset: np.ndarray, wx: float, wy: float) -> list[tuple[tuple[float, float], ...]]:
+    """The (start, end) points of a field's four wall segments around ``offset`` (2,), half extents wx, wy."""
+    ox, oy = offset
+    corners = [(ox - wx, oy - wy), (ox + wx, oy - wy), (ox + wx, oy + wy), (ox - wx, oy + wy)]
+    return list(zip(corners, corners[1:] + corners[:1], strict=True))
+
+
 class FieldBlock:
     """Fields ``start`` to ``stop`` - 1 of a World, ``num_robots`` robots each, in a pymunk space of theirs.
 
@@ -88,27 +95,33 @@ class FieldBlock:
     ) -> tuple[list[pymunk.Body], list[pymunk.Body]]:
         moment = pymunk.moment_for_circle(spec.mass, 0, spec.radius)
         wx, wy = np.array(field.wall_half_extent) + _WALL_RADIUS
-        robots, controls = [], []
-        for f in range(self.start, self.stop):
-            ox, oy = offsets[f]
-            corners = [(ox - wx, oy - wy), (ox + wx, oy - wy), (ox + wx, oy + wy), (ox - wx, oy + wy)]
-            for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
-                wall = pymunk.Segment(self.space.static_body, a, b, _WALL_RADIUS)
+        fields, count = range(self.start, self.stop), (self.stop - self.start) * self.num_robots
+        # Each kind of Chipmunk object is allocated in one run, so that the solver's sweeps over bodies,
+        # shapes and joints read consecutive memory (not the allocation order, the order of adding to the
+        # space fixes every result: it stays a field's walls, then each robot's body, disc, control, joints).
+        walls = [
+            pymunk.Segment(self.space.static_body, a, b, _WALL_RADIUS)
+            for f in fields
+            for a, b in _wall_ends(offsets[f], wx, wy)
+        ]
+        robots = [pymunk.Body(spec.mass, moment) for _ in range(count)]
+        discs = [pymunk.Circle(body, spec.radius) for body in robots]
+        # Static bodies: Chipmunk's joints act on any body's velocity, but it moves (a sine and a cosine
+        # each substep) only dynamic and kinematic ones; a control body's pose is never read.
+        controls = [pymunk.Body(body_type=pymunk.Body.STATIC) for _ in range(count)]
+        pivots = [pymunk.PivotJoint(c, b, (0, 0), (0, 0)) for c, b in zip(controls, robots, strict=True)]
+        gears = [pymunk.GearJoint(c, b, 0.0, 1.0) for c, b in zip(controls, robots, strict=True)]
+        for k, f in enumerate(fields):
+            for wall in walls[4 * k : 4 * k + 4]:
                 wall.collision_type, wall.friction, wall.elasticity = WALL, 0.2, 0.0
                 self.space.add(wall)
                 self.owners[wall] = (f, -1)
             for i in range(self.num_robots):
-                body = pymunk.Body(spec.mass, moment)
-                body.position = (ox + parked[i, 0], oy + parked[i, 1])
-                disc = pymunk.Circle(body, spec.radius)
+                j = k * self.num_robots + i
+                body, disc, control, pivot, gear = robots[j], discs[j], controls[j], pivots[j], gears[j]
+                body.position = control.position = tuple(offsets[f] + parked[i])
                 disc.collision_type, disc.friction, disc.elasticity = ROBOT, 0.2, 0.0
-                # A static body: Chipmunk's joints act on any body's velocity, but it moves (a sine and a
-                # cosine each substep) only dynamic and kinematic ones; this one's pose is never read.
-                control = pymunk.Body(body_type=pymunk.Body.STATIC)
-                control.position = body.position
-                pivot = pymunk.PivotJoint(control, body, (0, 0), (0, 0))
                 pivot.max_bias, pivot.max_force = 0.0, spec.mass * spec.max_accel
-                gear = pymunk.GearJoint(control, body, 0.0, 1.0)
                 gear.max_bias, gear.max_force = 0.0, moment * spec.max_ang_accel
                 # max_bias 0 clamps the joints' position bias to zero; error_bias 0 makes it zero before
                 # the clamp, with the same signs, and spares a pow per joint and substep.
@@ -116,8 +129,6 @@ class FieldBlock:
                 self.space.add(body, disc, control, pivot, gear)
                 self.joints += [pivot, gear]
                 self.owners[disc] = (f, i)
-                robots.append(body)
-                controls.append(control)
         return robots, controls
 
     def _body_order(self) -> int:

@@ -88,8 +88,8 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         "--threads",
         type=positive_int,
         default=1,
-        help="step the world's blocks in this many threads and give VMAS's torch as many: wall clock, "
-        "unpinned (default: 1, pinned to one core)",
+        help="step the world's blocks in this many threads, VMAS on one: wall clock, unpinned "
+        "(default: 1, pinned to one core)",
     )
     versus.set_defaults(func=_bench_compare)
     add_bench_deploy(

@@ -9,7 +9,9 @@ hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simula
 
 Without VMAS installed (``pip install hier_ssl[bench]``) only hier_ssl's figures are printed; the
 PettingZoo view's steps per second at frame skip 1 are printed in both cases. With ``threads`` > 1 the
-world steps its blocks in that many threads and VMAS's torch gets as many (wall clock on that many cores).
+world steps its blocks in that many threads (wall clock on that many cores); VMAS keeps one torch
+thread, its best here (on two threads of this busy 2-core machine it fell to a quarter or less: OpenMP
+threads waiting on each other's cores).
 """
 
 from __future__ import annotations
@@ -46,13 +48,12 @@ class VmasRun:
         options: dict[str, Any],
         clock: Clock,
         seed: int = 0,
-        threads: int = 1,
     ):
         # here, not at the top: VMAS is optional (the bench extra), and it loads torch
         import torch
         import vmas
 
-        torch.set_num_threads(threads)
+        torch.set_num_threads(1)
         self.clock = clock
         self.env = vmas.make_env(
             scenario, num_envs=n_fields, device="cpu", continuous_actions=True, seed=seed, **options
@@ -84,10 +85,10 @@ def compare_pair(
 ) -> dict[str, Any]:
     """hier_ssl's ``task`` at frame skip 1 and, if installed, VMAS's ``scenario`` over ``n_fields``
     fields, ``rounds`` alternating rounds of ``steps`` control steps each (None: 200,000 robot-steps, about
-    half a second), each side on ``threads`` threads: the best of each side in field-steps/s and simulated
-    seconds per second, and their ratios (hier_ssl over VMAS)."""
+    half a second), hier_ssl's world on ``threads`` threads: the best of each side in field-steps/s and
+    simulated seconds per second, and their ratios (hier_ssl over VMAS)."""
     hier = VectorRun(task, n_fields, 1, clock, threads=threads)
-    vmas_run = VmasRun(scenario, n_fields, options, clock, threads=threads) if vmas_installed() else None
+    vmas_run = VmasRun(scenario, n_fields, options, clock) if vmas_installed() else None
     count = steps or max(5, round(200_000 / (n_fields * hier.robots_per_field)))
     best, best_vmas = 0.0, 0.0
     for _ in range(rounds):

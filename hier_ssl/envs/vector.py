@@ -18,6 +18,8 @@ from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.rows import RowView
 
+_NUMPY_DTYPES = {torch.float32: np.float32, torch.bool: np.bool_, torch.int64: np.int64}
+
 
 class TorchView(RowView):
     """A numpy core with auto-reset, seen through torch tensors: ``step(actions (rows, A) in [-1, 1])``,
@@ -43,7 +45,10 @@ class TorchView(RowView):
         self.device = torch.device(device)
 
     def _tensor(self, array: np.ndarray, dtype: torch.dtype = torch.float32) -> torch.Tensor:
-        return torch.as_tensor(array, device=self.device).to(dtype)
+        # numpy's conversion under torch.from_numpy: 1.5-2 us against 3-5 us for torch.as_tensor(...).to(),
+        # of which a step makes 14. A read-only array is copied: torch would share it writable.
+        tensor = torch.from_numpy(np.require(array, _NUMPY_DTYPES[dtype], "W"))
+        return tensor if self.device.type == "cpu" else tensor.to(self.device)
 
     def reset(self, seed: int | None = None) -> torch.Tensor:
         return self._tensor(self.reset_rows(seed))

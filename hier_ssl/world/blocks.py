@@ -29,8 +29,14 @@ _WALL_RADIUS = 0.01
 _VELOCITY = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY
 _STATE = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | _VELOCITY
 # What ``FieldBlock._prepare`` makes: cffi call data and views of pymunk's memory, made again for a copy.
-_PREPARED = {"fast", "robot_rows", "write_velocity", "velocity_rows", "write_state", "state_rows"} | {
-    "_controls_at"
+_PREPARED = {
+    "_controls_at",
+    "fast",
+    "robot_rows",
+    "write_velocity",
+    "velocity_rows",
+    "write_state",
+    "state_rows",
 }
 Handler = Callable[[pymunk.Arbiter, pymunk.Space, object], None]
 
@@ -97,8 +103,8 @@ class FieldBlock:
         wx, wy = np.array(field.wall_half_extent) + _WALL_RADIUS
         fields, count = range(self.start, self.stop), (self.stop - self.start) * self.num_robots
         # Each kind of Chipmunk object is allocated in one run, so that the solver's sweeps over bodies,
-        # shapes and joints read consecutive memory (not the allocation order, the order of adding to the
-        # space fixes every result: it stays a field's walls, then each robot's body, disc, control, joints).
+        # shapes and joints read consecutive memory. What fixes every result is the order of adding them to
+        # the space, not of allocating: still a field's walls, then each robot's body, disc, control, joints.
         walls = [
             pymunk.Segment(self.space.static_body, a, b, _WALL_RADIUS)
             for f in fields

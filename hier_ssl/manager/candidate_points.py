@@ -53,10 +53,14 @@ def candidate_points(points, weights, turns, low, high):
     """Candidate sub-goals (N, M, 2) of scenes ``points`` (N, 2 + K, 2): the target, the robot, the
     obstacles (m); ``weights`` (M, 2 + K) and ``turns`` (M, 2, 2) from ``candidate_weights``; clipped to
     [low, high] (2,), the field. Numpy in, numpy out; torch in, torch out (all of one kind)."""
-    line = points[:, 0:1] - points[:, 1:2]  # (N, 1, 2)
+    (n, k, _), m = points.shape, len(weights)
+    line = points[:, 0] - points[:, 1]  # (N, 2)
     length = ((line * line).sum(-1) ** 0.5).clip(min=1e-9)
-    unit = line / length[..., None]
-    cand = weights @ points + (unit[:, None] @ turns)[:, :, 0]
+    unit = line / length[:, None]
+    # Two matrix products over the whole batch (not one small product a scene, as a broadcast matmul
+    # runs): the turns as (2, M 2), the points as (2 + K, N 2).
+    turned = (unit @ turns.swapaxes(0, 1).reshape(2, 2 * m)).reshape(n, m, 2)
+    cand = turned + (weights @ points.swapaxes(0, 1).reshape(k, 2 * n)).reshape(m, n, 2).swapaxes(0, 1)
     return cand.clip(min=low, max=high)
 
 

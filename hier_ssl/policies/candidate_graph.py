@@ -95,7 +95,7 @@ class CandidateGeometry(nn.Module):
         """The candidates' features (B, C, F) float32 (``hier_ssl.policies.candidate_features``), computed
         in float32: twice as fast as float64 at batch 256, within 3e-4 of it, and finer than the float16
         DAgger stores them in."""
-        target, robot, robot_vel, obstacles, velocities, cand = [part.float() for part in read]
+        target, robot, robot_vel, obstacles, velocities, cand = read
         model = PathModel(self.speed, self.hold, self.horizon, self.safety, self.growth)
         return candidate_features(model, target[:, 0:2], robot, robot_vel, obstacles, velocities, cand)
 

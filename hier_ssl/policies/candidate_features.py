@@ -8,14 +8,15 @@ sub-goal until it is no longer held, and each leg's closest approach to every ob
 planner's own safety distances (collision distance + margin, growing with the prediction time). Cheap and
 approximate: these say what the rollout measures, and a network learns the rest from the planner's labels.
 
-Torch tensors of one float dtype. Inside, 2-D vectors are a first axis of 2 (x, y; no complex dtype: ONNX
-has none) and the batch is laid out (K obstacles, B scenes, C candidates): every operation then broadcasts
-an obstacle's (K, B, 1) against a candidate's (B, C) over a contiguous last axis of C, where a last axis
-of K (a few obstacles) would run torch's loops a few elements at a time. Empty pieces of path are
-avoided, not masked (a mask costs torch more than the arithmetic), and no reduction returns indices (as
-slow again). Training, evaluation and the exported file all compute the features here
-(``hier_ssl.policies.candidate_graph``); TorchScript compiles these functions, so their tensor arguments
-carry no annotation and their constants are literals.
+Torch, computed in float32. Inside, 2-D vectors are a first axis of 2 (x, y; no complex dtype: ONNX has
+none) and the batch is laid out (K obstacles, B scenes, C candidates): every operation then broadcasts an
+obstacle's (K, B, 1) against a candidate's (B, C) over a contiguous last axis of C, where a last axis of K
+(a few obstacles) runs torch's loops a few elements at a time. The six pieces of path (three, each split
+at the prediction horizon) go through one pass; nothing is masked (a boolean mask costs torch more than
+the arithmetic), no reduction returns indices (as slow again), and results new to a function are updated
+in place (at batch 256 a new tensor of tens of MB costs more than its arithmetic). Training, evaluation
+and the exported file all compute the features here (``hier_ssl.policies.candidate_graph``); TorchScript
+compiles these functions, so their tensor arguments carry no annotation and their constants are literals.
 """
 
 from __future__ import annotations
@@ -95,10 +96,10 @@ def two_legs(model: PathModel, g, p, q, u, c) -> dict[str, torch.Tensor]:
     Shapes as ``inner_layout``'s: g, p target and robot (2, B, 1); q, u obstacles and their velocities
     (2, K, B, 1); c candidates (2, B, C). Returns leg times "t1" (to the candidate), "tp" (until it leaves
     the candidate), "t2" (on to the target), (B, C); per leg "1" (incl. the park) and "2", on each of its
-    n pieces of path (4, 2) against each obstacle, the closest distance "d" and its time "s"
-    (n, K, B, C), and the leg's smallest growing-margin clearance "c" (B, C) (an upper bound of the true
-    one, whose growing margin can put it between the points measured, by up to 6 cm on random scenes;
-    +inf without obstacles).
+    n pieces of path (4, 2) against each obstacle, the closest distance "d" (1e30 m beyond where a piece
+    is empty) and its time "s" (n, K, B, C), and the leg's smallest growing-margin clearance "c" (B, C)
+    (an upper bound of the true one, whose growing margin can put it between the points measured, by up
+    to 6 cm on random scenes; +inf without obstacles).
 
     Each of the three pieces (to the candidate, parked, on) is split at the horizon H clamped into it:
     before H the obstacles move, after it they hold where the prediction left them. A piece all on one

@@ -126,40 +126,40 @@ def test_a_robot_on_its_target_has_finite_features() -> None:
     assert features.isfinite().all()
 
 
-@pytest.mark.parametrize("name", TASKS)
-def test_the_features_of_observations_are_the_numpy_implementations(name: str) -> None:
+def _stored_and_computed(name: str, path: Path) -> tuple[np.ndarray, np.ndarray, int]:
+    """The features of the observations stored in ``path`` for task ``name``, as computed now and as
+    stored, and the feature count's k."""
     config = parse_config(load_yaml(config_dir() / f"{name}.yaml"))
     geometry = candidate_geometry(config, make_planner("sampling", config.task_config))
-    stored = np.load(NUMPY_FEATURES)
+    stored = np.load(path)
     key = name.split("/")[1]
     with torch.no_grad():
         got = geometry.features(geometry(torch.from_numpy(stored[f"{key}_obs"]))).numpy()
     want = stored[f"{key}_features"]
     assert got.dtype == np.float32 and got.shape == want.shape
+    return got, want, geometry.k
+
+
+@pytest.mark.parametrize("name", TASKS)
+def test_the_features_of_observations_are_the_numpy_implementations(name: str) -> None:
+    got, want, k = _stored_and_computed(name, NUMPY_FEATURES)
     # Computed in float32, the numpy ones in float64: arrival times of a few seconds differ in the last
     # places, nothing near the float16 DAgger stores them in; the flags are the same.
     np.testing.assert_allclose(got, want, rtol=0, atol=5e-4)
-    flags = slice(feature_dim(geometry.k) - 3, None)
+    flags = slice(feature_dim(k) - 3, None)
     np.testing.assert_array_equal(got[..., flags], want[..., flags])
 
 
 @pytest.mark.parametrize("name", TASKS)
 def test_the_features_of_observations_are_the_first_torch_implementations(name: str) -> None:
-    config = parse_config(load_yaml(config_dir() / f"{name}.yaml"))
-    geometry = candidate_geometry(config, make_planner("sampling", config.task_config))
-    stored = np.load(TORCH_FEATURES)
-    key = name.split("/")[1]
-    with torch.no_grad():
-        got = geometry.features(geometry(torch.from_numpy(stored[f"{key}_obs"]))).numpy()
-    want = stored[f"{key}_features"]
-    assert got.dtype == np.float32 and got.shape == want.shape
+    got, want, k = _stored_and_computed(name, TORCH_FEATURES)
     # Both float32, in another order of operations: within a few float32 steps of values of a few m or s,
     # but the time of a leg's nearest approach, which a nearly still obstacle leaves loose (the distance
     # hardly changes over an interval; 6e-4 s apart on 3,000 random states).
-    when = [feature_dim(geometry.k) - 17, feature_dim(geometry.k) - 13]
+    when = [feature_dim(k) - 17, feature_dim(k) - 13]
     loose = np.zeros(got.shape[-1], dtype=bool)
     loose[when] = True
     np.testing.assert_allclose(got[..., ~loose], want[..., ~loose], rtol=0, atol=1e-5)
     np.testing.assert_allclose(got[..., loose], want[..., loose], rtol=0, atol=1e-3)
-    flags = slice(feature_dim(geometry.k) - 3, None)
+    flags = slice(feature_dim(k) - 3, None)
     np.testing.assert_array_equal(got[..., flags], want[..., flags])

@@ -47,16 +47,24 @@ LATENCY_FIELDS = {1: "obstacle", 6: "formation"}  # robots -> the field server's
 NOISY = Cameras(pos_noise=0.002, angle_noise=float(np.deg2rad(0.5)), drop=0.1, latency=0.02)
 
 
-def tracking_error(seconds: float = 60.0, seed: int = 0, cameras: Cameras = NOISY) -> dict[str, float]:
+def tracking_error(
+    seconds: float = 60.0,
+    seed: int = 0,
+    cameras: Cameras = NOISY,
+    commands: bool = False,
+    tracker: Tracker | None = None,
+) -> dict[str, Any]:
     """RMS errors of the tracker predicted to each control period's time (velocity m/s, position m) and
-    of the newest detection's position, over ``seconds`` of a robot driving to random sub-goals."""
+    of the newest detection's position, over ``seconds`` of a robot driving to random sub-goals; with
+    ``commands`` the tracker is told each command (an own robot), without it sees a robot of the others."""
     from hier_ssl.worker.scripted import PaperGoToPoint
     from hier_ssl.world.physics import World
 
     rng = np.random.default_rng(seed)
     world = World(1, 1)
     hx, hy = world.field.half_length - 0.3, world.field.half_width - 0.3
-    worker, tracker, subgoal = PaperGoToPoint(dt=STEP), Tracker(), np.zeros((1, 1, 5))
+    worker, subgoal = PaperGoToPoint(dt=STEP), np.zeros((1, 1, 5))
+    tracker = Tracker() if tracker is None else tracker
     strips = camera_strips(cameras, world.field.wall_half_extent[0])
     queue: list = []  # (arrival, frame)
     errors: dict[str, list[float]] = {"vel": [], "pos": [], "detection": []}
@@ -64,7 +72,10 @@ def tracking_error(seconds: float = 60.0, seed: int = 0, cameras: Cameras = NOIS
     for k in range(round(seconds / STEP)):
         if k % 80 == 0:  # a new sub-goal every 2 s: the robot accelerates, brakes and turns
             subgoal[0, 0] = [*rng.uniform((-hx, -hy), (hx, hy)), rng.uniform(-np.pi, np.pi), 0.0, 0.0]
-        state = world.step(worker(world.state, subgoal))
+        command = worker(world.state, subgoal)
+        if commands:
+            tracker.command(("blue", 0), t, tuple(command[0, 0]))
+        state = world.step(command)
         t += STEP
         while next_frame <= t:  # frames of this step's state, captured at its time
             queue += [
@@ -86,6 +97,7 @@ def tracking_error(seconds: float = 60.0, seed: int = 0, cameras: Cameras = NOIS
     rms = {key: float(np.sqrt(np.mean(np.square(v)))) for key, v in errors.items()}
     return {
         "bench": "deploy tracking",
+        "robot": "own (commands known)" if commands else "other",
         "latency_ms": round(cameras.latency * 1e3, 1),
         "velocity_rmse_m_s": round(rms["vel"], 4),
         "position_rmse_m": round(rms["pos"], 4),
@@ -268,6 +280,7 @@ def deploy_rows(
     """The ``rows`` (of ``ROWS``) of ``hier-ssl bench deploy``, yielded as each finishes."""
     if "tracking" in rows:
         yield tracking_error()
+        yield tracking_error(commands=True)
     if "latency" in rows:
         with tempfile.TemporaryDirectory() as folder:
             for robots, task in LATENCY_FIELDS.items():

@@ -105,19 +105,19 @@ class Controller:
     def tick(self, now: float) -> list[Command]:
         """Commands of one control period at monotonic time ``now``: a zero command for every robot that is
         not live, the worker's command toward the held sub-goal for the others."""
-        live = self.live(now)
+        live, t = self.live(now), self.tracker.vision_time(now)
         if not live.any():
             self.was_live, self.sent = live, np.zeros_like(self.sent)
             # Stopping: the modelled robots brake too (a zero command needs no heading).
             self.model_vel, self.model_spin = self.view.respond(
                 self.model_vel, self.model_spin, self.sent, self.model_spin
             )
-            return self.stop()
+            return self._told(self.stop(), t)
         keys = set(self.keys)
         others = [
             key for key in self.tracker.tracks if key not in keys and self.tracker.fresh(key, now, OTHERS_AGE)
         ]
-        rows = self.tracker.state(self.keys + others, self.tracker.vision_time(now))
+        rows = self.tracker.state(self.keys + others, t)
         view = self.view
         state = view.state(rows, view.fields(rows))
         grid = live.reshape(view.n, view.m)
@@ -131,7 +131,13 @@ class Controller:
             self.model_vel, self.model_spin, self.sent, state.angle[:, : view.m]
         )
         command = self.sent.reshape(-1, 3)
-        return [(robot, *map(float, command[i])) for i, robot in enumerate(self.robots)]
+        return self._told([(robot, *map(float, command[i])) for i, robot in enumerate(self.robots)], t)
+
+    def _told(self, commands: list[Command], t: float) -> list[Command]:
+        """``commands``, told to the tracker as sent at vision time ``t``: its filters' control input."""
+        for key, command in zip(self.keys, commands, strict=True):
+            self.tracker.command(key, t, command[1:])
+        return commands
 
     def _feedback(self, state: RobotState) -> RobotState:
         """``state`` with the controlled robots' velocities the worker steers from (class docstring)."""

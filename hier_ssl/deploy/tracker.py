@@ -1,7 +1,12 @@
 """Detections from several cameras -> each robot's pose and velocity, predicted to the command's send time.
 
 Every robot (team, id) has a constant-velocity Kalman filter on x, y and the heading, three independent
-axes of (value, rate) with white-noise acceleration. A camera frame updates every robot in it at the
+axes of (value, rate) with white-noise acceleration. The team's own robots are told what the loop sent
+them (``command``): their filters take it as the control input, the velocity moving towards the command
+within the robot's acceleration limits as the world's robots answer it (``follow``), so a robot that
+speeds up or brakes is not lagged, and only what the commands do not explain is process noise
+(``command_accel``). A constant-velocity filter on such a robot, agile enough to follow it, lags it by
+about 0.1 m/s (``hier_ssl.deploy.bench.tracking_error``). A camera frame updates every robot in it at the
 frame's capture time; a robot seen by two overlapping cameras in one frame is simply measured twice, a
 frame older than a robot's filter is compared with the filter's estimate back at its capture time and
 corrects the present estimate (no filter runs backwards). A measurement further than ``gate`` from the
@@ -23,8 +28,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hier_ssl.deploy.wire import DetectionFrame
+from hier_ssl.world.robot import RobotSpec
 
 PREDICT_HORIZON = 0.2  # s
+COMMANDS_KEPT = 8  # a robot's commands kept: frames come every 17 ms, commands every 25 ms
 
 
 @dataclass(frozen=True)
@@ -32,7 +39,8 @@ class TrackerSettings:
     """Measurement noise (``pos_noise`` m, ``angle_noise`` rad, one standard deviation), process noise
     (``accel`` m/s^2 and ``ang_accel`` rad/s^2: how hard a robot may change its velocity), the ``gate``
     (m) past which a measurement restarts the filter, and ``forget`` (s) after which an unseen robot's
-    filter restarts at its next detection."""
+    filter restarts at its next detection; ``command_accel`` and ``command_ang_accel``: the process noise of
+    a robot given its commands (what they do not explain: contacts, a robot slower than its model)."""
 
     pos_noise: float = 0.004
     angle_noise: float = 0.02
@@ -40,9 +48,12 @@ class TrackerSettings:
     ang_accel: float = 40.0
     gate: float = 0.5
     forget: float = 1.0
+    command_accel: float = 1.0
+    command_ang_accel: float = 10.0
 
     def __post_init__(self) -> None:
-        for name in ("pos_noise", "angle_noise", "accel", "ang_accel", "gate", "forget"):
+        names = ("pos_noise", "angle_noise", "accel", "ang_accel", "gate", "forget", "command_accel")
+        for name in (*names, "command_ang_accel"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"tracker {name} must be > 0, got {getattr(self, name)}")
 
@@ -56,11 +67,13 @@ class _Axis:
         self.p, self.v = p, 0.0
         self.a, self.b, self.c = var, 0.0, 25.0  # rate unknown at first: (5 units/s)^2
 
-    def predict(self, dt: float, q: float) -> None:
-        """Move ``dt`` seconds on, with acceleration noise of variance q."""
+    def predict(self, dt: float, q: float, dv: float = 0.0) -> None:
+        """Move ``dt`` seconds on, the rate changing by a known ``dv`` at a constant rate, with acceleration
+        noise of variance q."""
         if dt <= 0.0:
             return
-        self.p += self.v * dt
+        self.p += (self.v + dv / 2) * dt
+        self.v += dv
         dt2 = dt * dt
         a, b, c = self.a, self.b, self.c
         self.a = a + 2 * dt * b + dt2 * c + q * dt2 * dt2 / 4
@@ -84,9 +97,36 @@ class _Axis:
         return self.p + self.v * max(dt, 0.0), self.v
 
 
+def follow(
+    vx: float,
+    vy: float,
+    spin: float,
+    command: tuple[float, float, float],
+    angle: float,
+    dt: float,
+    spec: RobotSpec,
+) -> tuple[float, float, float]:
+    """A robot's velocity (vx, vy) m/s and spin rad/s ``dt`` s after ``command`` (forward, left, w), robot
+    frame at heading ``angle``, as the world's robots answer it: the command capped at the speed limits,
+    reached at no more than the acceleration limits."""
+    c, s = math.cos(angle), math.sin(angle)
+    gx, gy = command[0] * c - command[1] * s, command[0] * s + command[1] * c
+    speed = math.hypot(gx, gy)
+    if speed > spec.max_speed:
+        gx, gy = gx * spec.max_speed / speed, gy * spec.max_speed / speed
+    dx, dy = gx - vx, gy - vy
+    change, step = math.hypot(dx, dy), spec.max_accel * dt
+    if change > step:
+        dx, dy = dx * step / change, dy * step / change
+    goal_spin = min(max(command[2], -spec.max_ang_speed), spec.max_ang_speed)
+    turn = spec.max_ang_accel * dt
+    return vx + dx, vy + dy, spin + min(max(goal_spin - spin, -turn), turn)
+
+
 @dataclass
 class Track:
-    """One robot's filters, the vision time they stand at, and when it was last seen (monotonic s)."""
+    """One robot's filters, the vision time they stand at, when it was last seen (monotonic s), and for an
+    own robot the commands sent to it: (vision time from which it holds, forward, left, w), oldest first."""
 
     x: _Axis
     y: _Axis
@@ -94,15 +134,55 @@ class Track:
     t: float
     seen: float
     has_angle: bool = False
+    commands: list[tuple[float, float, float, float]] = field(default_factory=list)
 
-    def at(self, t: float) -> tuple[float, float, float, float, float, float]:
+    def command_at(self, t: float) -> tuple[float, float, float] | None:
+        """The command holding at vision time ``t``; None before the first (or for a robot never told)."""
+        held = None
+        for since, *command in self.commands:
+            if since > t:
+                break
+            held = command
+        return held
+
+    def change(self, dt: float, spec: RobotSpec) -> tuple[float, float, float]:
+        """The rates' change (vx, vy, w) over the next ``dt`` s under the command holding now (0 without)."""
+        command = self.command_at(self.t)
+        if command is None or dt <= 0.0:
+            return 0.0, 0.0, 0.0
+        vx, vy, w = follow(self.x.v, self.y.v, self.angle.v, command, self.angle.p, dt, spec)
+        return vx - self.x.v, vy - self.y.v, w - self.angle.v
+
+    def advance(self, t: float, cfg: TrackerSettings, spec: RobotSpec) -> None:
+        """Predict to vision time ``t`` (nothing if it is past), a segment per command holding on the way,
+        with the process noise of a robot told its commands or not (``cfg``)."""
+        while t > self.t:
+            later = [since for since, *_ in self.commands if self.t < since < t]
+            end = later[0] if later else t
+            dt = end - self.t
+            told = self.command_at(self.t) is not None
+            q_pos = (cfg.command_accel if told else cfg.accel) ** 2
+            q_angle = (cfg.command_ang_accel if told else cfg.ang_accel) ** 2
+            dvx, dvy, dw = self.change(dt, spec)
+            self.x.predict(dt, q_pos, dvx)
+            self.y.predict(dt, q_pos, dvy)
+            self.angle.predict(dt, q_angle, dw)
+            self.t = end
+
+    def at(self, t: float, spec: RobotSpec) -> tuple[float, float, float, float, float, float]:
         """(x, y, angle, vx, vy, w) predicted to vision time ``t`` (m, rad in [-pi, pi), m/s, rad/s), at
         most ``PREDICT_HORIZON`` past the last detection: a robot out of sight is not flown on."""
-        dt = min(t - self.t, PREDICT_HORIZON)
-        x, vx = self.x.at(dt)
-        y, vy = self.y.at(dt)
-        angle, w = self.angle.at(dt)
-        return x, y, (angle + math.pi) % (2 * math.pi) - math.pi, vx, vy, w
+        dt = max(min(t - self.t, PREDICT_HORIZON), 0.0)
+        dvx, dvy, dw = self.change(dt, spec)
+        x, y, angle = (a.p + (a.v + d / 2) * dt for a, d in ((self.x, dvx), (self.y, dvy), (self.angle, dw)))
+        return (
+            x,
+            y,
+            (angle + math.pi) % (2 * math.pi) - math.pi,
+            self.x.v + dvx,
+            self.y.v + dvy,
+            self.angle.v + dw,
+        )
 
 
 @dataclass
@@ -110,6 +190,7 @@ class Tracker:
     """Tracks of every robot seen, by (team, id); ``update`` with camera frames, read with ``state``."""
 
     settings: TrackerSettings = field(default_factory=TrackerSettings)
+    robot: RobotSpec = field(default_factory=RobotSpec)
     tracks: dict[tuple[str, int], Track] = field(default_factory=dict)
     newest_sent: float | None = None
     newest_arrival: float = 0.0
@@ -120,24 +201,21 @@ class Tracker:
             self.newest_sent, self.newest_arrival = frame.t_sent, arrival
         cfg = self.settings
         r_pos, r_angle = cfg.pos_noise**2, cfg.angle_noise**2
-        q_pos, q_angle = cfg.accel**2, cfg.ang_accel**2
         for seen in frame.robots:
             key = (seen.team, seen.robot)
             track = self.tracks.get(key)
             if track is not None and frame.t_capture - track.t > cfg.forget:
                 track = None
+            commands = [] if track is None else track.commands
             if track is not None:
-                dt = frame.t_capture - track.t
-                for axis in (track.x, track.y):
-                    axis.predict(dt, q_pos)
-                track.angle.predict(dt, q_angle)
-                track.t = max(track.t, frame.t_capture)
+                track.advance(frame.t_capture, cfg, self.robot)
                 if math.hypot(seen.x - track.x.p, seen.y - track.y.p) > cfg.gate:
                     track = None
             if track is None:
                 track = Track(
                     _Axis(seen.x, r_pos), _Axis(seen.y, r_pos), _Axis(0.0, 10.0), frame.t_capture, 0.0
                 )
+                track.commands = commands  # a robot moved or replaced still gets what the loop sends it
                 self.tracks[key] = track
             else:
                 # A frame older than the filter is compared with the filter's estimate back at its time.
@@ -152,6 +230,17 @@ class Tracker:
                 else:
                     track.angle.p, track.angle.a, track.has_angle = seen.angle, r_angle, True
             track.seen = arrival
+
+    def command(self, key: tuple[str, int], t: float, command: tuple[float, float, float]) -> None:
+        """Tell own robot ``key`` the ``command`` (forward, left, w; robot frame) sent to it at vision time
+        ``t``; it holds until the next. A robot not seen yet is not told."""
+        track = self.tracks.get(key)
+        if track is None:
+            return
+        while track.commands and track.commands[-1][0] >= t:  # a command replaces those it overtakes
+            track.commands.pop()
+        track.commands.append((t, *command))
+        del track.commands[:-COMMANDS_KEPT]
 
     def vision_time(self, now: float) -> float:
         """The vision clock's reading at monotonic time ``now`` (module docstring); 0 before any frame."""
@@ -169,8 +258,8 @@ class Tracker:
         for i, key in enumerate(keys):
             track = self.tracks.get(key)
             if track is not None:
-                out[i] = track.at(t)
+                out[i] = track.at(t, self.robot)
         return out
 
 
-__all__ = ["Track", "Tracker", "TrackerSettings"]
+__all__ = ["Track", "Tracker", "TrackerSettings", "follow"]

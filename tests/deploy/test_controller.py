@@ -88,10 +88,9 @@ def test_bad_targets_are_refused_by_name(robot: object, target: object, message:
     [
         ("model", [0.1, 0.175, 0.25], 0.25),  # the robot gains 0.075 m/s a period (3 m/s^2), then brakes
         ("command", [0.1, 0.2, 0.3], 0.1),
-        ("tracked", [0.1, 0.1, 0.1], 0.1),
     ],
 )
-def test_the_worker_steers_from_the_modelled_robot_the_last_command_or_the_tracked_velocity(
+def test_the_worker_steers_from_the_modelled_robot_or_the_last_command(
     feedback: str, speeds: list, after: float
 ) -> None:
     # The paper worker adds 0.1 m/s a period to the velocity it steers from; the robot is seen standing.
@@ -105,6 +104,19 @@ def test_the_worker_steers_from_the_modelled_robot_the_last_command_or_the_track
     assert controller.tick(1.0) == [(0, 0.0, 0.0, 0.0)]  # out of sight: stopped
     _see(controller, 1.01, (0, 0.0, 0.0, 0.0))
     assert controller.tick(1.011)[0][1] == pytest.approx(after)
+
+
+def test_the_tracked_velocity_follows_the_commands_sent_as_far_as_vision_agrees() -> None:
+    # The robot is seen standing while commanded to speed up (held by something): the tracker's velocity,
+    # told the commands, moves off towards the model's but vision pulls it back.
+    controller = _controller(feedback="tracked")
+    controller.set_target(0, [2.0, 0.0, 0.0])
+    got = []
+    for k in range(3):
+        _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
+        got.append(controller.tick(k * 0.025 + 0.001)[0][1])
+    assert got[0] == pytest.approx(0.1)
+    assert 0.1 < got[1] < 0.175 and got[1] < got[2] < 0.25  # the model's: 0.175, 0.25
 
 
 def test_the_modelled_robot_answers_commands_as_the_world_does() -> None:
@@ -128,8 +140,9 @@ def test_a_new_target_takes_the_modelled_velocity_from_the_tracker() -> None:
         _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))
         controller.tick(k * 0.025 + 0.001)
     controller.set_target(0, [2.0, 0.0, 0.0])  # e.g. a new episode: the robot was put down, standing
-    _see(controller, 0.075, (0, 0.0, 0.0, 0.0))
-    assert controller.tick(0.076)[0][1] == pytest.approx(0.1)
+    _see(controller, 0.075, (0, -1.0, 0.0, 0.0))  # past the gate: its filter restarts, standing
+    # The tracker's 0 m/s, 1 ms on at the last command's 3 m/s^2, plus the worker's 0.1 m/s.
+    assert controller.tick(0.076)[0][1] == pytest.approx(0.1 + 3.0 * 0.001)
 
 
 def test_robots_must_be_distinct() -> None:

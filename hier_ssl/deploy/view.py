@@ -27,13 +27,13 @@ from typing import Any
 import numpy as np
 
 from hier_ssl.config import ScenarioConfig, TaskConfig
+from hier_ssl.deploy.tracker import follow
 from hier_ssl.envs import make_scenario, task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.world.field import get_field
-from hier_ssl.world.frames import cap_speed
 from hier_ssl.world.physics import RobotSpec, RobotState
 
 EXPORTED = (".pt", ".onnx")
@@ -219,17 +219,13 @@ class DeployView:
 
     def respond(self, vel: np.ndarray, spin: np.ndarray, sent: np.ndarray, angle: np.ndarray) -> tuple:
         """The controlled robots' velocities (N, M, 2) m/s and spins (N, M) rad/s one period after ``sent``
-        (N, M, 3) robot-frame commands at headings ``angle`` (N, M), as the world's robots answer them:
-        the command capped at the speed limits, reached at no more than the acceleration limits."""
-        spec, dt = self.robot, self.dt
-        heading = np.exp(1j * angle)
-        goal = cap_speed((sent[..., 0] + 1j * sent[..., 1]) * heading, np.array(spec.max_speed))
-        change = goal - (vel[..., 0] + 1j * vel[..., 1])
-        change = cap_speed(change, np.array(spec.max_accel * dt))
-        new = vel[..., 0] + 1j * vel[..., 1] + change
-        step = spec.max_ang_accel * dt
-        goal_spin = np.clip(sent[..., 2], -spec.max_ang_speed, spec.max_ang_speed)
-        return np.stack([new.real, new.imag], axis=-1), spin + np.clip(goal_spin - spin, -step, step)
+        (N, M, 3) robot-frame commands at headings ``angle`` (N, M), as the world's robots answer them
+        (``hier_ssl.deploy.tracker.follow``, the tracker's model of its own robots)."""
+        new_vel, new_spin = np.empty_like(vel), np.empty_like(spin)
+        for i in np.ndindex(spin.shape):
+            vx, vy, new_spin[i] = follow(*vel[i], spin[i], sent[i], angle[i], self.dt, self.robot)
+            new_vel[i] = vx, vy
+        return new_vel, new_spin
 
     def commands(self, state: RobotState) -> np.ndarray:
         """The worker's commands (N, M, 3) toward the held sub-goals: (forward, left, w), robot frame."""

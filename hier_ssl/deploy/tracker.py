@@ -262,4 +262,4 @@ class Tracker:
         return out
 
 
-__all__ = ["Track", "Tracker", "TrackerSettings", "follow"]
+__all__ = ["COMMANDS_KEPT", "PREDICT_HORIZON", "Track", "Tracker", "TrackerSettings", "follow"]

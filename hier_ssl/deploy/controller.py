@@ -50,11 +50,12 @@ class Controller:
     reached within the acceleration limits), taken from the tracker when the robot gets a new target;
     that is what the core's worker steers from. "command": the last command itself, for robots that reach
     any command within a period. "tracked": the tracker's estimate, for robots that do not follow their
-    commands closely; it lags the robot by the filter's delay and carries vision's noise, and an
-    incremental controller such as the paper's then accelerates late and overshoots. Obstacle, ``sampling``,
-    the same 20 episodes through the wire (no vision noise) against ``hier-ssl eval``'s loop: episodes
-    longer by 0.65 control steps on average with "model", 8.1 with "command", 29.5 with "tracked" (10).
-    The manager always observes the tracked state.
+    commands closely (the same model, corrected by vision, with its noise). Obstacle, ``sampling``, the
+    same 20 episodes through the wire (no vision noise) against ``hier-ssl eval``'s loop: episodes longer
+    by 0.65 control steps on average with "model", 8.1 with "command", 29.5 with "tracked" (10, before
+    the tracker was told the commands: its velocity lagged, and the paper's incremental worker accelerated
+    late and overshot). The manager always observes the tracked state. Every command sent is told to the
+    tracker (``Tracker.command``), the control input of the controlled robots' filters.
     """
 
     def __init__(

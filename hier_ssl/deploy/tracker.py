@@ -126,7 +126,7 @@ def follow(
 @dataclass
 class Track:
     """One robot's filters, the vision time they stand at, when it was last seen (monotonic s), and for an
-    own robot the commands sent to it: (vision time from which it holds, forward, left, w), oldest first."""
+    own robot the commands sent to it: (vision time from which it holds, (forward, left, w)), oldest first."""
 
     x: _Axis
     y: _Axis
@@ -134,20 +134,20 @@ class Track:
     t: float
     seen: float
     has_angle: bool = False
-    commands: list[tuple[float, float, float, float]] = field(default_factory=list)
+    commands: list[tuple[float, tuple[float, float, float]]] = field(default_factory=list)
 
-    def command_at(self, t: float) -> tuple[float, float, float] | None:
-        """The command holding at vision time ``t``; None before the first (or for a robot never told)."""
+    def command_at(self, t: float) -> tuple[tuple[float, float, float] | None, float]:
+        """The command holding at vision time ``t`` (None before the first, or for a robot never told) and
+        when the next one takes over (inf: none does)."""
         held = None
-        for since, *command in self.commands:
+        for since, command in self.commands:
             if since > t:
-                break
+                return held, since
             held = command
-        return held
+        return held, math.inf
 
-    def change(self, dt: float, spec: RobotSpec) -> tuple[float, float, float]:
-        """The rates' change (vx, vy, w) over the next ``dt`` s under the command holding now (0 without)."""
-        command = self.command_at(self.t)
+    def change(self, command: tuple[float, float, float] | None, dt: float, spec: RobotSpec) -> tuple:
+        """The rates' change (vx, vy, w) over the next ``dt`` s under ``command`` (0 without)."""
         if command is None or dt <= 0.0:
             return 0.0, 0.0, 0.0
         vx, vy, w = follow(self.x.v, self.y.v, self.angle.v, command, self.angle.p, dt, spec)
@@ -157,23 +157,28 @@ class Track:
         """Predict to vision time ``t`` (nothing if it is past), a segment per command holding on the way,
         with the process noise of a robot told its commands or not (``cfg``)."""
         while t > self.t:
-            later = [since for since, *_ in self.commands if self.t < since < t]
-            end = later[0] if later else t
+            command, next_since = self.command_at(self.t)
+            end = min(t, next_since)
             dt = end - self.t
-            told = self.command_at(self.t) is not None
-            q_pos = (cfg.command_accel if told else cfg.accel) ** 2
-            q_angle = (cfg.command_ang_accel if told else cfg.ang_accel) ** 2
-            dvx, dvy, dw = self.change(dt, spec)
+            if command is None:
+                q_pos, q_angle, (dvx, dvy, dw) = cfg.accel**2, cfg.ang_accel**2, (0.0, 0.0, 0.0)
+            else:
+                q_pos, q_angle = cfg.command_accel**2, cfg.command_ang_accel**2
+                dvx, dvy, dw = self.change(command, dt, spec)
             self.x.predict(dt, q_pos, dvx)
             self.y.predict(dt, q_pos, dvy)
             self.angle.predict(dt, q_angle, dw)
             self.t = end
+        while (
+            len(self.commands) > 1 and self.commands[1][0] <= self.t
+        ):  # superseded: no frame goes back to it
+            del self.commands[0]
 
     def at(self, t: float, spec: RobotSpec) -> tuple[float, float, float, float, float, float]:
         """(x, y, angle, vx, vy, w) predicted to vision time ``t`` (m, rad in [-pi, pi), m/s, rad/s), at
         most ``PREDICT_HORIZON`` past the last detection: a robot out of sight is not flown on."""
         dt = max(min(t - self.t, PREDICT_HORIZON), 0.0)
-        dvx, dvy, dw = self.change(dt, spec)
+        dvx, dvy, dw = self.change(self.command_at(self.t)[0], dt, spec)
         x, y, angle = (a.p + (a.v + d / 2) * dt for a, d in ((self.x, dvx), (self.y, dvy), (self.angle, dw)))
         return (
             x,
@@ -239,7 +244,7 @@ class Tracker:
             return
         while track.commands and track.commands[-1][0] >= t:  # a command replaces those it overtakes
             track.commands.pop()
-        track.commands.append((t, *command))
+        track.commands.append((t, tuple(command)))
         del track.commands[:-COMMANDS_KEPT]
 
     def vision_time(self, now: float) -> float:

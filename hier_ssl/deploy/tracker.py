@@ -31,6 +31,7 @@ from hier_ssl.deploy.wire import DetectionFrame
 from hier_ssl.world.robot import RobotSpec
 
 PREDICT_HORIZON = 0.2  # s
+_UNSEEN = (math.nan,) * 6  # the state row of a robot never seen
 COMMANDS_KEPT = 8  # a robot's commands kept: frames come every 17 ms, commands every 25 ms
 
 
@@ -259,12 +260,9 @@ class Tracker:
     def state(self, keys: list[tuple[str, int]], t: float) -> np.ndarray:
         """(len(keys), 6) x, y, angle, vx, vy, w of the robots ``keys`` at vision time ``t``; NaN rows
         for robots never seen."""
-        out = np.full((len(keys), 6), np.nan)
-        for i, key in enumerate(keys):
-            track = self.tracks.get(key)
-            if track is not None:
-                out[i] = track.at(t, self.robot)
-        return out
+        tracks = [self.tracks.get(key) for key in keys]
+        rows = [_UNSEEN if track is None else track.at(t, self.robot) for track in tracks]
+        return np.array(rows, dtype=np.float64).reshape(len(keys), 6)  # one array: row writes cost more
 
 
 __all__ = ["COMMANDS_KEPT", "PREDICT_HORIZON", "Track", "Tracker", "TrackerSettings", "follow"]

@@ -221,11 +221,12 @@ class DeployView:
         """The controlled robots' velocities (N, M, 2) m/s and spins (N, M) rad/s one period after ``sent``
         (N, M, 3) robot-frame commands at headings ``angle`` (N, M), as the world's robots answer them
         (``hier_ssl.deploy.tracker.follow``, the tracker's model of its own robots)."""
-        new_vel, new_spin = np.empty_like(vel), np.empty_like(spin)
-        for i in np.ndindex(spin.shape):
-            vx, vy, new_spin[i] = follow(*vel[i], spin[i], sent[i], angle[i], self.dt, self.robot)
-            new_vel[i] = vx, vy
-        return new_vel, new_spin
+        # Python floats: numpy's scalars would cost more than the arithmetic.
+        flat = (vel.reshape(-1, 2), spin.ravel(), sent.reshape(-1, 3), angle.ravel())
+        rows = zip(*(a.tolist() for a in flat), strict=True)
+        new = [follow(vx, vy, w, command, a, self.dt, self.robot) for (vx, vy), w, command, a in rows]
+        new = np.array(new).reshape(*spin.shape, 3)
+        return new[..., 0:2], new[..., 2]
 
     def commands(self, state: RobotState) -> np.ndarray:
         """The worker's commands (N, M, 3) toward the held sub-goals: (forward, left, w), robot frame."""

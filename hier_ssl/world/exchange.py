@@ -23,10 +23,12 @@ def velocity_rows(
     vel: np.ndarray,
     ang_vel: np.ndarray,
     limits: np.ndarray,
+    at: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """What a step writes into pymunk: ``out`` (N, R, 2, 3), [..., 1, :] each control body's (vx, vy, w),
-    [..., 0, :] each robot's.
+    """What a step writes into pymunk: the body rows ``out`` (B, 3), (vx, vy, w) each, at row
+    ``at[f, i, 1]`` robot i of field f's control body's and at ``at[f, i, 0]`` the robot's (``at``
+    (N, R, 2) int).
 
     A control body carries the command (N, R, 3) (robot frame) turned into the field frame by ``heading``
     (N, R) (exp(i angle)), capped at the speed limits, direction kept. A robot keeps its velocity (N, R, 2)
@@ -44,29 +46,32 @@ def velocity_rows(
             speed = math.hypot(vx, vy)
             if speed > max_speed:
                 vx, vy = vx * (max_speed / speed), vy * (max_speed / speed)
-            out[f, i, 1, 0], out[f, i, 1, 1] = vx, vy
-            out[f, i, 1, 2] = max(min(command[f, i, 2], max_spin), -max_spin)
+            robot, control = out[at[f, i, 0]], out[at[f, i, 1]]
+            control[0], control[1] = vx, vy
+            control[2] = max(min(command[f, i, 2], max_spin), -max_spin)
             for axis in range(2):
                 p, reach = pos[f, i, axis], limits[3 + axis]
                 room_hi, room_lo = max(reach - p, 0.0) / dt, min(-reach - p, 0.0) / dt
-                out[f, i, 0, axis] = max(min(vel[f, i, axis], room_hi), room_lo)
-            out[f, i, 0, 2] = ang_vel[f, i]
+                robot[axis] = max(min(vel[f, i, axis], room_hi), room_lo)
+            robot[2] = ang_vel[f, i]
 
 
 @numba.njit(cache=True)
 def unpack_rows(
     rows: np.ndarray,
     offsets: np.ndarray,
+    fields: np.ndarray,
     pos: np.ndarray,
     angle: np.ndarray,
     vel: np.ndarray,
     ang_vel: np.ndarray,
     heading: np.ndarray,
 ) -> None:
-    """The robots' read-back ``rows`` (N, R, 6) (x, y, angle, vx, vy, w, at their fields' ``offsets``
-    (N, 2)) written into a state's arrays: field-frame ``pos`` (N, R, 2), ``angle`` (N, R) wrapped to
-    [-pi, pi), ``vel`` (N, R, 2), ``ang_vel`` (N, R) and ``heading`` exp(i angle) (N, R) complex."""
-    for f in range(rows.shape[0]):
+    """The read-back ``rows`` (N, R, 6) of the robots of ``fields`` (F,) ints (x, y, angle, vx, vy, w, at
+    their fields' ``offsets`` (N, 2)) written into a state's arrays: field-frame ``pos`` (N, R, 2),
+    ``angle`` (N, R) wrapped to [-pi, pi), ``vel`` (N, R, 2), ``ang_vel`` (N, R) and ``heading``
+    exp(i angle) (N, R) complex; other fields' entries are left as they are."""
+    for f in fields:
         for i in range(rows.shape[1]):
             row = rows[f, i]
             pos[f, i, 0], pos[f, i, 1] = row[0] - offsets[f, 0], row[1] - offsets[f, 1]

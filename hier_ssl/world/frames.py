@@ -35,8 +35,12 @@ def wrap_angle(angle: ArrayLike) -> np.ndarray:
 @numba.njit(cache=True)
 def wrap(angle: float) -> float:
     """One angle (rad) mapped to [-pi, pi): ``wrap_angle`` for the compiled per-robot loops, the same
-    operations on one value (tests/manager/test_rewards.py holds the two equal)."""
-    return (angle + math.pi) % (2 * math.pi) - math.pi
+    operations on one value (tests/manager/test_rewards.py holds the two equal). Most angles are already
+    in range, and there the remainder is its argument itself (exact): the division is skipped."""
+    shifted = angle + math.pi
+    if 0.0 <= shifted < 2 * math.pi:
+        return shifted - math.pi
+    return shifted % (2 * math.pi) - math.pi
 
 
 def all_finite(values: np.ndarray) -> bool:

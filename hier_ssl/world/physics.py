@@ -30,7 +30,7 @@ from hier_ssl.world.robot import RobotSpec, RobotState
 from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
 # What ``World._prepare`` makes: buffers, constants and the threads, made again for a copy.
-_PREPARED = {"_read_rows", "_velocity_rows", "_limits", "_pool"}
+_PREPARED = {"_read_rows", "_velocity_rows", "_velocity_at", "_all_fields", "_limits", "_pool"}
 
 
 class World:
@@ -119,8 +119,18 @@ class World:
         """The read and write buffers of the hot path and its constants, made once."""
         n, r, spec = self.num_fields, self.num_robots, self.robot
         self._read_rows = np.zeros((n, r, 6))
-        # Each block's velocity rows are copied from these, [..., 0, :] robots, [..., 1, :] control bodies.
-        self._velocity_rows = np.zeros((n, r, 2, 3))
+        self._all_fields = np.arange(n)
+        # Every block's velocity rows, one after another, and where each robot's (field, robot, 0) and its
+        # control body's (..., 1) row is among them: a step writes them all in one call, no copies.
+        sizes = [len(block.fast.rows) for block in self.blocks]
+        self._velocity_rows = np.zeros((sum(sizes), 3))
+        self._velocity_at = np.empty((n, r, 2), dtype=np.int64)
+        first = 0
+        for block, size in zip(self.blocks, sizes, strict=True):
+            block.bind_velocity(self._velocity_rows[first : first + size])
+            for k, rows in enumerate(block.body_rows()):
+                self._velocity_at[block.fields, :, k] = first + rows
+            first += size
         reach = (hx - spec.radius, hy - spec.radius)
         self._limits = np.array([spec.max_speed, spec.max_ang_speed, self.dt, *reach])
         self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
@@ -173,12 +183,18 @@ class World:
             block.read(self._read_rows[block.fields])
         return self._state_of_rows()
 
-    def _state_of_rows(self) -> RobotState:
-        """A new state from the rows of the last read (a state is replaced, never changed)."""
-        shape = (self.num_fields, self.num_robots)
-        pos, vel = np.empty((*shape, 2)), np.empty((*shape, 2))
-        angle, ang_vel, heading = np.empty(shape), np.empty(shape), np.empty(shape, dtype=_COMPLEX)
-        unpack_rows(self._read_rows, self.offsets, pos, angle, vel, ang_vel, heading)
+    def _state_of_rows(self, fields: np.ndarray | None = None) -> RobotState:
+        """A new state from the rows of the last read (a state is replaced, never changed): of every field,
+        or of ``fields`` (F,) ints and the current state's other fields (a reset unpacks its own alone)."""
+        if fields is None:
+            shape, fields = (self.num_fields, self.num_robots), self._all_fields
+            pos, vel = np.empty((*shape, 2)), np.empty((*shape, 2))
+            angle, ang_vel, heading = np.empty(shape), np.empty(shape), np.empty(shape, dtype=_COMPLEX)
+        else:
+            s = self.state
+            pos, angle, vel, ang_vel = s.pos.copy(), s.angle.copy(), s.vel.copy(), s.ang_vel.copy()
+            heading = s.heading.copy()
+        unpack_rows(self._read_rows, self.offsets, fields, pos, angle, vel, ang_vel, heading)
         return RobotState(pos, angle, vel, ang_vel, heading)
 
     def set_state(
@@ -240,7 +256,7 @@ class World:
         self.robot_contacts[fields] = False
         self.robot_touch[fields] = False
         self.wall_contacts[fields] = False
-        self.state = self._state_of_rows()
+        self.state = self._state_of_rows(fields)
 
     # -- stepping -----------------------------------------------------------------------------------------
 
@@ -261,28 +277,28 @@ class World:
             f, i = np.argwhere(~np.isfinite(command).all(axis=-1))[0]
             raise ValueError(f"command holds NaN or infinite values (field {f}, robot {i})")
         state = self.state
-        rows = self._velocity_rows
-        velocity_rows(command, state.heading, state.pos, state.vel, state.ang_vel, self._limits, rows)
+        at, rows = self._velocity_at, self._velocity_rows
+        velocity_rows(command, state.heading, state.pos, state.vel, state.ang_vel, self._limits, at, rows)
         if self._contacts_set:
             self.robot_contacts.fill(False)
             self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
             self._contacts_set = False
         if self._pool is None:
-            self._advance(self.blocks, rows)
+            self._advance(self.blocks)
         else:
             # Every thread takes every ``threads``-th block; the contact callbacks of different blocks
             # write different fields' rows.
             groups = [self.blocks[k :: self.threads] for k in range(self.threads)]
-            others = [self._pool.submit(self._advance, group, rows) for group in groups[1:]]
-            self._advance(groups[0], rows)
+            others = [self._pool.submit(self._advance, group) for group in groups[1:]]
+            self._advance(groups[0])
             for other in others:
                 other.result()
         self.state = self._state_of_rows()
         return self.state
 
-    def _advance(self, blocks: list[FieldBlock], rows: np.ndarray) -> None:
-        """Write ``rows`` (N, R, 2, 3) into ``blocks``, step them and read them back, one after another."""
+    def _advance(self, blocks: list[FieldBlock]) -> None:
+        """Write the velocity rows into ``blocks``, step them and read them back, one after another."""
         for block in blocks:
-            block.advance(rows[block.fields], self._sub_dt, self.substeps)
+            block.advance(self._sub_dt, self.substeps)
             block.read(self._read_rows[block.fields])

@@ -34,8 +34,6 @@ _PREPARED = {
     "fast",
     "robot_rows",
     "write_velocity",
-    "write_state",
-    "state_rows",
 }
 Handler = Callable[[pymunk.Arbiter, pymunk.Space, object], None]
 
@@ -61,9 +59,8 @@ class FieldBlock:
     Bodies sit at the World's field ``offsets`` (F, 2), so a field's coordinates and their rounding do
     not depend on its block. ``owners`` maps each shape to its (field, robot) index in the World, robot -1
     for walls; ``joints`` lists the block's joints. After ``fast.read()``, ``robot_rows`` (C, R, 6) holds
-    each robot's x, y, angle, vx, vy, w; ``state_rows``, a pair of views (C, R, 6), is what ``write_state()``
-    writes to the robots and to their control bodies. ``write_velocity()`` writes the rows the World gave
-    ``bind_velocity``, at the rows ``body_rows()`` names.
+    each robot's x, y, angle, vx, vy, w. ``write_velocity()`` writes the rows the World gave
+    ``bind_velocity``, at the rows ``body_rows()`` names; ``place`` sets a field's bodies.
     """
 
     def __init__(
@@ -163,8 +160,6 @@ class FieldBlock:
         self._controls_at = self._body_order()
         self.fast = FastSpace(self.space, _STATE, 6)
         self.robot_rows = self._pairs(self.fast.rows)[0]
-        self.write_state = self.fast.writer(_STATE, np.zeros((len(self.fast.rows), 6)))
-        self.state_rows = self._pairs(self.write_state.rows)
 
     def __getstate__(self) -> dict[str, object]:
         # pymunk pickles the space, contact cache and handlers included.
@@ -198,16 +193,23 @@ class FieldBlock:
         self.fast.read()
         out[...] = self.robot_rows
 
-    def place(self, fields: np.ndarray, packed: np.ndarray) -> bool:
-        """Write ``packed`` (M, R, 6) into the robots and control bodies of the World's ``fields`` (M,) that
-        are this block's; its other bodies keep their state. Returns whether any of ``fields`` was."""
-        mine = (fields >= self.start) & (fields < self.stop)
-        if not mine.any():
-            return False
-        # The rows of the last read: no body has moved since (the World reads after every step and write).
-        self.write_state.rows[:] = self.fast.rows
-        local = fields[mine] - self.start
-        self.state_rows[0][local] = packed[mine]
-        self.state_rows[1][local] = packed[mine]
-        self.write_state()
-        return True
+    def place(self, field: int, rows: np.ndarray) -> np.ndarray:
+        """Write ``rows`` (R, 6), x, y, angle, vx, vy, w, into the robots and control bodies of the World's
+        ``field`` (one of this block's), body by body: a reset touches its own bodies alone, where a batched
+        write would pass every body of the block twice (in and back out). Returns the robots' rows (R, 6)
+        as pymunk reads them back."""
+        robots, controls = self._bodies
+        first = (field - self.start) * self.num_robots
+        out = np.empty((self.num_robots, 6))
+        lib = pb.lib  # Chipmunk's own setters and getters, those of pymunk's properties and batches
+        for i, (x, y, angle, vx, vy, w) in enumerate(rows.tolist()):
+            robot = robots[first + i]._body
+            for body in (robot, controls[first + i]._body):
+                lib.cpBodySetPosition(body, (x, y))
+                lib.cpBodySetAngle(body, angle)
+                lib.cpBodySetVelocity(body, (vx, vy))
+                lib.cpBodySetAngularVelocity(body, w)
+            position, velocity = lib.cpBodyGetPosition(robot), lib.cpBodyGetVelocity(robot)
+            spin = lib.cpBodyGetAngularVelocity(robot)
+            out[i] = position.x, position.y, lib.cpBodyGetAngle(robot), velocity.x, velocity.y, spin
+        return out

@@ -30,7 +30,7 @@ from hier_ssl.world.robot import RobotSpec, RobotState
 from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
 # What ``World._prepare`` makes: buffers, constants and the threads, made again for a copy.
-_PREPARED = {"_read_rows", "_velocity_rows", "_velocity_at", "_all_fields", "_limits", "_pool"}
+_PREPARED = {"_read_rows", "_velocity_rows", "_velocity_at", "_all_fields", "_block_of", "_limits", "_pool"}
 
 
 class World:
@@ -120,6 +120,7 @@ class World:
         n, r, spec = self.num_fields, self.num_robots, self.robot
         self._read_rows = np.zeros((n, r, 6))
         self._all_fields = np.arange(n)
+        self._block_of = [k for k, block in enumerate(self.blocks) for _ in range(block.start, block.stop)]
         # Every block's velocity rows, one after another, and where each robot's (field, robot, 0) and its
         # control body's (..., 1) row is among them: a step writes them all in one call, no copies.
         sizes = [len(block.fast.rows) for block in self.blocks]
@@ -227,12 +228,12 @@ class World:
             value = np.asarray(value, dtype=np.float64)
             if value.shape != shape:
                 raise ValueError(f"set_state: {name} has shape {value.shape}, expected {shape}")
-            if not np.isfinite(value).all():
+            if not all_finite(value):
                 raise ValueError(f"set_state: {name} holds NaN or infinite values")
             checked[name] = value
-        reach = np.array(self.field.wall_half_extent) - self.robot.radius
+        reach = self._limits[3:5]
         outside = (np.abs(checked["pos"]) > reach).any(axis=-1)
-        if outside.any():
+        if np.count_nonzero(outside):
             f, i = np.argwhere(outside)[0]
             raise ValueError(
                 f"set_state: robot {i} of field {fields[f]} at {checked['pos'][f, i].tolist()} is not inside "
@@ -249,10 +250,9 @@ class World:
             ],
             axis=-1,
         )
-        # Only the blocks written are read again: the others' rows are those of their last read.
-        for block in self.blocks:
-            if block.place(fields, packed):
-                block.read(self._read_rows[block.fields])
+        # Each field's bodies are set and read back alone: the other rows are those of their last read.
+        for f, rows in zip(fields.tolist(), packed, strict=True):
+            self._read_rows[f] = self.blocks[self._block_of[f]].place(f, rows)
         self.robot_contacts[fields] = False
         self.robot_touch[fields] = False
         self.wall_contacts[fields] = False

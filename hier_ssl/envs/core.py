@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from hier_ssl.config import TaskConfig
-from hier_ssl.envs.decisions import take_decisions
+from hier_ssl.envs.decisions import take_decisions, tally_control_step
 from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
@@ -95,7 +95,6 @@ class HierarchicalCore:
         # The observation's scales as 0-d arrays (see ``Rules``).
         self._limits = {k: np.array(scenario.scales[k]) for k in ("max_pos", "max_v", "max_w")}
         self._sum_rewards = cfg.frame_skip_reward == "sum"
-        self._max_steps = np.array(cfg.max_steps)
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
         # _others_of(pos) (N, M, R - 1, 2): a view for one controlled robot, else np.take (a tenth of the cost
         # of indexing with the array).
@@ -302,34 +301,21 @@ class HierarchicalCore:
             raise RuntimeError("step() with every episode finished: call reset() first")
         held = hold(self)
         clipped = self.set_subgoal(action, start)
-        live = start
-        # The first control step's reward and count are set, later ones added. Flags and counts are new
-        # arrays, not updated in place: on a few elements numpy's overlap check (and a bool added to an
-        # int) costs more than the operation.
-        reward, elapsed = np.zeros(start.shape), start.astype(np.int64)
-        success = collision = self._nobody
+        # New arrays every decision (the result hands them out), updated in place by one compiled loop a
+        # control step.
+        shape = start.shape
+        live, reward, elapsed = start.copy(), np.zeros(shape), start.astype(np.int64)
+        success, collision, timeout = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
+        running, max_steps = (live, reward, success, collision, elapsed, timeout), cfg.max_steps
         try:
-            # For bools a > b is a & ~b, in one call.
             for k in range(cfg.frame_skip):
                 r, succ, hit = self.control_step(live)
-                if k and self._sum_rewards:
-                    np.add(reward, r, out=reward, where=live)
-                else:
-                    np.copyto(reward, r, where=live)
-                ended = succ | hit
-                if np.count_nonzero(ended):  # most control steps nobody leaves
-                    success, collision = success | succ, collision | hit
-                    live = live > ended
-                live = live > (self.steps >= self._max_steps)[:, None]
-                if not np.count_nonzero(live):
+                add, count = k > 0 and self._sum_rewards, k + 1 < cfg.frame_skip
+                if not tally_control_step(r, succ, hit, self.steps, max_steps, add, count, start, *running):
                     break
-                if k + 1 < cfg.frame_skip:
-                    elapsed = elapsed + live.astype(np.int64)
         except Exception:  # from the worker: undone, or the core needs a reset (step_guard)
             abandon(self, held)
             raise
-        # A robot that left without success or collision ran out of time.
-        timeout = start > (live | success | collision)
         return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
 
     def finish(

@@ -1,6 +1,7 @@
-"""A manager decision's per-robot book-keeping in the core: the sub-goals taken, the decisions counted, the
-CPAD grown and the action values clipped, as one compiled loop over the robots (at one field numpy's
-per-call overhead, not the arithmetic, was the cost of the dozen array operations this replaces)."""
+"""A manager decision's per-robot book-keeping in the core, each part one compiled loop over the robots (at
+one field numpy's per-call overhead, not the arithmetic, was the cost of the array operations these
+replace): the sub-goals taken, the decisions counted, the CPAD grown and the action values clipped
+(``take_decisions``); each control step's reward, departures and time counted (``tally_control_step``)."""
 
 from __future__ import annotations
 
@@ -37,4 +38,44 @@ def take_decisions(
             decisions[f, i] += 1
 
 
-__all__ = ["take_decisions"]
+@numba.njit(cache=True)
+def tally_control_step(
+    step_reward: np.ndarray,
+    succ: np.ndarray,
+    hit: np.ndarray,
+    steps: np.ndarray,
+    max_steps: int,
+    add: bool,
+    count: bool,
+    start: np.ndarray,
+    live: np.ndarray,
+    reward: np.ndarray,
+    success: np.ndarray,
+    collision: np.ndarray,
+    elapsed: np.ndarray,
+    timeout: np.ndarray,
+) -> int:
+    """One control step of a decision into its running per-robot values (N, M), in place; returns how many
+    robots are still ``live``.
+
+    Each ``live`` robot takes ``step_reward`` into ``reward`` (added if ``add``, else set), and leaves
+    with ``success`` or ``collision`` where ``succ`` or ``hit`` say so, or when its field's ``steps``
+    (N,) reach ``max_steps``; one still live counts the step in ``elapsed`` if ``count``. ``timeout``: the
+    robots of ``start`` that left without success or collision (so far)."""
+    remaining = 0
+    for f in range(live.shape[0]):
+        out_of_time = steps[f] >= max_steps
+        for i in range(live.shape[1]):
+            if live[f, i]:
+                reward[f, i] = reward[f, i] + step_reward[f, i] if add else step_reward[f, i]
+                success[f, i] |= succ[f, i]
+                collision[f, i] |= hit[f, i]
+                live[f, i] = not (succ[f, i] or hit[f, i] or out_of_time)
+                if live[f, i]:
+                    remaining += 1
+                    elapsed[f, i] += count
+            timeout[f, i] = start[f, i] and not (live[f, i] or success[f, i] or collision[f, i])
+    return remaining
+
+
+__all__ = ["take_decisions", "tally_control_step"]

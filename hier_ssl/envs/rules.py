@@ -44,10 +44,10 @@ def _held(
     reached: np.ndarray,
     shaping: np.ndarray,
 ) -> None:
-    """``Rules.hold`` of the action-centric tasks as one compiled loop over the rows (B, 5) of sub-goals
-    and targets: whether each sub-goal is on its target (d < d_th, delta < theta_th, as ``pose_reached``)
-    and R_d + R_theta, written into ``reached`` and ``shaping`` (B,)."""
-    for b in range(target.shape[0]):
+    """``Rules.hold`` of the action-centric tasks as one compiled loop over the sub-goals and targets
+    (..., 5): whether each sub-goal is on its target (d < d_th, delta < theta_th, as ``pose_reached``)
+    and R_d + R_theta, written into ``reached`` and ``shaping`` (...)."""
+    for b in np.ndindex(reached.shape):
         d, delta = pose_error(subgoal[b], target[b])
         reached[b] = d < d_th and delta < theta_th
         shaping[b] = shaping_term(d, delta, d_th, theta_th)
@@ -79,6 +79,7 @@ class Rules:
         modes = (config.success_mode, config.hit_mode)
         self.options = RewardOptions(*modes, config.success_weight, config.hit_weight, config.obstacle_from)
         self.d_th, self.theta_th = np.array(config.d_th), np.array(np.deg2rad(config.theta_th_deg))
+        self._thresholds = (float(self.d_th), float(self.theta_th))
         paid = (config.success_weight * SUCCESS_REWARD, config.hit_weight * HIT_REWARD)
         self._settings = np.array([config.d_th, config.speed_th, config.collision_distance, *paid])
         replace = (config.success_mode == "replace", config.hit_mode == "replace")
@@ -94,9 +95,8 @@ class Rules:
         (..., 5); None for the Baseline task, which measures the robot every step."""
         if self.task == "baseline":
             return None
-        rows = (subgoal.reshape(-1, 5), target.reshape(-1, 5), float(self.d_th), float(self.theta_th))
         reached, shaping = np.empty(target.shape[:-1], dtype=bool), np.empty(target.shape[:-1])
-        _held(*rows, reached.reshape(-1), shaping.reshape(-1))
+        _held(subgoal, target, *self._thresholds, reached, shaping)
         return reached, shaping
 
     def __call__(
@@ -118,13 +118,10 @@ class Rules:
         """
         if held is None:
             held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
-        reached, shaping = held
         lead = target.shape[:-1]
         reward, success, hit = np.empty(lead), np.empty(lead, dtype=bool), np.empty(lead, dtype=bool)
-        others = others.reshape(reward.size, others.shape[-2], 2)  # (B, J, 2), J = 0 allowed
-        rows = (reached.reshape(-1), shaping.reshape(-1), target.reshape(-1, 5), subgoal.reshape(-1, 5))
-        rows += (pos.reshape(-1, 2), vel.reshape(-1, 2), others, touching.reshape(-1))
-        _score(*rows, self._settings, self._flags, reward.reshape(-1), success.reshape(-1), hit.reshape(-1))
+        rows = (*held, target, subgoal, pos, vel, others, touching)
+        _score(*rows, self._settings, self._flags, reward, success, hit)
         return reward, success, hit
 
 
@@ -144,26 +141,28 @@ def _score(
     success: np.ndarray,
     hit: np.ndarray,
 ) -> None:
-    """``Rules.__call__`` as one compiled loop over the rows (B,): the rules of ``robot_settled``,
+    """``Rules.__call__`` as one compiled loop over the robots (...): the rules of ``robot_settled``,
     ``collided``, ``obstacle_distance`` and ``combine_rewards``, their operations in their order
     (tests/envs/test_rules.py holds the results equal to theirs, bit for bit).
 
-    Shapes: reached, shaping, touching (B,); target, subgoal (B, 5); pos, vel (B, 2); others (B, J, 2).
+    Shapes: reached, shaping, touching (...); target, subgoal (..., 5); pos, vel (..., 2); others
+    (..., J, 2).
     ``settings``: d_th, speed_th, collision distance, R_t paid, R_hit paid; ``flags``: success needs the
     robot near the target (action-centric tasks), success replaces the shaping, the obstacle task's
     terms, R_obst measured from the robot (not the sub-goal), a hit replaces the other terms.
     """
     d_th, speed_th, collision_distance, success_paid, hit_paid = settings
     near_target, replace_success, obstacle_task, from_robot, replace_hit = flags
-    for b in range(reward.shape[0]):
-        nearest = nearest_distance(pos[b, 0], pos[b, 1], others[b])  # +inf without another robot
+    for b in np.ndindex(reward.shape):
+        p, v = pos[b], vel[b]
+        nearest = nearest_distance(p[0], p[1], others[b])  # +inf without another robot
         hit[b] = nearest < collision_distance or touching[b]
         # Success needs the measured pose on the target and the robot settled; a hit fails it.
         done = reached[b] and not hit[b]
         if done:
-            done = math.sqrt(vel[b, 0] * vel[b, 0] + vel[b, 1] * vel[b, 1]) < speed_th
+            done = math.sqrt(v[0] * v[0] + v[1] * v[1]) < speed_th
         if done and near_target:
-            dx, dy = pos[b, 0] - target[b, 0], pos[b, 1] - target[b, 1]
+            dx, dy = p[0] - target[b][0], p[1] - target[b][1]
             done = math.sqrt(dx * dx + dy * dy) < d_th
         success[b] = done
         pose = 0.0 if replace_success and done else shaping[b]
@@ -172,7 +171,7 @@ def _score(
             reward[b] = pose + paid
             continue
         if not from_robot:
-            nearest = nearest_distance(subgoal[b, 0], subgoal[b, 1], others[b])
+            nearest = nearest_distance(subgoal[b][0], subgoal[b][1], others[b])
         obstacle = obstacle_term(nearest)
         if replace_hit and hit[b]:
             pose, paid, obstacle = 0.0, 0.0, 0.0

@@ -187,16 +187,17 @@ class HierarchicalCore:
         target = self.target if fields is None else self.target[fields]
         f, m = target.shape[:2]
         b, limits = f * m, self._limits
-        rows = (
-            target.reshape(b, 5),
-            s.pos[:, :m].reshape(b, 2),
-            s.angle[:, :m].reshape(b),
-            s.vel[:, :m].reshape(b, 2),
-            s.ang_vel[:, :m].reshape(b),
-        )
-        if self._layout == "paper":  # one robot: the others are its obstacles
-            obs = manager_observation(*rows, s.pos[:, m:], s.vel[:, m:], s.ang_vel[:, m:], **limits)
+        if self._layout == "paper":  # one robot (column 0, a view): the others are its obstacles
+            own = (target[:, 0], s.pos[:, 0], s.angle[:, 0], s.vel[:, 0], s.ang_vel[:, 0])
+            obs = manager_observation(*own, s.pos[:, 1:], s.vel[:, 1:], s.ang_vel[:, 1:], **limits)
         else:
+            rows = (
+                target.reshape(b, 5),
+                s.pos[:, :m].reshape(b, 2),
+                s.angle[:, :m].reshape(b),
+                s.vel[:, :m].reshape(b, 2),
+                s.ang_vel[:, :m].reshape(b),
+            )
             j = self._others.shape[1]
             teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
             others_pos = self._others_of(s.pos).reshape(b, j, 2)

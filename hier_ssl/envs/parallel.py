@@ -156,18 +156,19 @@ class HierarchicalSSLEnv(ParallelEnv):
                 rewards[agent], terms[agent], truncs[agent] = 0.0, over and not truncated, over and truncated
                 infos[agent] = {}
                 continue
+            # item() gives the Python bool, int or float of an element without a numpy scalar between.
             i = self._robot[agent]
-            terms[agent], truncs[agent] = bool(result.terminated[0, i]), bool(result.truncated[0, i])
+            terms[agent], truncs[agent] = result.terminated.item(0, i), result.truncated.item(0, i)
             if agent in self.workers:
                 rewards[agent], infos[agent] = float(info["worker_reward"][0, i]), {}
                 continue
-            rewards[agent] = float(result.reward[0, i])
+            rewards[agent] = result.reward.item(0, i)
             infos[agent] = {
-                "control_steps": int(info["control_steps"][0, i]),
-                "action_clipped": int(info["action_clipped"][0, i]),
+                "control_steps": info["control_steps"].item(0, i),
+                "action_clipped": info["action_clipped"].item(0, i),
                 "subgoal": info["subgoal"][0, i],
-                "success": bool(info["success"][0, i]),
-                "collision": bool(info["collision"][0, i]),
+                "success": info["success"].item(0, i),
+                "collision": info["collision"].item(0, i),
                 "decision": info.get("decision", True),
             }
             if i in ended:

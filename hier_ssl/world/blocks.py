@@ -34,6 +34,7 @@ _PREPARED = {
     "fast",
     "robot_rows",
     "write_velocity",
+    "read_rows",
 }
 Handler = Callable[[pymunk.Arbiter, pymunk.Space, object], None]
 
@@ -59,8 +60,8 @@ class FieldBlock:
     Bodies sit at the World's field ``offsets`` (F, 2), so a field's coordinates and their rounding do
     not depend on its block. ``owners`` maps each shape to its (field, robot) index in the World, robot -1
     for walls; ``joints`` lists the block's joints. After ``fast.read()``, ``robot_rows`` (C, R, 6) holds
-    each robot's x, y, angle, vx, vy, w. ``write_velocity()`` writes the rows the World gave
-    ``bind_velocity``, at the rows ``body_rows()`` names; ``place`` sets a field's bodies.
+    each robot's x, y, angle, vx, vy, w. ``step`` writes the velocity rows the World gave ``bind``, at the
+    rows ``body_rows()`` names, and reads into its read rows; ``place`` sets a field's bodies.
     """
 
     def __init__(
@@ -175,23 +176,25 @@ class FieldBlock:
         robots, controls = self._pairs(rows)
         return robots[..., 0], controls[..., 0]
 
-    def bind_velocity(self, rows: np.ndarray) -> None:
-        """Make ``write_velocity()`` write ``rows`` (bodies, 3) float64, C-contiguous, (vx, vy, w) a body
-        (``body_rows`` says whose), into the block's bodies. The World's step fills them in place, one
-        compiled loop for all blocks. The static body's row must stay zero: a velocity written there
-        throws robots out of their fields."""
-        self.write_velocity = self.fast.writer(_VELOCITY, rows)
+    def bind(self, velocity: np.ndarray, read: np.ndarray) -> None:
+        """Make ``step`` write ``velocity`` (bodies, 3) float64, C-contiguous, (vx, vy, w) a body
+        (``body_rows`` says whose), into the block's bodies and read each robot's x, y, angle, vx, vy, w
+        back into ``read`` (C, R, 6). The World fills the velocity rows in place, one compiled loop for all
+        blocks. The static body's row must stay zero: a velocity written there throws robots out of
+        their fields."""
+        self.write_velocity, self.read_rows = self.fast.writer(_VELOCITY, velocity), read
 
-    def advance(self, dt: float, substeps: int) -> None:
-        """Write the bound velocity rows and step ``substeps`` times ``dt``. The World reads each block
-        right after: its bodies are still in cache."""
+    def step(self, dt: float, substeps: int) -> None:
+        """Write the bound velocity rows, step ``substeps`` times ``dt`` and read the robots back right
+        after, while the block's bodies are still in cache."""
         self.write_velocity()
         self.fast.step(dt, substeps)
+        self.read()
 
-    def read(self, out: np.ndarray) -> None:
-        """Copy each robot's x, y, angle, vx, vy, w into ``out`` (C, R, 6)."""
+    def read(self) -> None:
+        """Copy each robot's x, y, angle, vx, vy, w into the bound read rows."""
         self.fast.read()
-        out[...] = self.robot_rows
+        self.read_rows[...] = self.robot_rows
 
     def place(self, field: int, rows: np.ndarray) -> np.ndarray:
         """Write ``rows`` (R, 6), x, y, angle, vx, vy, w, into the robots and control bodies of the World's

@@ -128,7 +128,7 @@ class World:
         self._velocity_at = np.empty((n, r, 2), dtype=np.int64)
         first = 0
         for block, size in zip(self.blocks, sizes, strict=True):
-            block.bind_velocity(self._velocity_rows[first : first + size])
+            block.bind(self._velocity_rows[first : first + size], self._read_rows[block.fields])
             for k, rows in enumerate(block.body_rows()):
                 self._velocity_at[block.fields, :, k] = first + rows
             first += size
@@ -181,7 +181,7 @@ class World:
 
     def _read_state(self) -> RobotState:
         for block in self.blocks:
-            block.read(self._read_rows[block.fields])
+            block.read()
         return self._state_of_rows()
 
     def _state_of_rows(self, fields: np.ndarray | None = None) -> RobotState:
@@ -300,5 +300,4 @@ class World:
     def _advance(self, blocks: list[FieldBlock]) -> None:
         """Write the velocity rows into ``blocks``, step them and read them back, one after another."""
         for block in blocks:
-            block.advance(self._sub_dt, self.substeps)
-            block.read(self._read_rows[block.fields])
+            block.step(self._sub_dt, self.substeps)

@@ -45,12 +45,22 @@ def _held(
     shaping: np.ndarray,
 ) -> None:
     """``Rules.hold`` of the action-centric tasks as one compiled loop over the sub-goals and targets
-    (..., 5): whether each sub-goal is on its target (d < d_th, delta < theta_th, as ``pose_reached``)
-    and R_d + R_theta, written into ``reached`` and ``shaping`` (...)."""
-    for b in np.ndindex(reached.shape):
-        d, delta = pose_error(subgoal[b], target[b])
-        reached[b] = d < d_th and delta < theta_th
-        shaping[b] = shaping_term(d, delta, d_th, theta_th)
+    (N, M, 5): whether each sub-goal is on its target (d < d_th, delta < theta_th, as ``pose_reached``)
+    and R_d + R_theta, written into ``reached`` and ``shaping`` (N, M)."""
+    for f in range(reached.shape[0]):
+        for i in range(reached.shape[1]):
+            d, delta = pose_error(subgoal[f, i], target[f, i])
+            reached[f, i] = d < d_th and delta < theta_th
+            shaping[f, i] = shaping_term(d, delta, d_th, theta_th)
+
+
+def _as_pairs(lead: tuple[int, ...], arrays: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """``arrays`` with the leading axes ``lead`` on the two the compiled loops run over: themselves for
+    the core's (N, M), views (B, 1, ...) of any others."""
+    if len(lead) == 2:
+        return arrays
+    size = math.prod(lead)
+    return tuple(a.reshape(size, 1, *a.shape[len(lead) :]) for a in arrays)
 
 
 def check_action(name: str, action: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
@@ -95,8 +105,10 @@ class Rules:
         (..., 5); None for the Baseline task, which measures the robot every step."""
         if self.task == "baseline":
             return None
-        reached, shaping = np.empty(target.shape[:-1], dtype=bool), np.empty(target.shape[:-1])
-        _held(subgoal, target, *self._thresholds, reached, shaping)
+        lead = target.shape[:-1]
+        reached, shaping = np.empty(lead, dtype=bool), np.empty(lead)
+        subgoal, target, *out = _as_pairs(lead, (subgoal, target, reached, shaping))
+        _held(subgoal, target, *self._thresholds, *out)
         return reached, shaping
 
     def __call__(
@@ -120,8 +132,8 @@ class Rules:
             held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
         lead = target.shape[:-1]
         reward, success, hit = np.empty(lead), np.empty(lead, dtype=bool), np.empty(lead, dtype=bool)
-        rows = (*held, target, subgoal, pos, vel, others, touching)
-        _score(*rows, self._settings, self._flags, reward, success, hit)
+        rows = _as_pairs(lead, (*held, target, subgoal, pos, vel, others, touching, reward, success, hit))
+        _score(*rows[:8], self._settings, self._flags, *rows[8:])
         return reward, success, hit
 
 
@@ -141,41 +153,42 @@ def _score(
     success: np.ndarray,
     hit: np.ndarray,
 ) -> None:
-    """``Rules.__call__`` as one compiled loop over the robots (...): the rules of ``robot_settled``,
+    """``Rules.__call__`` as one compiled loop over the robots (N, M): the rules of ``robot_settled``,
     ``collided``, ``obstacle_distance`` and ``combine_rewards``, their operations in their order
     (tests/envs/test_rules.py holds the results equal to theirs, bit for bit).
 
-    Shapes: reached, shaping, touching (...); target, subgoal (..., 5); pos, vel (..., 2); others
-    (..., J, 2).
+    Shapes: reached, shaping, touching (N, M); target, subgoal (N, M, 5); pos, vel (N, M, 2); others
+    (N, M, J, 2).
     ``settings``: d_th, speed_th, collision distance, R_t paid, R_hit paid; ``flags``: success needs the
     robot near the target (action-centric tasks), success replaces the shaping, the obstacle task's
     terms, R_obst measured from the robot (not the sub-goal), a hit replaces the other terms.
     """
     d_th, speed_th, collision_distance, success_paid, hit_paid = settings
     near_target, replace_success, obstacle_task, from_robot, replace_hit = flags
-    for b in np.ndindex(reward.shape):
-        p, v = pos[b], vel[b]
-        nearest = nearest_distance(p[0], p[1], others[b])  # +inf without another robot
-        hit[b] = nearest < collision_distance or touching[b]
-        # Success needs the measured pose on the target and the robot settled; a hit fails it.
-        done = reached[b] and not hit[b]
-        if done:
-            done = math.sqrt(v[0] * v[0] + v[1] * v[1]) < speed_th
-        if done and near_target:
-            dx, dy = p[0] - target[b][0], p[1] - target[b][1]
-            done = math.sqrt(dx * dx + dy * dy) < d_th
-        success[b] = done
-        pose = 0.0 if replace_success and done else shaping[b]
-        paid = success_paid if done else 0.0
-        if not obstacle_task:
-            reward[b] = pose + paid
-            continue
-        if not from_robot:
-            nearest = nearest_distance(subgoal[b][0], subgoal[b][1], others[b])
-        obstacle = obstacle_term(nearest)
-        if replace_hit and hit[b]:
-            pose, paid, obstacle = 0.0, 0.0, 0.0
-        reward[b] = pose + paid + obstacle + (hit_paid if hit[b] else 0.0)
+    for f in range(reward.shape[0]):
+        for i in range(reward.shape[1]):
+            x, y, vx, vy = pos[f, i, 0], pos[f, i, 1], vel[f, i, 0], vel[f, i, 1]
+            nearest = nearest_distance(x, y, others[f, i])  # +inf without another robot
+            hit[f, i] = nearest < collision_distance or touching[f, i]
+            # Success needs the measured pose on the target and the robot settled; a hit fails it.
+            done = reached[f, i] and not hit[f, i]
+            if done:
+                done = math.sqrt(vx * vx + vy * vy) < speed_th
+            if done and near_target:
+                dx, dy = x - target[f, i, 0], y - target[f, i, 1]
+                done = math.sqrt(dx * dx + dy * dy) < d_th
+            success[f, i] = done
+            pose = 0.0 if replace_success and done else shaping[f, i]
+            paid = success_paid if done else 0.0
+            if not obstacle_task:
+                reward[f, i] = pose + paid
+                continue
+            if not from_robot:
+                nearest = nearest_distance(subgoal[f, i, 0], subgoal[f, i, 1], others[f, i])
+            obstacle = obstacle_term(nearest)
+            if replace_hit and hit[f, i]:
+                pose, paid, obstacle = 0.0, 0.0, 0.0
+            reward[f, i] = pose + paid + obstacle + (hit_paid if hit[f, i] else 0.0)
 
 
 __all__ = ["Held", "Rules", "check_action"]

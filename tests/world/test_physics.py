@@ -181,6 +181,25 @@ def test_set_state_places_robots_in_the_field_frame_and_leaves_other_fields() ->
         np.testing.assert_array_equal(state.pos[f], before.pos[f])
 
 
+def test_a_reset_of_a_few_fields_leaves_the_state_a_full_read_gives() -> None:
+    # set_state writes the placed fields' bodies alone and unpacks their rows alone (three blocks here):
+    # what it leaves must be what reading every body of every block gives, bit for bit.
+    world, rng = _world(150, 3), np.random.default_rng(4)
+    assert len(world.blocks) == 3
+    for _ in range(20):
+        world.step(rng.uniform(-2, 2, (150, 3, 3)))
+    fields = np.array([3, 70, 71, 149])
+    pos = rng.uniform(-1, 1, (4, 3, 2)) + np.arange(3)[:, None] * 0.5
+    world.set_state(
+        fields, pos, rng.uniform(-3, 3, (4, 3)), rng.normal(0, 1, (4, 3, 2)), rng.normal(0, 1, (4, 3))
+    )
+    kept, read = world.state, world._read_state()
+    for name in ("pos", "angle", "vel", "ang_vel", "heading"):
+        np.testing.assert_array_equal(getattr(kept, name), getattr(read, name), err_msg=name)
+    world.step(rng.uniform(-2, 2, (150, 3, 3)))  # and the next step starts from it
+    assert np.isfinite(world.state.pos).all()
+
+
 def test_a_kept_state_is_never_modified_by_later_steps() -> None:
     world = _world(2, 2)
     kept = world.state

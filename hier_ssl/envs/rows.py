@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from hier_ssl.world.frames import all_finite
+
 OBS_BOUND = 1.2  # every observation value is clipped to +-1.2
 
 
@@ -54,7 +56,9 @@ class RowView:
         """Per-robot values (N, M, ...) or (N, ...) as rows (rows, ...); zeros where not ``keep``."""
         array = array.reshape(self.num_envs, -1)
         if keep is not None:
-            array = np.where(keep.reshape(self.num_envs, 1), array, array.dtype.type(0))
+            # A copy with the few rows not kept zeroed: a third of the time of np.where over every value.
+            array = array.copy()
+            array[~keep.ravel()] = 0
         return array
 
     def active(self) -> np.ndarray | None:
@@ -75,7 +79,7 @@ class RowView:
         if action.shape != (self.num_envs, self.num_actions):
             expected = (self.num_envs, self.num_actions)
             raise ValueError(f"actions have shape {tuple(action.shape)}, expected {expected}")
-        if not np.isfinite(action).all():
+        if not all_finite(action):
             rows = np.flatnonzero(~np.isfinite(action).all(axis=1))
             raise ValueError(f"actions of rows {rows.tolist()} hold NaN or infinite values")
         return action

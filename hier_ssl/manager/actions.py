@@ -110,14 +110,15 @@ class SubgoalDecoder:
         _check_frame_name(self.frame)
         object.__setattr__(self, "_half", np.array([self.half_length, self.half_width]))
         object.__setattr__(self, "_velocity", not (self.zero_velocity or self.form == "pose4"))
+        object.__setattr__(self, "_target_frame", self.frame == "target")
 
     def __call__(self, action: ArrayLike, target: ArrayLike | None) -> np.ndarray:
         """Sub-goals (N, 5) of actions (N, A)."""
         # (The frame's name was checked when made.)
-        target = _NO_TARGET if self.frame == "field" else _check_frame(self.frame, target)
+        target = _check_frame(self.frame, target) if self._target_frame else _NO_TARGET
         action = as_float(action)
         subgoal = np.zeros((action.shape[0], 5))
-        _decode_rows(action, target, self._half, self.max_v, self._velocity, self.frame == "target", subgoal)
+        _decode_rows(action, target, self._half, self.max_v, self._velocity, self._target_frame, subgoal)
         return subgoal
 
 

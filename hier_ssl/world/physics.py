@@ -25,12 +25,21 @@ import pymunk
 from hier_ssl.world.blocks import ROBOT, FieldBlock, block_bounds
 from hier_ssl.world.exchange import unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
-from hier_ssl.world.frames import _COMPLEX, all_finite
+from hier_ssl.world.frames import _COMPLEX, all_finite, as_float
 from hier_ssl.world.robot import RobotSpec, RobotState
 from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
 # What ``World._prepare`` makes: buffers, constants and the threads, made again for a copy.
-_PREPARED = {"_read_rows", "_velocity_rows", "_velocity_at", "_all_fields", "_block_of", "_limits", "_pool"}
+_PREPARED = {
+    "_read_rows",
+    "_velocity_rows",
+    "_velocity_at",
+    "_all_fields",
+    "_shapes",
+    "_block_of",
+    "_limits",
+    "_pool",
+}
 
 
 class World:
@@ -119,7 +128,7 @@ class World:
         """The read and write buffers of the hot path and its constants, made once."""
         n, r, spec = self.num_fields, self.num_robots, self.robot
         self._read_rows = np.zeros((n, r, 6))
-        self._all_fields = np.arange(n)
+        self._all_fields, self._shapes = np.arange(n), ((n, r), (n, r, 2))
         self._block_of = [k for k, block in enumerate(self.blocks) for _ in range(block.start, block.stop)]
         # Every block's velocity rows, one after another, and where each robot's (field, robot, 0) and its
         # control body's (..., 1) row is among them: a step writes them all in one call, no copies.
@@ -188,8 +197,8 @@ class World:
         """A new state from the rows of the last read (a state is replaced, never changed): of every field,
         or of ``fields`` (F,) ints and the current state's other fields (a reset unpacks its own alone)."""
         if fields is None:
-            shape, fields = (self.num_fields, self.num_robots), self._all_fields
-            pos, vel = np.empty((*shape, 2)), np.empty((*shape, 2))
+            (shape, pairs), fields = self._shapes, self._all_fields
+            pos, vel = np.empty(pairs), np.empty(pairs)
             angle, ang_vel, heading = np.empty(shape), np.empty(shape), np.empty(shape, dtype=_COMPLEX)
         else:
             s = self.state
@@ -269,7 +278,7 @@ class World:
         tell which robots touched which robot or wall during any substep of this period, ``robot_touch``
         (N, R) which touched any robot.
         """
-        command = np.asarray(command, dtype=np.float64)
+        command = as_float(command)
         expected = (self.num_fields, self.num_robots, 3)
         if command.shape != expected:
             raise ValueError(f"command has shape {command.shape}, expected {expected}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from hier_ssl.world.field import Field
@@ -93,10 +94,33 @@ class PublicCodeRandom:
     def __call__(self, pos: np.ndarray, angle: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         n = len(angle)
         cmd = np.empty((n, 3))
-        cmd[:, 0:2] = rng.uniform(-self.max_speed, self.max_speed, (n, 2))
-        cmd[:, 2:3] = rng.uniform(-self.max_spin, self.max_spin, (n, 1))
-        np.copyto(cmd, 0.0, where=self._still[:, None])
+        # The draws of rng.uniform(-max_speed, max_speed, (n, 2)), then of rng.uniform for the spin: the
+        # same doubles in the same order, scaled as numpy does, in one compiled loop (a third of the calls).
+        limits = (float(self.max_speed), float(self.max_spin))
+        _uniform_commands(rng.random((n, 2)), rng.random(n), self._still, *limits, cmd)
         return cmd
+
+
+@numba.njit(cache=True)
+def _uniform_commands(
+    unit_xy: np.ndarray,
+    unit_w: np.ndarray,
+    still: np.ndarray,
+    max_speed: float,
+    max_spin: float,
+    out: np.ndarray,
+) -> None:
+    """``out`` (N, 3): zeros where ``still`` (N,), else vx, vy ~ U(-max_speed, max_speed) of the unit draws
+    ``unit_xy`` (N, 2) and w ~ U(-max_spin, max_spin) of ``unit_w`` (N,), each low + (high - low) * u as
+    numpy's Generator.uniform computes it (tests/world/test_obstacles.py holds the two equal)."""
+    speed_range, spin_range = max_speed - -max_speed, max_spin - -max_spin
+    for j in range(out.shape[0]):
+        if still[j]:
+            out[j] = 0.0
+            continue
+        out[j, 0] = -max_speed + speed_range * unit_xy[j, 0]
+        out[j, 1] = -max_speed + speed_range * unit_xy[j, 1]
+        out[j, 2] = -max_spin + spin_range * unit_w[j]
 
 
 OBSTACLES = {"stationary": Stationary, "random_walk": RandomWalk, "public_code": PublicCodeRandom}

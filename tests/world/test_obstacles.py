@@ -64,6 +64,21 @@ def test_public_code_obstacle_is_still_or_random_per_episode() -> None:
     np.testing.assert_array_equal(behaviour(pos, angle, rng)[still], 0.0)
 
 
+def test_public_code_commands_are_numpys_uniform_draws_bit_for_bit() -> None:
+    # The compiled scaling of the unit draws gives what rng.uniform gave, from the same generator state.
+    pos, angle = _frames(np.random.default_rng(4))
+    behaviour = PublicCodeRandom(num_fields=N, max_speed=2.5, max_spin=np.pi)
+    behaviour.reset(np.arange(N), np.random.default_rng(5))
+    rng, twin = np.random.default_rng(6), np.random.default_rng(6)
+    for _ in range(3):
+        want = np.empty((N, 3))
+        want[:, 0:2] = twin.uniform(-2.5, 2.5, (N, 2))
+        want[:, 2:3] = twin.uniform(-np.pi, np.pi, (N, 1))
+        np.copyto(want, 0.0, where=behaviour._still[:, None])
+        np.testing.assert_array_equal(behaviour(pos, angle, rng), want)
+    assert rng.random() == twin.random()  # the same number of draws
+
+
 def test_same_seed_same_draws() -> None:
     pos, angle = _frames(np.random.default_rng(3))
     a = RandomWalk()(pos, angle, np.random.default_rng(9))

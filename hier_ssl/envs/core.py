@@ -30,9 +30,9 @@ from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
 from hier_ssl.envs.step_guard import abandon, hold
-from hier_ssl.manager import manager_observation
 from hier_ssl.manager.actions import SubgoalDecoder
 from hier_ssl.manager.neighbours import neighbour_observation
+from hier_ssl.manager.observation import first_robot_observation, observation_scales
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.worker.observation import controlled_worker_observation, scale_command
 from hier_ssl.world.obstacles import make_obstacle
@@ -94,6 +94,8 @@ class HierarchicalCore:
         self._decode = SubgoalDecoder(cfg.action_form, *sizes, scenario.zero_velocity, cfg.action_frame)
         # The observation's scales as 0-d arrays (see ``Rules``).
         self._limits = {k: np.array(scenario.scales[k]) for k in ("max_pos", "max_v", "max_w")}
+        # The paper layout's divisors (robot 0 observed, the others its obstacles).
+        self._obs_scales = observation_scales(m + k - 1, *(float(v) for v in self._limits.values()))
         self._sum_rewards = cfg.frame_skip_reward == "sum"
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
         # _others_of(pos) (N, M, R - 1, 2): a view for one controlled robot, else np.take (a tenth of the cost
@@ -188,9 +190,8 @@ class HierarchicalCore:
         target = self.target if fields is None else self.target[fields]
         f, m = target.shape[:2]
         b, limits = f * m, self._limits
-        if self._layout == "paper":  # one robot (column 0, a view): the others are its obstacles
-            own = (target[:, 0], s.pos[:, 0], s.angle[:, 0], s.vel[:, 0], s.ang_vel[:, 0])
-            obs = manager_observation(*own, s.pos[:, 1:], s.vel[:, 1:], s.ang_vel[:, 1:], **limits)
+        if self._layout == "paper":  # one robot (column 0): the others are its obstacles
+            obs = first_robot_observation(target, s.pos, s.angle, s.vel, s.ang_vel, self._obs_scales)
         else:
             rows = (
                 target.reshape(b, 5),

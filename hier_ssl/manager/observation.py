@@ -118,8 +118,31 @@ def manager_observation(
     n, k = obs_pos.shape[:2]
     obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * k), dtype=np.float32)
     arrays = (target, pos, angle, vel, ang_vel, obs_pos, obs_vel, obs_ang_vel)
-    scales = _scales(k, float(max_pos), float(max_v), float(max_w))
+    scales = observation_scales(k, float(max_pos), float(max_v), float(max_w))
     _observation_rows(*map(as_float, arrays), scales, float(clip), obs)
+    return obs
+
+
+def first_robot_observation(
+    target: np.ndarray,
+    pos: np.ndarray,
+    angle: np.ndarray,
+    vel: np.ndarray,
+    ang_vel: np.ndarray,
+    scales: np.ndarray,
+    clip: float = 1.2,
+) -> np.ndarray:
+    """``manager_observation`` of robot 0 of every field, the field's other robots its obstacles, from the
+    arrays of a state as they are: no slices, no conversions (the paper tasks' core observes this way,
+    once a step; at one field those were most of the cost).
+
+    Shapes: target (N, M, 5), robot 0's in column 0; pos, vel (N, R, 2); angle, ang_vel (N, R); all float64,
+    as a ``RobotState`` holds them (trusted, not converted). ``scales``: ``observation_scales(R - 1, ...)``.
+    Returns (N, 13 + 5 (R - 1)) float32.
+    """
+    n, r = angle.shape
+    obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * (r - 1)), dtype=np.float32)
+    _first_robot_rows(target, pos, angle, vel, ang_vel, scales, clip, obs)
     return obs
 
 
@@ -141,19 +164,59 @@ def _observation_rows(
     call whatever N: at one field numpy's per-call overhead, not the arithmetic, was the cost)."""
     raw = np.empty(out.shape[1])  # one row before scaling, in layout order
     for b in range(out.shape[0]):
-        raw[0:2], raw[4:6] = target[b, 0:2], target[b, 3:5]
-        raw[2], raw[3] = math.sin(target[b, 2]), math.cos(target[b, 2])
-        raw[6:8], raw[8], raw[9] = pos[b], math.sin(angle[b]), math.cos(angle[b])
-        raw[10:12], raw[12] = vel[b], ang_vel[b]
-        for j in range(obs_pos.shape[1]):
-            slot = raw[MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * j :]
-            slot[0:2], slot[2:4], slot[4] = obs_pos[b, j], obs_vel[b, j], obs_ang_vel[b, j]
-        for column in range(raw.shape[0]):
-            out[b, column] = min(max(raw[column] / scales[column], -clip), clip)
+        own = (target[b], pos[b], angle[b], vel[b], ang_vel[b])
+        _observation_row(*own, obs_pos[b], obs_vel[b], obs_ang_vel[b], scales, clip, raw, out[b])
+
+
+@numba.njit(cache=True)
+def _first_robot_rows(
+    target: np.ndarray,
+    pos: np.ndarray,
+    angle: np.ndarray,
+    vel: np.ndarray,
+    ang_vel: np.ndarray,
+    scales: np.ndarray,
+    clip: float,
+    out: np.ndarray,
+) -> None:
+    """``first_robot_observation``'s rows written into ``out`` (N, 13 + 5 (R - 1)) float32."""
+    raw = np.empty(out.shape[1])
+    for b in range(out.shape[0]):
+        own = (target[b, 0], pos[b, 0], angle[b, 0], vel[b, 0], ang_vel[b, 0])
+        _observation_row(*own, pos[b, 1:], vel[b, 1:], ang_vel[b, 1:], scales, clip, raw, out[b])
+
+
+@numba.njit(cache=True)
+def _observation_row(
+    target: np.ndarray,
+    pos: np.ndarray,
+    angle: float,
+    vel: np.ndarray,
+    ang_vel: float,
+    obs_pos: np.ndarray,
+    obs_vel: np.ndarray,
+    obs_ang_vel: np.ndarray,
+    scales: np.ndarray,
+    clip: float,
+    raw: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """One field's observation into ``out`` (13 + 5K,) float32, by way of ``raw`` (the same length, float64:
+    the row before scaling, in layout order). Shapes: target (5,); pos, vel (2,); obs_pos, obs_vel (K, 2);
+    obs_ang_vel (K,)."""
+    raw[0:2], raw[4:6] = target[0:2], target[3:5]
+    raw[2], raw[3] = math.sin(target[2]), math.cos(target[2])
+    raw[6:8], raw[8], raw[9] = pos, math.sin(angle), math.cos(angle)
+    raw[10:12], raw[12] = vel, ang_vel
+    for j in range(obs_pos.shape[0]):
+        slot = raw[MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * j :]
+        slot[0:2], slot[2:4], slot[4] = obs_pos[j], obs_vel[j], obs_ang_vel[j]
+    for column in range(raw.shape[0]):
+        out[column] = min(max(raw[column] / scales[column], -clip), clip)
 
 
 @functools.lru_cache(maxsize=64)
-def _scales(k: int, max_pos: float, max_v: float, max_w: float) -> np.ndarray:
+def observation_scales(k: int, max_pos: float, max_v: float, max_w: float) -> np.ndarray:
     """The divisor of each column of the layout with ``k`` obstacles (1 for sin and cos)."""
     base = [max_pos, max_pos, 1.0, 1.0, max_v, max_v, max_pos, max_pos, 1.0, 1.0, max_v, max_v, max_w]
     return np.array(base + [max_pos, max_pos, max_v, max_v, max_w] * k)

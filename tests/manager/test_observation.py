@@ -9,8 +9,10 @@ from hier_ssl.manager.observation import (
     MANAGER_OBS_SLICES,
     OBSTACLE_OBS_DIM,
     OBSTACLE_OBS_SLICES,
+    first_robot_observation,
     manager_obs_dim,
     manager_observation,
+    observation_scales,
     obstacle_obs_slice,
 )
 
@@ -80,3 +82,17 @@ def test_batched_rows_match_single_fields_and_no_obstacle() -> None:
     for i in range(4):
         single = manager_observation(**{name: value[i : i + 1] for name, value in inputs.items()})
         np.testing.assert_array_equal(obs[i], single[0])
+
+
+def test_first_robot_observation_is_manager_observation_of_the_states_columns() -> None:
+    rng = np.random.default_rng(3)
+    n, r = 5, 4  # robot 0 observed, robots 1-3 its obstacles; values past the clip included
+    target = rng.uniform(-5, 5, (n, 2, 5))
+    pos, vel = rng.uniform(-5, 5, (n, r, 2)), rng.uniform(-3, 3, (n, r, 2))
+    angle, ang_vel = rng.uniform(-3, 3, (n, r)), rng.uniform(-12, 12, (n, r))
+    scales = observation_scales(r - 1, 3.8, 2.5, 10.0)
+    obs = first_robot_observation(target, pos, angle, vel, ang_vel, scales)
+    own = (target[:, 0], pos[:, 0], angle[:, 0], vel[:, 0], ang_vel[:, 0])
+    expected = manager_observation(*own, pos[:, 1:], vel[:, 1:], ang_vel[:, 1:])
+    assert obs.dtype == np.float32 and obs.shape == (n, manager_obs_dim(r - 1))
+    np.testing.assert_array_equal(obs, expected)

@@ -191,7 +191,7 @@ class HierarchicalCore:
         f, m = target.shape[:2]
         b, limits = f * m, self._limits
         if self._layout == "paper":  # one robot (column 0): the others are its obstacles
-            obs = first_robot_observation(target, s.pos, s.angle, s.vel, s.ang_vel, self._obs_scales)
+            obs = first_robot_observation(target, s, self._obs_scales)
         else:
             rows = (
                 target.reshape(b, 5),

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hier_ssl.world.frames import as_float
+from hier_ssl.world.robot import RobotState
 
 MANAGER_OBS_BASE_DIM = 13
 OBSTACLE_OBS_DIM = 5
@@ -124,25 +125,19 @@ def manager_observation(
 
 
 def first_robot_observation(
-    target: np.ndarray,
-    pos: np.ndarray,
-    angle: np.ndarray,
-    vel: np.ndarray,
-    ang_vel: np.ndarray,
-    scales: np.ndarray,
-    clip: float = 1.2,
+    target: np.ndarray, state: RobotState, scales: np.ndarray, clip: float = 1.2
 ) -> np.ndarray:
     """``manager_observation`` of robot 0 of every field, the field's other robots its obstacles, from the
-    arrays of a state as they are: no slices, no conversions (the paper tasks' core observes this way,
-    once a step; at one field those were most of the cost).
+    arrays of ``state`` (N, R) as they are: no slices, no conversions (the paper tasks' core observes this
+    way, once a step; at one field those were most of the cost).
 
-    Shapes: target (N, M, 5), robot 0's in column 0; pos, vel (N, R, 2); angle, ang_vel (N, R); all float64,
-    as a ``RobotState`` holds them (trusted, not converted). ``scales``: ``observation_scales(R - 1, ...)``.
+    Shapes: target (N, M, 5), robot 0's in column 0; ``state``'s arrays float64, as a ``World`` and the
+    deploy view make them (trusted, not converted). ``scales``: ``observation_scales(R - 1, ...)``.
     Returns (N, 13 + 5 (R - 1)) float32.
     """
-    n, r = angle.shape
+    n, r = state.angle.shape
     obs = np.empty((n, MANAGER_OBS_BASE_DIM + OBSTACLE_OBS_DIM * (r - 1)), dtype=np.float32)
-    _first_robot_rows(target, pos, angle, vel, ang_vel, scales, clip, obs)
+    _first_robot_rows(target, state.pos, state.angle, state.vel, state.ang_vel, scales, clip, obs)
     return obs
 
 

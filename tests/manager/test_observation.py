@@ -15,6 +15,7 @@ from hier_ssl.manager.observation import (
     observation_scales,
     obstacle_obs_slice,
 )
+from hier_ssl.world.robot import RobotState
 
 
 def _build_inputs(n: int = 1, k: int = 1, **overrides: np.ndarray) -> dict[str, np.ndarray]:
@@ -91,7 +92,7 @@ def test_first_robot_observation_is_manager_observation_of_the_states_columns() 
     pos, vel = rng.uniform(-5, 5, (n, r, 2)), rng.uniform(-3, 3, (n, r, 2))
     angle, ang_vel = rng.uniform(-3, 3, (n, r)), rng.uniform(-12, 12, (n, r))
     scales = observation_scales(r - 1, 3.8, 2.5, 10.0)
-    obs = first_robot_observation(target, pos, angle, vel, ang_vel, scales)
+    obs = first_robot_observation(target, RobotState(pos, angle, vel, ang_vel), scales)
     own = (target[:, 0], pos[:, 0], angle[:, 0], vel[:, 0], ang_vel[:, 0])
     expected = manager_observation(*own, pos[:, 1:], vel[:, 1:], ang_vel[:, 1:])
     assert obs.dtype == np.float32 and obs.shape == (n, manager_obs_dim(r - 1))

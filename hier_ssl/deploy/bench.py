@@ -131,6 +131,9 @@ def untrained_export(folder: Path, task: str = "obstacle", fmt: str = "torchscri
     return export_manager(run, fmt)
 
 
+WARM_UP_S = 1.0  # s: the latency rows' untimed first run
+
+
 class WiredRun:
     """A field server process on ``task`` and the controller loop of ``manager`` here, over 127.0.0.1,
     both free-running or both in ``lockstep``."""
@@ -201,6 +204,8 @@ def latency_row(
     manager: str, label: str, robots: int, seconds: float, priority: int = PRIORITY
 ) -> dict[str, Any]:
     task = LATENCY_FIELDS[robots]
+    # An untimed first run builds this process's compiled kernels (seconds on a cold cache).
+    WiredRun(manager, task, robots, None, priority=priority).run(WARM_UP_S)
     stats, _ = WiredRun(manager, task, robots, None, priority=priority).run(seconds)
     if not stats.latencies:
         raise RuntimeError(f"latency of {label!r}: no command sent in {seconds} s (is the field server up?)")

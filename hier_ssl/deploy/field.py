@@ -143,6 +143,11 @@ class FieldServer:
             )
         self.core = HierarchicalCore(config, num_fields=1, autoreset=False)
         self.m, self.k = self.core.num_agents, self.core.num_obstacles
+        # One step before the ports are announced builds the core's compiled kernels (seconds on a cold
+        # cache), which a client timing from the announcement would count; ``run`` resets first.
+        self.core.reset(seed)
+        self.core.hold_subgoal(self.core.target)
+        self.core.control_step(np.ones((1, self.m), bool), worker_action=np.zeros((1, self.m, 3)))
         other = TEAMS[1 - TEAMS.index(team)]
         self.labels = [(team, i) for i in range(self.m)] + [(other, j) for j in range(self.k)]
         fld = self.core.field

@@ -80,9 +80,9 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
     versus.add_argument(
         "--sizes", type=positive_int, nargs="+", default=[1024], metavar="N", help="fields (default: 1024)"
     )
-    versus.add_argument("--rounds", type=positive_int, default=3, help="alternations (default: %(default)s)")
+    versus.add_argument("--rounds", type=positive_int, default=40, help="alternations (default: %(default)s)")
     versus.add_argument(
-        "--steps", type=positive_int, default=None, help="control steps a round (default: about 0.5 s)"
+        "--steps", type=positive_int, default=None, help="control steps a round (default: about 0.1 s)"
     )
     versus.add_argument(
         "--threads",

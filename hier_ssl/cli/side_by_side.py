@@ -4,7 +4,9 @@ Each pair has the same robots per field: ``obstacle`` (1 robot + 1 obstacle) bes
 with 2 agents, ``formation`` (6 + 6) beside ``navigation`` with 6 (the issue's anchor; VMAS has no moving
 obstacles), ``proposed`` (1 robot) beside ``simple``. Both take uniform random actions drawn beforehand;
 hier_ssl resets finished episodes inside its step, VMAS (no auto-reset) runs on. Rounds alternate the
-two, hier_ssl first, and each side's best round is kept. A control step is 0.025 s of simulated time in
+two, hier_ssl first, and each side's best round is kept. Rounds are many and short (40 of about 0.1 s by
+default): on a shared machine a process's speed drifts over seconds, and a few long rounds let that drift
+into the ratio (docs/guide/benchmarks.md has the runs that showed it). A control step is 0.025 s of simulated time in
 hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simulated second.
 
 Without VMAS installed (``pip install hier_ssl[bench]``) only hier_ssl's figures are printed; the
@@ -31,6 +33,8 @@ PAIRS = (
     ("proposed", "simple", {}),
 )
 PETTINGZOO_TASKS = ("proposed", "obstacle")
+ROUND_ROBOT_STEPS = 50_000  # a round at N = 1024: 25 control steps of `obstacle`, about 0.1 s
+PETTINGZOO_ROUND_STEPS = 500  # a PettingZoo round: about 25 ms
 
 
 def vmas_installed() -> bool:
@@ -84,12 +88,12 @@ def compare_pair(
     threads: int = 1,
 ) -> dict[str, Any]:
     """hier_ssl's ``task`` at frame skip 1 and, if installed, VMAS's ``scenario`` over ``n_fields``
-    fields, ``rounds`` alternating rounds of ``steps`` control steps each (None: 200,000 robot-steps, about
-    half a second), hier_ssl's world on ``threads`` threads: the best of each side in field-steps/s and
+    fields, ``rounds`` alternating rounds of ``steps`` control steps each (None: 50,000 robot-steps, about
+    a tenth of a second), hier_ssl's world on ``threads`` threads: the best of each side in field-steps/s and
     simulated seconds per second, and their ratios (hier_ssl over VMAS)."""
     hier = VectorRun(task, n_fields, 1, clock, threads=threads)
     vmas_run = VmasRun(scenario, n_fields, options, clock) if vmas_installed() else None
-    count = steps or max(5, round(200_000 / (n_fields * hier.robots_per_field)))
+    count = steps or max(5, round(ROUND_ROBOT_STEPS / (n_fields * hier.robots_per_field)))
     best, best_vmas = 0.0, 0.0
     for _ in range(rounds):
         seconds, steps, _ = hier.run(count)
@@ -119,10 +123,12 @@ def compare_pair(
 def comparisons(
     sizes: Sequence[int], rounds: int, clock: Clock, steps: int | None = None, threads: int = 1
 ) -> Iterator[dict[str, Any]]:
-    """The PettingZoo view at frame skip 1 for ``PETTINGZOO_TASKS`` (``bench_env``), then every pair at
-    every N (``compare_pair``, on ``threads`` threads)."""
+    """The PettingZoo view at frame skip 1 for ``PETTINGZOO_TASKS`` (``bench_env``, best of ``rounds``
+    rounds of ``PETTINGZOO_ROUND_STEPS`` steps, or ``steps``), then every pair at every N (``compare_pair``,
+    on ``threads`` threads)."""
     for task in PETTINGZOO_TASKS:
-        result = bench_env(1, task, decisions=steps, clock=clock)
+        decisions = steps or PETTINGZOO_ROUND_STEPS
+        result = bench_env(1, task, decisions=decisions, repeats=rounds, clock=clock)
         yield {"bench": "env", "task": task, "n_fields": 1, "steps_per_s": round(result.steps_per_s, 1)}
     for n in sizes:
         for task, scenario, options in PAIRS:

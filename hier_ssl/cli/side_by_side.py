@@ -6,8 +6,9 @@ obstacles), ``proposed`` (1 robot) beside ``simple``. Both take uniform random a
 hier_ssl resets finished episodes inside its step, VMAS (no auto-reset) runs on. Rounds alternate the
 two, hier_ssl first, and each side's best round is kept. Rounds are many and short (40 of about 0.1 s by
 default): on a shared machine a process's speed drifts over seconds, and a few long rounds let that drift
-into the ratio (docs/guide/benchmarks.md has the runs that showed it). A control step is 0.025 s of simulated time in
-hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simulated second.
+into the ratio (docs/guide/benchmarks.md has the runs that showed it). A control step is 0.025 s of
+simulated time in hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simulated
+second.
 
 Without VMAS installed (``pip install hier_ssl[bench]``) only hier_ssl's figures are printed; the
 PettingZoo view's steps per second at frame skip 1 are printed in both cases. With ``threads`` > 1 the

@@ -93,7 +93,7 @@ def manager_env(
     given: TaskConfig | None = None,
 ) -> TaskConfig:
     """The task or scenario to evaluate ``spec`` in. With ``given``, that one (a run acting with its own
-    ``INTERFACE_KEYS``); otherwise a run's own, or for a planner the paper ``task``'s default environment
+    ``INTERFACE_KEYS``, a planner in the field frame); otherwise a run's own, or for a planner the paper ``task``'s default environment
     (``hier_ssl.envs.env_config``) deciding every ``PLANNER_FRAME_SKIP`` control steps. ``task`` (paper
     tasks), ``frame_skip`` and ``worker`` override what these give."""
     overrides: dict[str, Any] = {}
@@ -102,7 +102,11 @@ def manager_env(
     if worker is not None:
         overrides["worker"] = worker
     if given is not None:
-        if not is_planner(spec):
+        if is_planner(spec):
+            # A planner's sub-goals are field poses; the target frame (a run's choice) reaches half the
+            # field's length from the target and clipped the far ones (crowd: `sampling` 97.4 % against 99.0).
+            overrides["action_frame"] = "field"
+        else:
             own = run_config(spec).task_config
             overrides |= {key: getattr(own, key) for key in INTERFACE_KEYS}
         return given.model_copy(update=overrides)

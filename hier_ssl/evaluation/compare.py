@@ -93,8 +93,9 @@ def manager_env(
     given: TaskConfig | None = None,
 ) -> TaskConfig:
     """The task or scenario to evaluate ``spec`` in. With ``given``, that one (a run acting with its own
-    ``INTERFACE_KEYS``, a planner in the field frame); otherwise a run's own, or for a planner the paper ``task``'s default environment
-    (``hier_ssl.envs.env_config``) deciding every ``PLANNER_FRAME_SKIP`` control steps. ``task`` (paper
+    ``INTERFACE_KEYS``, a planner in the field frame); otherwise a run's own, or for a planner the paper
+    ``task``'s default environment (``hier_ssl.envs.env_config``) deciding every ``PLANNER_FRAME_SKIP``
+    control steps. ``task`` (paper
     tasks), ``frame_skip`` and ``worker`` override what these give."""
     overrides: dict[str, Any] = {}
     if frame_skip is not None:

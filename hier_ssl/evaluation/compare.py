@@ -95,8 +95,7 @@ def manager_env(
     """The task or scenario to evaluate ``spec`` in. With ``given``, that one (a run acting with its own
     ``INTERFACE_KEYS``, a planner in the field frame); otherwise a run's own, or for a planner the paper
     ``task``'s default environment (``hier_ssl.envs.env_config``) deciding every ``PLANNER_FRAME_SKIP``
-    control steps. ``task`` (paper
-    tasks), ``frame_skip`` and ``worker`` override what these give."""
+    control steps. ``task`` (paper tasks), ``frame_skip`` and ``worker`` override what these give."""
     overrides: dict[str, Any] = {}
     if frame_skip is not None:
         overrides["frame_skip"] = frame_skip

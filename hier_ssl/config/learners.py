@@ -154,6 +154,10 @@ class CandidatePPOConfig(Strict):
     horizon: int = Field(32, ge=1)  # decisions per field per iteration
     learning_rate: float = Field(1e-4, gt=0)
     value_learning_rate: float = Field(1e-3, gt=0)
+    # Both learning rates fall linearly to 1 / iterations of themselves by the last iteration, so the
+    # final policy is not the last of a run of full-size noisy steps (rates near 99 % move by a few
+    # episodes in 1000 between neighbouring checkpoints).
+    anneal: bool = False
     value_hidden: LayerSizes = (256, 256)
     value_warmup: int = Field(10, ge=0)  # iterations that fit the value alone before the policy moves
     gamma: float = Field(0.99, gt=0, le=1)  # per decision

@@ -245,6 +245,12 @@ class CandidateLearner:
         self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
         for iteration in range(first, settings.iterations):
             began = time.perf_counter()
+            if settings.anneal:
+                left = 1.0 - iteration / settings.iterations
+                rates = (settings.learning_rate, settings.value_learning_rate)
+                for optimizer, rate in zip(self.optimizers, rates, strict=True):
+                    for group in optimizer.param_groups:
+                        group["lr"] = rate * left
             batch, logs = self.rollout()
             decisions += len(batch[0])
             logs |= self.update(batch, moving=iteration >= settings.value_warmup)

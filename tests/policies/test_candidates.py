@@ -112,13 +112,19 @@ def test_a_candidates_run_resumes_in_either_phase_and_plays_as_a_policy(tmp_path
     assert _steps(run) == [1, 2, 3]
     assert int(rows[2].split(",")[1]) > int(rows[1].split(",")[1])  # round 3 added labelled states
     # PPO on top: scored every 2 iterations and at the last; a resumed PPO phase goes on from its last save.
-    ppo = {"iterations": 3, "fields": 8, "horizon": 4, "value_warmup": 1, "eval_interval": 2}
+    ppo = {"iterations": 3, "fields": 8, "horizon": 4, "value_warmup": 1, "eval_interval": 2, "anneal": True}
     _more(run, ppo=ppo)
     train(resume_config(run), run, resume=True, progress=False)
-    assert _steps(run) == [1, 2, 3, 5, 6] and torch.load(run / "model.pt")["phase"] == "ppo"
+    saved = torch.load(run / "model.pt")
+    assert _steps(run) == [1, 2, 3, 5, 6] and saved["phase"] == "ppo"
+    # Annealed: the last iteration (index 2 of 3) stepped at a third of each rate.
+    rates = [group["param_groups"][0]["lr"] for group in saved["optimizers"]]
+    assert rates == pytest.approx([1e-4 / 3, 1e-3 / 3])
     _more(run, ppo={"iterations": 4})
     train(resume_config(run), run, resume=True, progress=False)
     assert _steps(run) == [1, 2, 3, 5, 6, 7]
+    rates = [group["param_groups"][0]["lr"] for group in torch.load(run / "model.pt")["optimizers"]]
+    assert rates == pytest.approx([1e-4 / 4, 1e-3 / 4])
     core = HierarchicalCore(resume_config(run).task_config, 8)
     obs = core.reset(1).reshape(-1, core.obs_dim)
     for which in ("best", "final"):

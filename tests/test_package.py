@@ -15,7 +15,7 @@ import pytest
 import hier_ssl
 from hier_ssl import cli
 from hier_ssl.config import ConfigError
-from hier_ssl.config.files import config_dir, config_names, find_config
+from hier_ssl.config.files import config_dir, config_names, find_config, load_yaml
 from hier_ssl.envs import load_config
 
 ROOT = Path(__file__).parents[1]
@@ -43,6 +43,27 @@ def test_names_resolve_from_any_directory(tmp_path: Path, monkeypatch: pytest.Mo
     for bad in ("proposed/nope", "fscaps", str(tmp_path / "missing.yaml")):
         with pytest.raises(ConfigError, match="config file not found"):
             find_config(bad)
+
+
+def test_a_config_with_a_base_holds_only_its_changes(tmp_path: Path) -> None:
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "mid.yaml").write_text("base: paper/baseline/fscaps\nname: mid\nsac:\n  gamma: 0.9\n")
+    (tmp_path / "top.yaml").write_text("base: sub/mid.yaml\nname: top\ntotal_steps: 70000\n")
+    paper = load_yaml("paper/baseline/fscaps")
+    top = load_yaml(tmp_path / "top.yaml")
+    # Sections merge key by key down the chain; the file's own keys win; nothing else changes.
+    assert top == {**paper, "name": "top", "total_steps": 70000, "sac": {**paper["sac"], "gamma": 0.9}}
+    assert load_config(tmp_path / "top.yaml").sac.reward_scale == 1.0
+    (tmp_path / "loop.yaml").write_text("base: sub/loop2.yaml\n")
+    (tmp_path / "sub" / "loop2.yaml").write_text("base: ../loop.yaml\n")
+    with pytest.raises(ConfigError, match="loop2.yaml: base: '../loop.yaml' includes itself"):
+        load_yaml(tmp_path / "loop.yaml")
+    (tmp_path / "bad.yaml").write_text("base: nowhere/nothing\n")
+    with pytest.raises(ConfigError, match="bad.yaml: base: config file not found: nowhere/nothing"):
+        load_yaml(tmp_path / "bad.yaml")
+    (tmp_path / "list.yaml").write_text("base: [a, b]\n")
+    with pytest.raises(ConfigError, match=r"list.yaml: base: expected .*\['a', 'b'\]"):
+        load_yaml(tmp_path / "list.yaml")
 
 
 def _run(*argv: str, cwd: Path) -> subprocess.CompletedProcess[str]:

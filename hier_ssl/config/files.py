@@ -60,8 +60,23 @@ def find_config(path: str | Path) -> Path:
     raise ConfigError(f"config file not found: {path} (nor a shipped config: `hier-ssl configs` lists them)")
 
 
-def load_yaml(path: str | Path) -> dict[str, Any]:
-    """The mapping in the YAML file ``path`` (or the shipped config it names, ``find_config``)."""
+def merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """``over`` on top of ``base``: sections merge key by key, any other value replaces the base's."""
+    out = copy.deepcopy(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def load_yaml(path: str | Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """The mapping in the YAML file ``path`` (or the shipped config it names, ``find_config``).
+
+    A file with ``base: OTHER`` holds only what it changes: it is read on top of OTHER (a path relative to
+    the file, or a shipped name such as ``paper/baseline/fscaps``), so a variant of a config names its
+    differences instead of copying the rest."""
     path = find_config(path)
     try:
         data = yaml.safe_load(path.read_text()) or {}
@@ -69,4 +84,16 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: not valid YAML ({err})") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: top level must be a mapping, got {type(data).__name__}")
-    return data
+    if "base" not in data:
+        return data
+    name = data.pop("base")
+    if not isinstance(name, str):
+        raise ConfigError(f"{path}: base: expected a config file or shipped name, got {name!r}")
+    beside = path.parent / name
+    try:
+        base = find_config(beside if beside.is_file() else name).resolve()
+    except ConfigError as err:
+        raise ConfigError(f"{path}: base: {err}") from None
+    if base in (path.resolve(), *_seen):
+        raise ConfigError(f"{path}: base: {name!r} includes itself")
+    return merge(load_yaml(base, (*_seen, path.resolve())), data)

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hier_ssl.config import TrainConfig
 from hier_ssl.envs import load_config
 from hier_ssl.manager import task_reward
 from hier_ssl.manager.optimum import finish_value, finishing_wins, hover_value, in_threshold_bonus
@@ -47,11 +48,12 @@ def test_the_papers_reward_hovers_and_a_large_enough_success_reward_finishes() -
         in_threshold_bonus(16, "mean")
 
 
-SHIPPED = sorted(
-    p
-    for p in (Path(__file__).parents[2] / "configs").rglob("*.yaml")
-    if "paper" not in p.parts and "worker" not in p.parts
-)
+CONFIGS = Path(__file__).parents[2] / "configs"
+SHIPPED = sorted(p for p in CONFIGS.rglob("*.yaml") if "paper" not in p.parts and "worker" not in p.parts)
+
+
+def _same_but_name(a: TrainConfig, b: TrainConfig) -> bool:
+    return a.model_dump(exclude={"name"}) == b.model_dump(exclude={"name"})
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: f"{p.parent.name}/{p.stem}")
@@ -66,6 +68,12 @@ def test_every_default_config_rewards_finishing_over_hovering(path: Path) -> Non
         return
     gamma = config.sac.gamma if config.algo == "sac" else config.ppo.gamma
     hover = hover_value(gamma, task.frame_skip, task.frame_skip_reward)
+    twin = CONFIGS / "paper" / path.relative_to(CONFIGS)
+    if twin.is_file() and _same_but_name(config, load_config(twin)):
+        # A row where nothing cheaper matched the public code ships its settings (issue 31), hover value
+        # and all: 1,100 against 1,000 without frame skip, and its runs finish (docs/research-notes.md).
+        assert hover == pytest.approx(1_100.0), path.name
+        return
     assert finishing_wins(gamma, task.frame_skip, task.frame_skip_reward, task.success_weight), (
         f"{path.name}: R_t = {finish_value(task.success_weight):.0f} < hovering {hover:.0f}"
     )

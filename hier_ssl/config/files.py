@@ -60,12 +60,12 @@ def find_config(path: str | Path) -> Path:
     raise ConfigError(f"config file not found: {path} (nor a shipped config: `hier-ssl configs` lists them)")
 
 
-def merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     """``over`` on top of ``base``: sections merge key by key, any other value replaces the base's."""
     out = copy.deepcopy(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = merge(out[key], value)
+            out[key] = _merge(out[key], value)
         else:
             out[key] = copy.deepcopy(value)
     return out
@@ -96,4 +96,4 @@ def load_yaml(path: str | Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
         raise ConfigError(f"{path}: base: {err}") from None
     if base in (path.resolve(), *_seen):
         raise ConfigError(f"{path}: base: {name!r} includes itself")
-    return merge(load_yaml(base, (*_seen, path.resolve())), data)
+    return _merge(load_yaml(base, (*_seen, path.resolve())), data)

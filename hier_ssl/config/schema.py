@@ -183,6 +183,10 @@ class TrainConfig(Strict):
     total_steps: int = Field(150_000, ge=1)  # vector-env steps (manager decisions per env)
     eval_episodes: int = Field(200, ge=1)
     eval_interval: int = Field(500, ge=1)  # vector steps between selection evaluations
+    # The best checkpoint is the one that ends the best stretch of this many selection evaluations (their
+    # mean success rate, then mean CPAD). 1 ranks single evaluations; near 99 % success neighbouring
+    # checkpoints differ by less than one evaluation's noise, and the single best is often a lucky one.
+    selection_window: int = Field(1, ge=1)
     save_interval: int = Field(5_000, ge=1)  # vector steps between resumable checkpoints
     seed: int = 0
     device: str = "cpu"

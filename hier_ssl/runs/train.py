@@ -62,9 +62,20 @@ def resume_config(run_dir: Path) -> TrainConfig:
     return config
 
 
+def selection_score(rows: list[dict[str, Any]], window: int) -> tuple[float, float]:
+    """The score of the checkpoint that ends ``rows`` (curve rows, oldest first): the mean success rate of
+    the last ``window`` of them, then their lower mean CPAD."""
+    last = rows[-window:]
+    return (
+        sum(float(r["success_rate"]) for r in last) / len(last),
+        -sum(float(r["cpad_median"]) for r in last) / len(last),
+    )
+
+
 class _Selection:
     """Model selection: score the policy on the selection episodes, append the row to the learning curve
-    and keep the best policy's state in ``best_actor.pt`` (success rate first, then lower CPAD)."""
+    and keep the best policy's state in ``best_actor.pt`` (``selection_score`` over the last
+    ``selection_window`` rows)."""
 
     def __init__(
         self, config: TrainConfig, run_dir: Path, on_selection: Callable[[dict], None] | None = None
@@ -73,11 +84,11 @@ class _Selection:
         self.best: tuple[float, float] | None = None
         self.last_step = -1
         curve = run_dir / CURVE_FILE
-        if curve.is_file():
-            rows = list(csv.DictReader(curve.open()))
-            if rows:
-                self.best = max((float(r["success_rate"]), -float(r["cpad_median"])) for r in rows)
-                self.last_step = int(rows[-1]["step"])
+        self.rows = list(csv.DictReader(curve.open())) if curve.is_file() else []
+        if self.rows:
+            window = config.selection_window
+            self.best = max(selection_score(self.rows[: i + 1], window) for i in range(len(self.rows)))
+            self.last_step = int(self.rows[-1]["step"])
 
     def record(
         self,
@@ -107,7 +118,8 @@ class _Selection:
                 writer.writeheader()
             writer.writerow(row)
         self.last_step = step
-        score = (row["success_rate"], -row["cpad_median"])
+        self.rows.append(row)
+        score = selection_score(self.rows, self.config.selection_window)
         if self.best is None or score > self.best:
             self.best = score
             atomic_save(state(), self.run_dir / BEST_ACTOR_FILE)

@@ -19,7 +19,8 @@ from hier_ssl.manager import decode_subgoal
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE
-from hier_ssl.runs.train import EVALUATION_SEED, train
+from hier_ssl.runs import train as train_module
+from hier_ssl.runs.train import EVALUATION_SEED, _Selection, train
 
 TINY = {
     "name": "tiny",
@@ -296,6 +297,28 @@ def test_a_run_shorter_than_eval_interval_scores_its_final_policy(tmp_path: Path
     # Resumed once finished, nothing is scored twice.
     train(parse_config(SHORT), tmp_path, resume=True, progress=False)
     assert len((tmp_path / "curve.csv").read_text().splitlines()) == 2
+
+
+@pytest.mark.parametrize("window, kept", [(1, 1), (2, 4)])
+def test_selection_keeps_the_checkpoint_that_ends_the_best_stretch_of_evaluations(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, window: int, kept: int
+) -> None:
+    rates = iter([0.9, 1.0, 0.8, 0.95, 0.96, 0.9])
+    scores = lambda policy, config, seed: {  # noqa: E731
+        "success_rate": next(rates),
+        "collision_rate": 0.0,
+        "episode_length": {"median": 10.0},
+        "cpad": {"median": 1.0},
+    }
+    monkeypatch.setattr(train_module, "evaluate_run", scores)
+    config = parse_config({**SHORT, "selection_window": window})
+    selection = _Selection(config, tmp_path)
+    for step in range(5):
+        selection.record(None, step, step, 0.0, lambda step=step: {"step": step})
+    assert torch.load(tmp_path / "best_actor.pt")["step"] == kept
+    # Resumed from its curve, the selection ranks the next evaluation against the same windows.
+    _Selection(config, tmp_path).record(None, 5, 5, 0.0, lambda: {"step": 5})
+    assert torch.load(tmp_path / "best_actor.pt")["step"] == kept
 
 
 def test_a_run_shorter_than_its_warm_up_says_so(tmp_path: Path) -> None:

@@ -304,12 +304,15 @@ def test_selection_keeps_the_checkpoint_that_ends_the_best_stretch_of_evaluation
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, window: int, kept: int
 ) -> None:
     rates = iter([0.9, 1.0, 0.8, 0.95, 0.96, 0.9])
-    scores = lambda policy, config, seed: {  # noqa: E731
-        "success_rate": next(rates),
-        "collision_rate": 0.0,
-        "episode_length": {"median": 10.0},
-        "cpad": {"median": 1.0},
-    }
+
+    def scores(policy: object, config: object, seed: int) -> dict[str, object]:
+        return {
+            "success_rate": next(rates),
+            "collision_rate": 0.0,
+            "episode_length": {"median": 10.0},
+            "cpad": {"median": 1.0},
+        }
+
     monkeypatch.setattr(train_module, "evaluate_run", scores)
     config = parse_config({**SHORT, "selection_window": window})
     selection = _Selection(config, tmp_path)

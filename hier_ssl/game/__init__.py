@@ -1,4 +1,4 @@
-"""The SSL game as rules: the referee's state, the zones and speed limits it sets.
+"""The SSL game as rules: the referee's state, the zones and speed limits it sets, the fouls it calls.
 
 Pure functions of arrays with a leading N (fields), like the world's poses, so that the environments, the
 planners and the deploy bridge call one implementation of the rules. This layer sits between ``manager |
@@ -8,6 +8,7 @@ every number with its section of the league's rules.
 
 from __future__ import annotations
 
+from hier_ssl.game.fouls import KINDS, FoulClocks, FoulReport, Motion, crash_verdicts, new_clocks, step_fouls
 from hier_ssl.game.referee import (
     BALL_PLACEMENT_BLUE,
     BALL_PLACEMENT_YELLOW,
@@ -46,20 +47,27 @@ __all__ = [
     "DIRECT_FREE_YELLOW",
     "FORCE_START",
     "HALT",
+    "KINDS",
     "NORMAL_START",
     "NO_KEEPER",
     "ROBOT_RADIUS",
     "SLOTS",
     "STOP",
     "YELLOW",
+    "FoulClocks",
+    "FoulReport",
     "Lineup",
+    "Motion",
     "RefereeState",
     "Zones",
     "check_keepers",
+    "crash_verdicts",
     "forbidden_zones",
     "lineup",
+    "new_clocks",
     "referee_state",
     "signed_distance",
     "speed_limit",
     "violates",
+    "step_fouls",
 ]

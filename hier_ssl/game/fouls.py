@@ -114,8 +114,8 @@ class FoulReport(NamedTuple):
 def crash_verdicts(
     pos_a: np.ndarray, pos_b: np.ndarray, vel_a: np.ndarray, vel_b: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Rules 8.4.2 "Crashing" for contacts between robots a and b of different teams, (C, 2) each: whether
-    a, and whether b, committed the foul (C,) bool each.
+    """Rules 8.4.2 "Crashing" for contacts between robots a and b of different teams, positions and
+    velocities (..., 2) each: whether a, and whether b, committed the foul (...) bool each.
 
     The difference of the velocities, projected on the line through the centres: above 1.5 m/s, the faster
     robot's foul; if then their speeds differ by less than 0.3 m/s, both robots'."""
@@ -186,8 +186,8 @@ def step_fouls(
       game runs or a free kick is taken);
     - defender too close to the ball (opponent's free kick) and stop speed: a team's next foul of the kind
       counts only 2 s after its last (8.4.3), and then only its first robot's;
-    - placement interference: a robot of the other team in the stadium for more than 2 s; its time restarts
-      after each interference; one interference a placement goes on the foul counter (8.4.3).
+    - placement interference: a robot of the other team in the stadium for more than 2 s, again every 2 s
+      of the team's grace while it stays; one interference a placement goes on the foul counter (8.4.3).
     """
     n, m = referee.command.shape[0], robots.team.shape[0]
     command = referee.command
@@ -261,13 +261,12 @@ def _interference(
 ) -> tuple[np.ndarray, ...]:
     """Rules 8.4.3 "Ball Placement Interference" for robots ``inside`` (N, M) the stadium: the robots that
     interfere (N, M), each robot's time in the stadium after the step (N, M), the teams' time since their
-    last interference (N, 2), each team's foul-counter increment (N, 2) and its interferences (N, 2)."""
+    last interference (N, 2), each team's foul-counter increment (N, 2) and its interferences (N, 2). A robot
+    that stays in the stadium interferes again once the team's 2 s of grace (8.4.3) have passed."""
     time_in = np.where(inside & ~changed[:, None], clocks.in_placement + dt, 0.0)
     last = clocks.last_interference + dt
     first, last = _team_graced(inside & (time_in > GRACE), robots, last)
     teams = _per_team(first, robots)
     counted_before = clocks.placement_counted & ~changed[:, None]
     counted = (teams > 0) & ~counted_before
-    # The robot's time restarts with its interference: it interferes again after 2 s more.
-    time_in = np.where(first, 0.0, time_in)
     return first, time_in, last, counted.astype(np.int64), teams

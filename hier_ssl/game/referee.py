@@ -139,7 +139,7 @@ def referee_state(
         )
     return RefereeState(
         command=command,
-        placement=place.astype(float),
+        placement=place.copy(),
         keeper=np.broadcast_to(np.asarray(keeper, np.int64), (n, 2)).copy(),
         blue_on_positive_half=np.broadcast_to(np.asarray(blue_on_positive_half, bool), (n,)).copy(),
     )

@@ -73,6 +73,17 @@ def test_crash_verdicts_on_a_line_along_x(vel_a, vel_b, fault) -> None:
     assert (bool(got[0][0]), bool(got[1][0])) == fault
 
 
+def test_crash_verdicts_anywhere_on_the_field_and_over_any_leading_axes() -> None:
+    # The first case of the table moved to a = (3, -2), b = (3.18, -2): the line is still x. Laid out (2, 3):
+    # field 0 holds a's foul, a collision and b's foul; field 1 a drawn crash and two collisions.
+    pos_a = np.full((2, 3, 2), (3.0, -2.0))
+    vel_a = np.array([[(2.0, 0.0), (1.4, 0.0), (0.0, 0.0)], [(1.0, 0.0), (0.0, 3.0), (1.0, 0.0)]])
+    vel_b = np.array([[(0.0, 0.0), (0.0, 0.0), (-2.0, 0.0)], [(-1.0, 0.0), (0.0, 0.0), (1.0, 0.0)]])
+    fault_a, fault_b = fl.crash_verdicts(pos_a, pos_a + (0.18, 0.0), vel_a, vel_b)
+    assert fault_a.tolist() == [[True, False, False], [True, False, False]]
+    assert fault_b.tolist() == [[False, False, True], [True, False, False]]
+
+
 def test_crash_verdicts_on_a_diagonal_line() -> None:
     # b at 45 degrees: a's 2.0 m/s along x projects to 2 cos 45 = 1.414 (no crash), 2.25 m/s to 1.591.
     pos_b = np.array([[0.1273, 0.1273]] * 2)
@@ -83,11 +94,12 @@ def test_crash_verdicts_on_a_diagonal_line() -> None:
 
 def test_contacts_become_crashes_of_teams_or_collisions() -> None:
     # Y0 at 2.0 m/s hits B0 (still): Y0's foul. Y1 and B1 at 1 m/s head-on: both teams' drawn foul. Y0 and
-    # Y1 (one team) at 3 m/s apart: a collision, as any contact below the crash speed, B0 with B1 at 0.5.
+    # Y1 (one team): a collision, whatever their speeds; so are B0 with B1 and B0 with Y1 (1.0 m/s apart
+    # along x, below the crash speed).
     pos = np.array([[(0.0, 0.0), (1.0, 0.0), (0.18, 0.0), (1.18, 0.0)]])
     vel = np.array([[(2.0, 0.0), (1.0, 0.0), (0.0, 0.0), (-1.0, 0.0)]])
     before = fl.Motion(pos, vel)
-    contacts = np.array([(0, Y0, B0), (0, Y1, B1), (0, Y0, Y1), (0, B0, B1)])
+    contacts = np.array([(0, Y0, B0), (0, Y1, B1), (0, Y0, Y1), (0, B0, B1), (0, B0, Y1)])
     state = ref.referee_state(ref.FORCE_START, FIELD)
     _, report = fl.step_fouls(
         fl.new_clocks(1, 4), state, ROBOTS, FIELD, before, _motion(), np.zeros((1, 2)), contacts, DT
@@ -96,7 +108,20 @@ def test_contacts_become_crashes_of_teams_or_collisions() -> None:
     assert report.by_robot[0, :, fl.CRASH_DRAWN].tolist() == [0, 1, 0, 1]
     assert report.by_team[0, :, fl.CRASH_UNIQUE].tolist() == [1, 0]
     assert report.by_team[0, :, fl.CRASH_DRAWN].tolist() == [1, 1]
-    assert report.counter.tolist() == [[2, 1]] and report.collisions.tolist() == [2]
+    assert report.counter.tolist() == [[2, 1]] and report.collisions.tolist() == [3]
+    # Counts are integers.
+    assert all(a.dtype.kind == "i" for a in report)
+
+
+def test_no_contacts_as_an_empty_list_and_another_robot_radius() -> None:
+    # Blue's free kick, Y0 0.6 m from the ball: with 0.09 m robots its side is 0.51 m away (kept); with
+    # 0.11 m robots 0.49 m (too close).
+    motion = _motion({Y0: (0.6, 0.0)})
+    state = ref.referee_state(ref.DIRECT_FREE_BLUE, FIELD)
+    for radius, fouled in ((0.09, 0), (0.11, 1)):
+        clocks = fl.new_clocks(1, 4)
+        _, r = fl.step_fouls(clocks, state, ROBOTS, FIELD, motion, motion, np.zeros((1, 2)), [], DT, radius)
+        assert r.by_team[0, ref.YELLOW, fl.DEFENDER_TOO_CLOSE] == fouled
 
 
 # -- the own defense area and the walls: once each time a robot enters ------------------------------------
@@ -151,6 +176,7 @@ def test_the_defense_grace_restarts_with_a_new_command_and_running_play_has_none
     motion = _motion({Y0: (-3.3, 0.0)})
     reports, _ = _play([ref.STOP] * 4 + [ref.DIRECT_FREE_YELLOW] * 6 + [ref.FORCE_START] * 6, motion)
     assert _kind(reports, fl.OPPONENT_DEFENSE_AREA, ref.YELLOW) == [0] * 9 + [1] + [0] * 6
+    assert reports[9].by_robot[0, :, fl.OPPONENT_DEFENSE_AREA].tolist() == [1, 0, 0, 0]  # Y1 kept away
 
 
 def test_just_outside_the_opponent_defense_distance_is_no_foul() -> None:
@@ -226,6 +252,15 @@ def test_placement_interference_over_two_seconds_once_on_the_counter_per_placeme
     # A new placement is a new phase: its first interference counts again.
     reports, _ = _play([ref.STOP] + [ref.BALL_PLACEMENT_BLUE] * 6, _motion({Y0: (1.0, 0.3)}), clocks=clocks)
     assert [int(r.counter[0, 0]) for r in reports] == [0] * 6 + [1]
+
+
+def test_two_robots_interfering_count_once_every_two_seconds_for_their_team() -> None:
+    # Y0 and Y1 in the stadium from the start: both past 2 s at step 5, but only the first (Y0) interferes;
+    # the team's next comes 2 s of grace later, at step 10, Y0's again (the lowest slot).
+    reports, _ = _play([ref.BALL_PLACEMENT_BLUE] * 11, _motion({Y0: (1.0, 0.3), Y1: (1.2, -0.3)}))
+    assert [r.by_robot[0, :2, fl.PLACEMENT_INTERFERENCE].tolist() for r in reports] == (
+        [[0, 0]] * 5 + [[1, 0]] + [[0, 0]] * 4 + [[1, 0]]
+    )
 
 
 def test_leaving_the_stadium_restarts_the_robots_time_and_the_placing_team_is_free() -> None:

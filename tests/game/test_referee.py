@@ -65,9 +65,17 @@ def test_a_placement_on_the_field_lines_is_on_the_field_and_other_commands_do_no
 
 def test_the_state_broadcasts_to_n_fields() -> None:
     state = ref.referee_state(ref.STOP, DIV_A, n=3, keeper=(1, 2), blue_on_positive_half=True)
-    assert state.command.tolist() == [1, 1, 1]
+    assert state.command.tolist() == [1, 1, 1] and state.command.dtype == np.int64
     assert state.keeper.tolist() == [[1, 2]] * 3 and state.blue_on_positive_half.tolist() == [True] * 3
-    assert state.placement.shape == (3, 2)
+    assert state.placement.tolist() == [[0.0, 0.0]] * 3  # none given: the centre, never read
+
+
+def test_n_is_the_longest_input() -> None:
+    state = ref.referee_state(ref.STOP, DIV_A, keeper=np.array([(0, 1), (1, 0), (2, 2)]))
+    assert state.command.tolist() == [1, 1, 1] and state.keeper[:, 0].tolist() == [0, 1, 2]
+    state = ref.referee_state(ref.BALL_PLACEMENT_BLUE, DIV_A, placement=np.array([(1, 2), (3, 4), (5, -4)]))
+    assert state.placement.dtype == float and state.placement[2].tolist() == [5.0, -4.0]
+    assert ref.referee_state(ref.STOP, DIV_A, blue_on_positive_half=np.ones(4, bool)).command.shape == (4,)
 
 
 @pytest.mark.parametrize(("field", "limit"), [(DIV_B, 6), (DIV_A, 11)])

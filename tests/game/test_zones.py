@@ -130,7 +130,24 @@ def test_violates_is_strict_and_fields_are_independent() -> None:
     zones = z.forbidden_zones(state, np.zeros((2, 2)), FIELD, ROBOTS)
     points = np.array([[(0.59, 0.0), (0.58, 0.0)]] * 2)
     assert z.violates(zones, points)[..., z.BALL].tolist() == [[False, True], [False, False]]
-    assert zones.kind[..., z.BALL].tolist() == [[z.CAPSULE] * 2, [z.NONE] * 2]
+    assert (
+        zones.kind[..., z.BALL].tolist() == [[z.CAPSULE] * 2, [z.NONE] * 2] and zones.kind.dtype.kind == "i"
+    )
+
+
+def test_the_ball_zones_away_from_the_centre_and_a_short_placement() -> None:
+    # STOP with the ball at (1, -1): a robot at (1.6, -1) is 0.6 - 0.59 = +0.01. Blue places the ball from
+    # (-1, 0.5) to (-0.5, 0.5), a 0.5 m segment: a yellow robot at (-0.75, 1.08), beside its middle, is
+    # 0.58 - 0.59 = -0.01; one at (-1.3, 0.5), behind the ball, 0.3 - 0.59 = -0.29.
+    state = ref.referee_state(np.array([ref.STOP, ref.BALL_PLACEMENT_BLUE]), FIELD, placement=(-0.5, 0.5))
+    zones = z.forbidden_zones(state, np.array([(1.0, -1.0), (-1.0, 0.5)]), FIELD, ROBOTS)
+    points = np.array([[(1.6, -1.0), (0.0, 0.0)], [(-0.75, 1.08), (-1.3, 0.5)]])
+    away = z.signed_distance(zones, points)[..., z.BALL]
+    assert away[0, 0] == pytest.approx(0.01) and away[1, 0] == pytest.approx(-0.01)
+    zones = z.forbidden_zones(
+        state, np.array([(1.0, -1.0), (-1.0, 0.5)]), FIELD, ref.lineup(np.zeros(2, int), np.arange(2))
+    )
+    assert z.signed_distance(zones, points)[1, 1, z.BALL] == pytest.approx(-0.29)
 
 
 def test_blue_on_the_positive_half_swaps_the_defense_areas() -> None:

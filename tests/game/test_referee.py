@@ -126,3 +126,11 @@ def test_keepers_and_the_side_each_robot_defends() -> None:
     assert ref.is_keeper(state, robots).tolist() == [[False, True, True, False], [True, False, False, True]]
     # Blue on positive x in field 0: yellow defends the goal at -x there, and the other way round in field 1.
     assert ref.own_side(state, robots).tolist() == [[-1, -1, 1, 1], [1, 1, -1, -1]]
+
+
+def test_the_state_holds_integer_keepers_and_boolean_sides() -> None:
+    # The message's goalkeeper is a pattern number and blue_team_on_positive_half a flag: whatever the
+    # caller's array types, the state keeps them as such.
+    state = ref.referee_state(ref.STOP, DIV_B, keeper=np.array([3.0, 5.0]), blue_on_positive_half=1)
+    assert state.keeper.dtype == np.int64 and state.keeper.tolist() == [[3, 5]]
+    assert state.blue_on_positive_half.dtype == bool and state.blue_on_positive_half.tolist() == [True]

@@ -119,7 +119,7 @@ class World:
     def _parking_spots(self) -> np.ndarray:
         """Non-overlapping start positions (R, 2) used until the first reset."""
         gap = 3 * self.robot.radius
-        cols = max(1, int(self.field.length // gap) - 1)
+        cols = max(1, int(self.field.field_length // gap) - 1)
         i = np.arange(self.num_robots)
         spots = np.stack([(i % cols) * gap, (i // cols) * gap], axis=-1)
         return spots - spots.mean(axis=0)

@@ -26,7 +26,6 @@ ROBOT_COLORS = (
 TARGET, SUBGOAL = "#e03131", "#ff922b"
 COLLISION_MARKER = "X"  # where a controlled robot hit another, in that robot's colour with a dark edge
 _LINE_WIDTH_M = 0.02  # SSL field lines are 10 mm wide; drawn a little wider so they survive small images
-_GOAL_DEPTH_M = 0.18
 _CENTRE_RADIUS_M = 0.5
 
 
@@ -218,10 +217,10 @@ def _draw_field(ax: object, field: Field, line_pt: float) -> None:
     ax.plot([0, 0], [-half_w, half_w], **line)
     ax.add_patch(Circle((0, 0), _CENTRE_RADIUS_M, fill=False, edgecolor=LINE, lw=line_pt, zorder=1))
     for side in (-1, 1):
-        x_line, x_inner = side * half_l, side * (half_l - field.penalty_depth)
-        py = field.penalty_width / 2
+        x_line, x_inner = side * half_l, side * (half_l - field.penalty_area_depth)
+        py = field.penalty_area_width / 2
         ax.plot([x_line, x_inner, x_inner, x_line], [-py, -py, py, py], **line)
-        x_back, gy = side * (half_l + _GOAL_DEPTH_M), field.goal_width / 2
+        x_back, gy = side * (half_l + field.goal_depth), field.goal_width / 2
         ax.plot(
             [x_line, x_back, x_back, x_line],
             [-gy, -gy, gy, gy],

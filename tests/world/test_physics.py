@@ -304,7 +304,8 @@ def test_adding_bodies_behind_the_worlds_back_is_refused() -> None:
 def test_division_presets_build_and_step() -> None:
     for name in ("division_a", "division_b"):
         world = World(2, 2, field=name)
-        assert math.isclose(_limit(world)[0], world.field.half_length + world.field.boundary - SPEC.radius)
+        reach = world.field.half_length + world.field.boundary_width - SPEC.radius
+        assert math.isclose(_limit(world)[0], reach)
         world.step(np.ones((2, 2, 3)))
 
 

@@ -1,0 +1,154 @@
+"""Where each robot may not be, and how fast it may go, as the referee's state has it: pure functions of
+arrays over N fields and M robots.
+
+A zone is a shape the robot's centre must keep a clearance from: the rules measure distances "from its
+nearest side ... with an assumed radius of 0.09 m" (rules 2.1.3), so each clearance is the rule's distance
+plus that radius. Every robot has one slot per rule (``SLOTS``), empty where its rule does not apply, so a
+planner can treat the zones as obstacles of fixed count. Shapes are:
+
+- ``CAPSULE``: the segment (x0, y0) -> (x1, y1) (a circle where they coincide); the clearance makes it a
+  stadium.
+- ``BOX``: the axis-aligned rectangle (xmin, ymin, xmax, ymax); the clearance inflates it.
+- ``KEEP_IN``: the same rectangle, but the robot must stay inside it, the clearance away from its edges.
+
+Lines count at their centres: the rules give the field's dimensions between line centres (2.1.1) and so
+do these shapes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hier_ssl.game.referee import (
+    HALT,
+    STOP,
+    Lineup,
+    RefereeState,
+    favoured_team,
+    is_free_kick,
+    is_keeper,
+    is_placement,
+    own_side,
+)
+from hier_ssl.world.field import Field
+
+ROBOT_RADIUS = 0.09  # m, rules 2.1.3 "Field Markings": the radius distances from a robot are measured with
+STOP_SPEED = 1.5  # m/s, rules 5.1.1 "Stop"
+BALL_DISTANCE = 0.5  # m, rules 5.1.1 "Stop" and 5.3.3 "Free Kick" (the defending team)
+DEFENSE_AREA_DISTANCE = 0.2  # m, rules 8.4.1 "Robot Too Close To Opponent Defense Area"
+PLACEMENT_DISTANCE = 0.5  # m, rules 8.4.3 "Ball Placement Interference"
+
+NONE, CAPSULE, BOX, KEEP_IN = 0, 1, 2, 3
+# One slot per rule: the walled area (2.1.2), the own defense area (8.4.1 "Multiple Defenders"), the
+# opponent's defense area (8.4.1), the ball or the ball placement's stadium (5.1.1, 5.3.3, 8.4.3).
+BOUNDARY, OWN_DEFENSE, OPPONENT_DEFENSE, BALL = 0, 1, 2, 3
+SLOTS = ("boundary", "own_defense", "opponent_defense", "ball")
+
+
+@dataclass(frozen=True)
+class Zones:
+    """The forbidden shapes of M robots on N fields, ``len(SLOTS)`` slots each: ``kind`` (N, M, S) int
+    (``NONE``, ``CAPSULE``, ``BOX``, ``KEEP_IN``), ``shape`` (N, M, S, 4) m (a capsule's two ends, a box's
+    corners) and ``clearance`` (N, M, S) m, what the robot's centre must keep from the shape."""
+
+    kind: np.ndarray
+    shape: np.ndarray
+    clearance: np.ndarray
+
+
+def defense_box(field: Field, side: np.ndarray) -> np.ndarray:
+    """(..., 4) the defense area in front of the goal at x sign ``side`` (...): rules 2.1.3 "Defense Area",
+    a rectangle touching the goal line, ``penalty_area_width`` along it and ``penalty_area_depth`` deep."""
+    goal_line = side * field.half_length
+    inner = side * (field.half_length - field.penalty_area_depth)
+    half = field.penalty_area_width / 2
+    return np.stack(
+        np.broadcast_arrays(np.minimum(goal_line, inner), -half, np.maximum(goal_line, inner), half), axis=-1
+    )
+
+
+def forbidden_zones(
+    referee: RefereeState, ball: np.ndarray, field: Field, robots: Lineup, radius: float = ROBOT_RADIUS
+) -> Zones:
+    """Each robot's forbidden zones under ``referee``'s command, the ball at ``ball`` (N, 2) m.
+
+    - always: the walled area (the field and its margins, rules 2.1.2), which the robot may not leave;
+    - every robot but its keeper, except during a ball placement (rules 5.2 allows entering the defense area
+      then): its own defense area ("Multiple Defenders": fully outside);
+    - STOP and free kicks: 0.2 m from the opponent's defense area (8.4.1), for every robot;
+    - STOP: 0.5 m from the ball (5.1.1), every robot; a free kick: 0.5 m from the ball for the other team
+      (5.3.3); a ball placement: 0.5 m from the segment ball -> placement position for the other team
+      (8.4.3, a stadium).
+
+    HALT forbids motion (``speed_limit``), not places. A free kick's zones hold until the ball is in play
+    (rules 5.4); the caller then moves the command on to FORCE_START, as the game controller's state does.
+    """
+    n, m = referee.command.shape[0], robots.team.shape[0]
+    command, favoured = referee.command[:, None], favoured_team(referee.command)[:, None]
+    kind = np.zeros((n, m, len(SLOTS)), np.int64)
+    shape = np.zeros((n, m, len(SLOTS), 4))
+    clearance = np.zeros((n, m, len(SLOTS)))
+
+    hx, hy = field.wall_half_extent
+    kind[..., BOUNDARY], shape[..., BOUNDARY, :] = KEEP_IN, (-hx, -hy, hx, hy)
+    clearance[..., BOUNDARY] = radius
+
+    side = own_side(referee, robots)
+    own = ~is_keeper(referee, robots) & ~is_placement(command)
+    kind[..., OWN_DEFENSE] = np.where(own, BOX, NONE)
+    shape[..., OWN_DEFENSE, :] = defense_box(field, side)
+    clearance[..., OWN_DEFENSE] = radius
+
+    near_defense = np.broadcast_to((command == STOP) | is_free_kick(command), (n, m))
+    kind[..., OPPONENT_DEFENSE] = np.where(near_defense, BOX, NONE)
+    shape[..., OPPONENT_DEFENSE, :] = defense_box(field, -side)
+    clearance[..., OPPONENT_DEFENSE] = DEFENSE_AREA_DISTANCE + radius
+
+    other_team = robots.team != favoured
+    placing = is_placement(command)
+    keep_off = (command == STOP) | ((is_free_kick(command) | placing) & other_team)
+    kind[..., BALL] = np.where(keep_off, CAPSULE, NONE)
+    end = np.where(placing[..., None], referee.placement[:, None], ball[:, None])
+    shape[..., BALL, :] = np.concatenate(np.broadcast_arrays(ball[:, None], end), axis=-1)
+    clearance[..., BALL] = np.where(placing, PLACEMENT_DISTANCE, BALL_DISTANCE) + radius
+    return Zones(kind, shape, clearance)
+
+
+def speed_limit(referee: RefereeState) -> np.ndarray:
+    """(N,) the fastest a robot may move, m/s: 0 in HALT (rules 5.1.2), 1.5 in STOP (5.1.1), unlimited
+    otherwise (the STOP limit does not apply to ball placement, 8.4.3 "Robot Stop Speed")."""
+    command = referee.command
+    return np.where(command == HALT, 0.0, np.where(command == STOP, STOP_SPEED, np.inf))
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of points ``p`` (..., 2) from the segments a -> b (..., 2); a point segment is a point."""
+    ab, ap = b - a, p - a
+    length2 = np.sum(ab * ab, axis=-1)
+    t = np.clip(np.sum(ap * ab, axis=-1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
+    return np.linalg.norm(ap - t[..., None] * ab, axis=-1)
+
+
+def _box_distance(p: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Signed distance of ``p`` (..., 2) from the boxes (..., 4): positive outside, negative inside."""
+    centre, half = (box[..., :2] + box[..., 2:]) / 2, (box[..., 2:] - box[..., :2]) / 2
+    q = np.abs(p - centre) - half
+    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
+    return outside + np.minimum(np.max(q, axis=-1), 0.0)
+
+
+def signed_distance(zones: Zones, points: np.ndarray) -> np.ndarray:
+    """(N, M, S) how far each robot centre ``points`` (N, M, 2) is from breaking each of its zones, m:
+    positive while it keeps the clearance, negative by how much it breaks it, +inf for an empty slot."""
+    p = np.broadcast_to(points[:, :, None, :], zones.shape.shape[:-1] + (2,))
+    capsule = _segment_distance(p, zones.shape[..., :2], zones.shape[..., 2:])
+    box = _box_distance(p, zones.shape)
+    away = np.select([zones.kind == CAPSULE, zones.kind == BOX, zones.kind == KEEP_IN], [capsule, box, -box])
+    return np.where(zones.kind == NONE, np.inf, away - zones.clearance)
+
+
+def violates(zones: Zones, points: np.ndarray) -> np.ndarray:
+    """(N, M, S) bool: the robot breaks the zone. A robot exactly at the clearance keeps it ("at least")."""
+    return signed_distance(zones, points) < 0.0

@@ -65,7 +65,8 @@ class FieldSize:
     boundary: float
 
 
-def _parse(message: type, data: bytes, what: str) -> Any:
+def parse_message(message: type, data: bytes, what: str) -> Any:
+    """``data`` as a ``message``, checked: size, parse, required fields; ``PacketError`` naming why not."""
     if len(data) > MAX_PACKET:
         raise PacketError("oversized", f"{what} of {len(data)} bytes > {MAX_PACKET}")
     packet = message()
@@ -101,7 +102,7 @@ def _robot(team: str, robot: ssl_vision_pb2.SSL_DetectionRobot) -> Detection:
 def parse_vision(data: bytes) -> DetectionFrame | FieldSize:
     """An ``SSL_WrapperPacket`` as its detection frame (or, for a geometry-only packet, the field size);
     ``PacketError`` for anything else."""
-    packet = _parse(ssl_vision_pb2.SSL_WrapperPacket, data, "vision packet")
+    packet = parse_message(ssl_vision_pb2.SSL_WrapperPacket, data, "vision packet")
     if packet.HasField("detection"):
         frame = packet.detection
         _finite("frame time", frame.t_capture, frame.t_sent)
@@ -178,7 +179,7 @@ def _checked_command(robot: int, forward: float, left: float, angular: float) ->
 
 def parse_grsim(data: bytes) -> tuple[bool, list[Command]]:
     """(is the team yellow, its robots' commands) of a ``grSim_Packet``; ``PacketError`` otherwise."""
-    packet = _parse(grsim_pb2.grSim_Packet, data, "grSim packet")
+    packet = parse_message(grsim_pb2.grSim_Packet, data, "grSim packet")
     if not packet.HasField("commands"):
         raise PacketError("empty", "grSim packet without commands")
     out = packet.commands
@@ -191,7 +192,7 @@ def parse_grsim(data: bytes) -> tuple[bool, list[Command]]:
 def parse_simulation(data: bytes) -> tuple[list[Command], list[int]]:
     """A ``RobotControl``'s local-velocity commands, and the ids of robots whose command moves them
     another way (which the sender is told about); ``PacketError`` when it does not parse."""
-    packet = _parse(ssl_simulation_pb2.RobotControl, data, "robot control")
+    packet = parse_message(ssl_simulation_pb2.RobotControl, data, "robot control")
     commands, other = [], []
     for cmd in packet.robot_commands:
         if cmd.move_command.WhichOneof("command") == "local_velocity":
@@ -214,7 +215,7 @@ def encode_response(errors: list[tuple[str, str]]) -> bytes:
 def parse_response(data: bytes) -> list[str]:
     """The error messages of a simulator's ``RobotControlResponse``; ``PacketError`` when it does not
     parse."""
-    packet = _parse(ssl_simulation_pb2.RobotControlResponse, data, "robot control response")
+    packet = parse_message(ssl_simulation_pb2.RobotControlResponse, data, "robot control response")
     return [f"{error.code}: {error.message}" for error in packet.errors]
 
 
@@ -231,6 +232,7 @@ __all__ = [
     "encode_grsim",
     "encode_response",
     "encode_simulation",
+    "parse_message",
     "parse_grsim",
     "parse_response",
     "parse_simulation",

@@ -48,7 +48,7 @@ def _message(number: int, body: bytes) -> bytes:
     return _tag(number, 2) + _varint(len(body)) + body
 
 
-@pytest.mark.parametrize("name", ["ssl_vision", "grsim", "ssl_simulation"])
+@pytest.mark.parametrize("name", ["ssl_vision", "grsim", "ssl_simulation", "ssl_gc_referee_message"])
 def test_generated_modules_are_what_protoc_makes_of_the_proto_files(tmp_path: Path, name: str) -> None:
     pytest.importorskip("grpc_tools")
     shutil.copytree(PROTO, tmp_path / "hier_ssl" / "deploy" / "proto")

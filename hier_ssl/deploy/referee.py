@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 from hier_ssl.deploy.proto import ssl_gc_referee_message_pb2
 from hier_ssl.deploy.wire import MAX_COORD_MM, MAX_ROBOT_ID, TEAMS, PacketError, parse_message
+from hier_ssl.game.referee import TEAM_NAMES, RefereeState, referee_state
+from hier_ssl.world.field import Field
 
 Referee = ssl_gc_referee_message_pb2.Referee
 COMMANDS: tuple[str, ...] = tuple(Referee.Command.keys())
@@ -96,4 +98,24 @@ def encode_referee(message: RefereeMessage) -> bytes:
     return packet.SerializeToString()
 
 
-__all__ = ["BALL_PLACEMENT", "COMMANDS", "STAGES", "RefereeMessage", "encode_referee", "parse_referee"]
+def game_state(message: RefereeMessage, field: Field) -> RefereeState:
+    """``message`` as the rules' state of one field (``hier_ssl.game``, whose commands are the protocol's
+    numbers); a ValueError names a command the game does not play or a placement off ``field``."""
+    return referee_state(
+        Referee.Command.Value(message.command),
+        field,
+        placement=message.designated,
+        keeper=tuple(message.keepers[team] for team in TEAM_NAMES),
+        blue_on_positive_half=bool(message.blue_on_positive_half),
+    )
+
+
+__all__ = [
+    "BALL_PLACEMENT",
+    "COMMANDS",
+    "STAGES",
+    "RefereeMessage",
+    "encode_referee",
+    "game_state",
+    "parse_referee",
+]

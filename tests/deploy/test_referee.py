@@ -8,6 +8,8 @@ from protobuf_bytes import float32, message, uint
 from hier_ssl.deploy import referee
 from hier_ssl.deploy.proto import ssl_gc_referee_message_pb2
 from hier_ssl.deploy.wire import MAX_PACKET, PacketError
+from hier_ssl.game import referee as rules
+from hier_ssl.world.field import get_field
 
 
 def _team(keeper: int) -> bytes:
@@ -106,3 +108,30 @@ def test_keeper_fifteen_and_a_position_on_the_edge_are_kept() -> None:
     edge = message(9, float32(1, 20000.0) + float32(2, -20000.0))
     parsed = referee.parse_referee(_packet(16, blue_keeper=15, extra=edge))
     assert parsed.keepers["blue"] == 15 and parsed.designated == (20.0, -20.0)
+
+
+def test_a_message_is_the_rules_state_of_its_field() -> None:
+    placement = referee.parse_referee(
+        _packet(
+            16,
+            yellow_keeper=2,
+            blue_keeper=5,
+            extra=message(9, float32(1, 1000.0) + float32(2, -500.0)) + uint(10, 1),
+        )
+    )
+    state = referee.game_state(placement, get_field("division_b"))
+    assert state.command.tolist() == [rules.BALL_PLACEMENT_YELLOW]
+    assert state.placement.tolist() == [[1.0, -0.5]]
+    assert state.keeper.tolist() == [[2, 5]]  # yellow, blue: the rules' team order
+    assert state.blue_on_positive_half.tolist() == [True]
+    stop = referee.game_state(referee.parse_referee(_packet(1)), get_field("division_b"))
+    assert stop.command.tolist() == [rules.STOP] and stop.blue_on_positive_half.tolist() == [False]
+
+
+def test_a_command_the_game_does_not_play_or_a_placement_off_the_field_is_named() -> None:
+    kickoff = referee.parse_referee(_packet(4))
+    with pytest.raises(ValueError, match="PREPARE_KICKOFF_YELLOW"):
+        referee.game_state(kickoff, get_field("division_b"))
+    far = referee.parse_referee(_packet(17, extra=message(9, float32(1, 5000.0) + float32(2, 0.0))))
+    with pytest.raises(ValueError, match=r"\(5, 0\) m"):
+        referee.game_state(far, get_field("division_b"))

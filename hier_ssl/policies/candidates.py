@@ -30,6 +30,7 @@ from torch import nn
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
+from hier_ssl.checkpoints.tensors import save_checkpoint
 from hier_ssl.config import TrainConfig
 from hier_ssl.config.learners import CandidatePPOConfig
 from hier_ssl.envs.core import HierarchicalCore
@@ -45,7 +46,7 @@ from hier_ssl.policies.candidate_graph import (
 )
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.networks import NumpyPolicy, mlp
-from hier_ssl.policies.sac_runner import MODEL_FILE, atomic_save
+from hier_ssl.policies.sac_runner import MODEL_FILE
 
 Selection = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
 """Model selection: ``(policy, step, transitions, train_time_s, state)``; ``state()`` is what
@@ -370,7 +371,7 @@ class CandidateLearner:
 
     def save(self, state: dict[str, Any]) -> None:
         extra = {"train_time_s": self.train_time, "torch_rng": torch.get_rng_state()}
-        atomic_save({**state, **extra}, self.run_dir / MODEL_FILE)
+        save_checkpoint({**state, **extra}, self.run_dir / MODEL_FILE)
 
     def scored(self, step: int, transitions: int) -> None:
         assert self.net is not None

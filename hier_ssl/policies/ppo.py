@@ -22,7 +22,7 @@ import torch
 from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
-from hier_ssl.checkpoints.tensors import load_checkpoint
+from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
 from hier_ssl.policies.networks import NumpyPolicy
@@ -97,13 +97,17 @@ def ppo_train_cfg(
 
 
 class SelectingRunner(OnPolicyRunner):
-    """rsl-rl's ``OnPolicyRunner`` that calls ``on_save(self)`` after every checkpoint it writes (every
-    ``save_interval`` iterations and at the end), so a run can score and keep its best policy there."""
+    """rsl-rl's ``OnPolicyRunner`` that writes its checkpoints atomically and calls ``on_save(self)`` after
+    every one (every ``save_interval`` iterations and at the end), so a run can score and keep its best
+    policy there."""
 
     on_save: Callable[[OnPolicyRunner], None] | None = None
 
     def save(self, path: str, infos: dict | None = None) -> None:
-        super().save(path, infos)
+        # rsl-rl's own save, through save_checkpoint: its torch.save straight to the path leaves a truncated
+        # file when the run is killed mid-write, and --resume reads the newest file.
+        save_checkpoint({**self.alg.save(), "iter": self.current_learning_iteration, "infos": infos}, path)
+        self.logger.save_model(path, self.current_learning_iteration)
         if self.on_save is not None:
             self.on_save(self)
 

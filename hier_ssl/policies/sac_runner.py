@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 from collections import defaultdict
 from collections.abc import Callable, Mapping
@@ -14,7 +13,7 @@ import torch
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hier_ssl.checkpoints.tensors import load_checkpoint
+from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.policies.sac import SAC, SACConfig
 from hier_ssl.policies.teacher import Teacher, make_teacher, teacher_labels, teacher_weight
 
@@ -79,23 +78,6 @@ def to_learner(
     next_obs, final_obs, flags = packed.split([num_obs, num_obs, 3], dim=1)
     live_mask = flags[:, 2] > 0.5 if live is not None else None
     return next_obs, flags[:, 0], final_obs, flags[:, 1], live_mask
-
-
-def atomic_save(obj: object, path: Path) -> None:
-    """``torch.save`` to a temporary file in the same folder, then rename over ``path``.
-
-    A run killed mid-write leaves the previous file intact instead of a truncated one.
-    """
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
 
 
 class SACRunner:
@@ -312,8 +294,8 @@ class SACRunner:
         the replay content it was saved with.
         """
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        atomic_save(self.sac.replay.state_dict(), self.run_dir / REPLAY_FILE)
-        atomic_save(
+        save_checkpoint(self.sac.replay.state_dict(), self.run_dir / REPLAY_FILE)
+        save_checkpoint(
             {
                 "sac": self.sac.state_dict(),
                 "config": self.sac.config.model_dump(),

@@ -9,9 +9,8 @@ best on the selection episodes), ``curve.csv`` (success rate against training wa
 from __future__ import annotations
 
 import csv
+import io
 import json
-import os
-import tempfile
 import time
 import warnings
 from collections.abc import Callable
@@ -21,7 +20,8 @@ from typing import Any
 import torch
 
 from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
-from hier_ssl.checkpoints.tensors import load_checkpoint
+from hier_ssl.checkpoints.files import write_text
+from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig, dump_config
 from hier_ssl.config.files import load_yaml
 from hier_ssl.envs import parse_config
@@ -32,23 +32,12 @@ from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.candidates import CandidateLearner, candidate_policy, missing_keys
 from hier_ssl.policies.networks import sac_policy
 from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
-from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
+from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
 # Model selection and the final evaluation draw their episodes from different seeds, so the reported
 # figures are not biased by having picked the checkpoint on them.
 SELECTION_SEED, EVALUATION_SEED = 10_000, 20_000
-
-
-def atomic_write_text(text: str, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
 
 
 def resume_config(run_dir: Path) -> TrainConfig:
@@ -110,19 +99,17 @@ class _Selection:
             "episode_length_median": result["episode_length"]["median"],
             "cpad_median": result["cpad"]["median"],
         }
-        curve = self.run_dir / CURVE_FILE
-        new = not curve.is_file()
-        with curve.open("a", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(row))
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
-        self.last_step = step
         self.rows.append(row)
+        curve = io.StringIO(newline="")
+        writer = csv.DictWriter(curve, fieldnames=list(row))
+        writer.writeheader()
+        writer.writerows(self.rows)
+        write_text(curve.getvalue(), self.run_dir / CURVE_FILE)
+        self.last_step = step
         score = selection_score(self.rows, self.config.selection_window)
         if self.best is None or score > self.best:
             self.best = score
-            atomic_save(state(), self.run_dir / BEST_ACTOR_FILE)
+            save_checkpoint(state(), self.run_dir / BEST_ACTOR_FILE)
         if self.on_selection is not None:
             self.on_selection(row)
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
@@ -159,7 +146,7 @@ def train(
     torch.set_num_threads(config.threads)
     run_dir.mkdir(parents=True, exist_ok=True)
     if not resume:
-        atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
+        write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
     if config.algo == "candidates":
@@ -188,7 +175,7 @@ def train(
         # Figures are per robot; "episodes" counts fields.
         "robots": best["robots"],
     }
-    atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
+    write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
 
 
@@ -294,7 +281,7 @@ def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str,
     policy, train_wall_s = _train_ppo(config, env, run_dir, resume, select=False)
     summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)
     summary["train_wall_s"] = round(train_wall_s, 1)
-    atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
+    write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
 
 

@@ -10,7 +10,7 @@ from torch.overrides import TorchFunctionMode
 
 import hier_ssl
 from hier_ssl.policies import SACConfig, SACRunner
-from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, atomic_save, to_learner
+from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, to_learner
 
 OBS_DIM, ACT_DIM = 4, 2
 TINY = {"hidden": (32, 32), "batch_size": 32, "buffer_size": 4096, "learning_starts": 0}
@@ -281,15 +281,6 @@ def test_to_learner_splits_what_it_packed() -> None:
         assert got.dtype == want.dtype
         assert torch.equal(got, want)
     assert to_learner(torch.device("cpu"), next_obs, rewards, final_obs, terminated, None)[4] is None
-
-
-def test_atomic_save_keeps_the_old_file_when_writing_fails(tmp_path: Path) -> None:
-    path = tmp_path / MODEL_FILE
-    atomic_save({"step": 1}, path)
-    with pytest.raises(Exception, match="pickle"):
-        atomic_save({"step": 2, "bad": lambda: None}, path)  # fails halfway through pickling
-    assert torch.load(path, weights_only=True) == {"step": 1}
-    assert [p.name for p in tmp_path.iterdir()] == [MODEL_FILE]
 
 
 def test_runner_drives_the_real_vector_env(tmp_path: Path) -> None:

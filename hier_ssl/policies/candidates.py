@@ -46,6 +46,7 @@ from hier_ssl.policies.candidate_graph import (
 )
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.networks import NumpyPolicy, mlp
+from hier_ssl.policies.ppo import clipped_surrogate, gae, minibatches, normalized, value_loss
 from hier_ssl.policies.sac_runner import MODEL_FILE
 
 Selection = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
@@ -81,28 +82,6 @@ def outcome_reward(
     reward = -settings.time_cost * control_steps.astype(np.float32) / 100.0
     np.add.at(reward, ended_rows, settings.success_reward * success - settings.collision_cost * collision)
     return reward
-
-
-def advantages(
-    rewards: torch.Tensor,
-    values: torch.Tensor,
-    last_values: torch.Tensor,
-    dones: torch.Tensor,
-    gamma: float,
-    lam: float,
-) -> torch.Tensor:
-    """Generalised advantage estimates (T, R) of a rollout: rewards, values, dones (T, R), the values of
-    the observations after its last step (R,). A done step does not bootstrap (a truncation's bootstrap is
-    already in its reward)."""
-    out = torch.zeros_like(rewards)
-    running = torch.zeros_like(last_values)
-    for t in reversed(range(len(rewards))):
-        following = last_values if t == len(rewards) - 1 else values[t + 1]
-        keep = 1.0 - dones[t]
-        delta = rewards[t] + gamma * following * keep - values[t]
-        running = delta + gamma * lam * keep * running
-        out[t] = running
-    return out
 
 
 def _seed(config: TrainConfig, phase: int, index: int) -> int:
@@ -313,7 +292,7 @@ class CandidateLearner:
         with torch.no_grad():
             values = value(obs).squeeze(-1)
             last = value(torch.as_tensor(self.obs)).squeeze(-1)
-        adv = advantages(rewards.float(), values, last, dones.float(), settings.gamma, settings.lam)
+        adv = gae(rewards.float(), values, last, dones.float(), settings.gamma, settings.lam)
         logs = {}
         if ended[2]:
             logs = {
@@ -332,35 +311,28 @@ class CandidateLearner:
         policy_optimizer, value_optimizer = self.optimizers
         obs, choices, old_log_probs, adv, returns, inputs = batch
         logs: dict[str, float] = {}
-        for _ in range(settings.epochs):
-            # Near-equal shares: a scenario's live rows rarely divide evenly, and one row has no spread.
-            for rows in torch.tensor_split(torch.randperm(len(obs)), settings.minibatches):
-                if not len(rows):  # fewer rows than minibatches
-                    continue
-                value_loss = (value(obs[rows]).squeeze(-1) - returns[rows]).square().mean()
-                value_optimizer.zero_grad()
-                value_loss.backward()
-                value_optimizer.step()
-                logs["losses/value"] = value_loss.item()
-                if not moving:
-                    continue
-                log_probs = torch.log_softmax(net(inputs[rows]), 1)
-                ratio = (log_probs.gather(1, choices[rows, None])[:, 0] - old_log_probs[rows]).exp()
-                a = adv[rows] - adv[rows].mean()
-                a = a / (a.std() + 1e-8) if len(rows) > 1 else a
-                clipped = ratio.clamp(1.0 - settings.clip, 1.0 + settings.clip)
-                surrogate = -torch.min(ratio * a, clipped * a).mean()
-                loss = surrogate
-                if settings.kl_weight:  # the reference's forward pass costs a scorer as much as its own
-                    with torch.no_grad():
-                        anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
-                    kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
-                    loss = loss + settings.kl_weight * kl
-                    logs["losses/kl_to_dagger"] = kl.item()
-                policy_optimizer.zero_grad()
-                loss.backward()
-                policy_optimizer.step()
-                logs["losses/surrogate"] = surrogate.item()
+        for rows in minibatches(len(obs), settings.minibatches, settings.epochs):
+            fit = value_loss(value(obs[rows]).squeeze(-1), returns[rows])
+            value_optimizer.zero_grad()
+            fit.backward()
+            value_optimizer.step()
+            logs["losses/value"] = fit.item()
+            if not moving:
+                continue
+            log_probs = torch.log_softmax(net(inputs[rows]), 1)
+            taken = log_probs.gather(1, choices[rows, None])[:, 0]
+            surrogate = clipped_surrogate(taken, old_log_probs[rows], normalized(adv[rows]), settings.clip)
+            loss = surrogate
+            if settings.kl_weight:  # the reference's forward pass costs a scorer as much as its own
+                with torch.no_grad():
+                    anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
+                kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
+                loss = loss + settings.kl_weight * kl
+                logs["losses/kl_to_dagger"] = kl.item()
+            policy_optimizer.zero_grad()
+            loss.backward()
+            policy_optimizer.step()
+            logs["losses/surrogate"] = surrogate.item()
         return logs
 
     @property
@@ -381,7 +353,6 @@ class CandidateLearner:
 
 __all__ = [
     "CandidateLearner",
-    "advantages",
     "candidate_manager",
     "candidate_planner",
     "candidate_policy",

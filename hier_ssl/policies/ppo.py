@@ -1,4 +1,7 @@
-"""PPO through rsl-rl-lib 5.x: our typed ``PPOConfig`` as rsl-rl's nested ``train_cfg``, a runner over the
+"""PPO: through rsl-rl-lib 5.x for the Gaussian actors (``algo: ppo`` managers, the goToPoint worker), and
+its pieces as functions for the candidate learner's categorical policy (``hier_ssl.policies.candidates``).
+
+For the Gaussian actors: our typed ``PPOConfig`` as rsl-rl's nested ``train_cfg``, a runner over the
 batched vector env, and the trained actor as a numpy policy for ``hier_ssl.evaluation.evaluate``.
 
 rsl-rl owns the loop, the update, logging and checkpoints (``runner.learn``, ``runner.save``). Two of
@@ -9,11 +12,17 @@ its habits matter here:
   ``weights_only=True`` and hands the dict to the algorithm's own ``load``.
 - The runner writes resolved fields (``obs_groups``, ``multi_gpu``) into the train_cfg it is given, so
   every call of ``ppo_train_cfg`` returns a fresh dict and ``make_ppo_runner`` never shares one.
+
+rsl-rl's ``PPO`` cannot train the candidate learner: its distributions are Gaussian only, its update one
+optimiser over actor and critic with a clipped value loss, an entropy bonus and gradient clipping, where
+the candidate learner has a categorical policy over a variable set of candidates, a KL penalty towards its
+DAgger fit, and a value fitted alone before the policy moves. That learner builds its update from
+``gae``, ``minibatches``, ``value_loss``, ``normalized`` and ``clipped_surrogate`` here.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -171,4 +180,70 @@ def load_ppo(runner: OnPolicyRunner, path: str | Path, map_location: str | None 
         runner.current_learning_iteration = loaded["iter"]
 
 
-__all__ = ["NumpyPolicy", "SelectingRunner", "load_ppo", "make_ppo_runner", "ppo_policy", "ppo_train_cfg"]
+def gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    last_values: torch.Tensor,
+    dones: torch.Tensor,
+    gamma: float,
+    lam: float,
+) -> torch.Tensor:
+    """Generalised advantage estimates (T, N) of a rollout (Schulman et al., 2016): rewards, values, dones
+    (T, N) with dones 0 or 1, the values of the observations after its last step (N,). A done step does
+    not bootstrap (a truncation's bootstrap belongs in its reward); the returns are advantages + values."""
+    out = torch.zeros_like(rewards)
+    running = torch.zeros_like(last_values)
+    for t in reversed(range(len(rewards))):
+        following = last_values if t == len(rewards) - 1 else values[t + 1]
+        keep = 1.0 - dones[t]
+        delta = rewards[t] + gamma * following * keep - values[t]
+        running = delta + gamma * lam * keep * running
+        out[t] = running
+    return out
+
+
+def minibatches(rows: int, count: int, epochs: int) -> Iterator[torch.Tensor]:
+    """The row indices of ``epochs`` passes over ``rows`` rows, each a fresh permutation (torch's global
+    generator) cut into ``count`` near-equal minibatches: a rollout's live rows rarely divide evenly. Empty
+    ones (fewer rows than ``count``) are skipped."""
+    for _ in range(epochs):
+        for minibatch in torch.tensor_split(torch.randperm(rows), count):
+            if len(minibatch):
+                yield minibatch
+
+
+def value_loss(predicted: torch.Tensor, returns: torch.Tensor) -> torch.Tensor:
+    """Mean squared error of the value's predictions (B,) against the returns (B,)."""
+    return (predicted - returns).square().mean()
+
+
+def normalized(advantages: torch.Tensor) -> torch.Tensor:
+    """A minibatch's advantages (B,) at zero mean and unit spread; a single row, which has no spread, is
+    only centred."""
+    centred = advantages - advantages.mean()
+    return centred / (centred.std() + 1e-8) if len(advantages) > 1 else centred
+
+
+def clipped_surrogate(
+    log_probs: torch.Tensor, old_log_probs: torch.Tensor, advantages: torch.Tensor, clip: float
+) -> torch.Tensor:
+    """PPO's clipped surrogate loss (Schulman et al., 2017), to minimise: log-probabilities of the taken
+    actions now and at the rollout, advantages, all (B,)."""
+    ratio = (log_probs - old_log_probs).exp()
+    clipped = ratio.clamp(1.0 - clip, 1.0 + clip)
+    return -torch.min(ratio * advantages, clipped * advantages).mean()
+
+
+__all__ = [
+    "NumpyPolicy",
+    "SelectingRunner",
+    "clipped_surrogate",
+    "gae",
+    "load_ppo",
+    "make_ppo_runner",
+    "minibatches",
+    "normalized",
+    "ppo_policy",
+    "ppo_train_cfg",
+    "value_loss",
+]

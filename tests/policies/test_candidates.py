@@ -177,19 +177,6 @@ def test_the_ppo_reward_prices_time_success_and_collisions() -> None:
     np.testing.assert_allclose(reward, [-0.32, -0.32 + 10.0, -0.14 - 30.0, -0.32], rtol=1e-6)
 
 
-def test_advantages_stop_at_episode_ends() -> None:
-    from hier_ssl.policies.candidates import advantages
-
-    rewards = torch.tensor([[1.0], [2.0], [3.0]])
-    values = torch.tensor([[0.5], [0.25], [1.0]])
-    dones = torch.tensor([[0.0], [1.0], [0.0]])
-    adv = advantages(rewards, values, torch.tensor([2.0]), dones, gamma=0.9, lam=0.5)
-    last = 3.0 + 0.9 * 2.0 - 1.0  # bootstraps from the value after the rollout
-    second = 2.0 - 0.25  # the episode ended: no bootstrap, nothing from the next episode
-    first = (1.0 + 0.9 * 0.25 - 0.5) + 0.9 * 0.5 * second
-    torch.testing.assert_close(adv, torch.tensor([[first], [second], [last]]))
-
-
 def test_ppo_takes_the_classifier_past_the_obstacle_where_imitation_left_it(
     tmp_path: Path, one_thread: None
 ) -> None:

@@ -22,6 +22,7 @@ DAgger fit, and a value fitted alone before the policy moves. That learner build
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -32,8 +33,10 @@ from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
 from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
+from hier_ssl.config import ConfigError
 from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
 from hier_ssl.policies.networks import NumpyPolicy
 
 
@@ -180,6 +183,78 @@ def load_ppo(runner: OnPolicyRunner, path: str | Path, map_location: str | None 
         runner.current_learning_iteration = loaded["iter"]
 
 
+class PPOLearner:
+    """PPO through rsl-rl as a ``Learner`` (``hier_ssl.policies.learner``): its runner over ``env`` writes
+    ``model_<iteration>.pt`` into ``run_dir`` every ``checkpoint_interval`` vector steps (in whole
+    iterations, at least one) and at the end, and each is a checkpoint. ``seed`` seeds the networks'
+    initial weights, the exploration noise and the env's first reset."""
+
+    def __init__(
+        self,
+        env: TorchView,
+        cfg: PPOConfig,
+        run_dir: str | Path,
+        device: str | torch.device = "cpu",
+        *,
+        seed: int = 0,
+        checkpoint_interval: int,
+    ) -> None:
+        self.steps_per_iteration, self.num_envs = cfg.num_steps_per_env, env.num_envs
+        self.run_dir = Path(run_dir)
+        torch.manual_seed(seed)  # the networks' initial weights and the policy's exploration noise
+        every = max(1, checkpoint_interval // self.steps_per_iteration)
+        self.runner = make_ppo_runner(env, cfg, self.run_dir, device, seed=seed, save_interval=every)
+        self.train_time_s = 0.0  # of the last ``learn``: rsl-rl keeps no clock across resumes
+        self._policy = ppo_policy(self.runner)
+        self._on_checkpoint: OnCheckpoint | None = None
+        self._started, self._evaluating, self._last_step = 0.0, 0.0, -1
+
+    def learn(self, total_steps: int, on_checkpoint: OnCheckpoint | None = None) -> None:
+        """Learn until iteration ``total_steps // num_steps_per_env`` (at least one)."""
+        remaining = max(1, total_steps // self.steps_per_iteration) - self.runner.current_learning_iteration
+        self._started, self._evaluating = time.perf_counter(), 0.0
+        if remaining > 0:  # a resumed run that had finished has nothing left to learn
+            self._on_checkpoint, self.runner.on_save = on_checkpoint, self._saved
+            try:
+                self.runner.learn(remaining)
+            finally:
+                self._on_checkpoint, self.runner.on_save = None, None
+        self.train_time_s = time.perf_counter() - self._started - self._evaluating
+
+    def policy(self) -> NumpyPolicy:
+        """The actor's Gaussian mean clipped to [-1, 1] (``ppo_policy``), a live view of its weights."""
+        return self._policy
+
+    def save(self) -> None:
+        """``model_<iteration>.pt`` of the iteration reached, as rsl-rl's own saves."""
+        self.runner.save(str(self.run_dir / f"model_{self.runner.current_learning_iteration}.pt"))
+
+    def load(self, run_dir: str | Path) -> None:
+        """Continue after the highest-numbered ``model_<iteration>.pt`` in ``run_dir``."""
+        run_dir = Path(run_dir)
+        saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
+        if not saved:
+            raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
+        load_ppo(self.runner, saved[-1])
+        self.runner.current_learning_iteration += 1  # rsl-rl saves the index of the last finished iteration
+
+    def _saved(self, runner: OnPolicyRunner) -> None:
+        """``on_save``: the file rsl-rl just wrote is a checkpoint."""
+        step = (runner.current_learning_iteration + 1) * self.steps_per_iteration
+        if self._on_checkpoint is None or step == self._last_step:  # the final save repeats the last one
+            return
+        began = time.perf_counter()
+        self.train_time_s = began - self._started - self._evaluating
+        iteration = runner.current_learning_iteration
+
+        def state() -> dict[str, Any]:  # what runner.save writes
+            return {**runner.alg.save(), "iter": iteration}
+
+        self._on_checkpoint(Checkpoint(step, step * self.num_envs, self.train_time_s, self._policy, state))
+        self._last_step = step
+        self._evaluating += time.perf_counter() - began
+
+
 def gae(
     rewards: torch.Tensor,
     values: torch.Tensor,
@@ -236,6 +311,7 @@ def clipped_surrogate(
 
 __all__ = [
     "NumpyPolicy",
+    "PPOLearner",
     "SelectingRunner",
     "clipped_surrogate",
     "gae",

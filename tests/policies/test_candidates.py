@@ -198,7 +198,7 @@ def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: 
     from hier_ssl.policies.candidates import CandidateLearner
     from hier_ssl.policies.networks import mlp
 
-    learner = CandidateLearner(parse_config(_config()), tmp_path, score=lambda *args: None, progress=False)
+    learner = CandidateLearner(parse_config(_config()), tmp_path, progress=False)
     learner.net, learner.reference, learner.value = mlp(6, (8,), 4), mlp(6, (8,), 4), mlp(6, (8,), 1)
     learner.optimizers = tuple(torch.optim.Adam(m.parameters()) for m in (learner.net, learner.value))
     # Five live rows in four minibatches (a scenario whose robots left at different times).
@@ -251,3 +251,18 @@ def test_a_resumed_dagger_phase_ends_with_the_weights_of_an_uninterrupted_run(tm
     # the resumed round shuffles its minibatches as the uninterrupted one did.
     for key, value in torch.load(whole / "model.pt")["net"].items():
         torch.testing.assert_close(torch.load(halves / "model.pt")["net"][key], value, rtol=0, atol=0)
+
+
+def test_a_candidate_learner_stops_at_its_step_budget_and_goes_on_from_there(tmp_path: Path) -> None:
+    from hier_ssl.policies.candidates import CandidateLearner
+
+    ppo = {"iterations": 2, "fields": 8, "horizon": 4, "value_warmup": 1, "eval_interval": 1}
+    config = parse_config(_config(ppo=ppo, rounds=2, episodes=10))
+    steps: list[int] = []
+    CandidateLearner(config, tmp_path, progress=False).learn(1, lambda c: steps.append(c.step))
+    assert steps == [1] and torch.load(tmp_path / "model.pt")["round"] == 0  # one DAgger round of two
+    later = CandidateLearner(config, tmp_path, progress=False)
+    later.load(tmp_path)
+    later.learn(3, lambda c: steps.append(c.step))  # the second round, then one PPO iteration of two
+    saved = torch.load(tmp_path / "model.pt")
+    assert steps == [1, 2, 3] and saved["phase"] == "ppo" and saved["iteration"] == 1

@@ -8,7 +8,9 @@ import torch
 
 import hier_ssl
 from hier_ssl.config.learners import PPOConfig
+from hier_ssl.policies.learner import Checkpoint
 from hier_ssl.policies.ppo import (
+    PPOLearner,
     clipped_surrogate,
     gae,
     load_ppo,
@@ -155,3 +157,28 @@ def test_minibatches_cover_every_row_once_an_epoch_in_near_equal_shares() -> Non
     for epoch in (batches[:4], batches[4:]):
         assert sorted(torch.cat(epoch).tolist()) == [0, 1, 2, 3, 4]
     assert [len(b) for b in minibatches(3, count=4, epochs=1)] == [1, 1, 1]  # no empty minibatch
+
+
+def test_the_ppo_learner_scores_each_save_once_and_resumes_from_its_own_save(tmp_path: Path) -> None:
+    cfg = PPOConfig(hidden=(16, 16), num_steps_per_env=4, num_learning_epochs=1, num_mini_batches=1)
+
+    def learner() -> PPOLearner:
+        env = hier_ssl.vector_env(task="proposed", frame_skip=16, num_envs=8)
+        return PPOLearner(env, cfg, tmp_path, seed=1, checkpoint_interval=8)
+
+    trained, calls = learner(), []
+    trained.learn(12, calls.append)
+    # Three iterations, saved after the first and the third; the final save repeats the third's.
+    assert [(c.step, c.transitions) for c in calls] == [(4, 32), (12, 96)]
+    assert calls[-1].state()["iter"] == 2 and calls[-1].policy is trained.policy()
+    for path in tmp_path.glob("model_*.pt"):
+        path.unlink()
+    trained.save()
+    assert [p.name for p in tmp_path.glob("model_*.pt")] == ["model_2.pt"]
+    resumed = learner()
+    resumed.load(tmp_path)
+    obs = _obs()
+    np.testing.assert_array_equal(resumed.policy()(obs), trained.policy()(obs))
+    more: list[Checkpoint] = []
+    resumed.learn(16, more.append)  # one iteration after the three
+    assert [c.step for c in more] == [16] and (tmp_path / "model_3.pt").is_file()

@@ -35,11 +35,13 @@ def test_a_failed_first_write_leaves_no_file(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_write_replaces_the_content(tmp_path: Path) -> None:
-    path = tmp_path / "config.yaml"
+def test_a_write_replaces_the_content_and_has_the_mode_of_a_new_file(tmp_path: Path) -> None:
+    path, plain = tmp_path / "config.yaml", tmp_path / "plain"
     write_text("name: a\n", path)
     write_text("name: b\n", path)
     assert path.read_text() == "name: b\n"
+    plain.write_text("")
+    assert path.stat().st_mode == plain.stat().st_mode
 
 
 def test_a_checkpoint_that_fails_to_pickle_keeps_the_previous_one(tmp_path: Path) -> None:

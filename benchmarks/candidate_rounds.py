@@ -3,8 +3,8 @@
 Trains ``--config`` (default the crowd scorer) for ``--rounds`` DAgger rounds of ``--episodes`` episodes
 and ``--iterations`` PPO iterations into a temporary folder, with the run's selection scoring done by
 nothing, and prints each round's and iteration's training time (rollouts and updates, ``train_time_s``).
-It reads only what every version of ``CandidateLearner`` has, so the same file times the code before a
-change and after it: run it with PYTHONPATH at each checkout.
+It drives ``CandidateLearner`` through the learner protocol (``hier_ssl.policies.learner``): run it with
+PYTHONPATH at each checkout to compare two versions that have it.
 
 Run: PYTHONPATH=CHECKOUT python benchmarks/candidate_rounds.py [--rounds 2] [--episodes 100] [--iterations 3]
 """
@@ -21,6 +21,7 @@ import torch
 from hier_ssl.config.files import config_dir, load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.policies.candidates import CandidateLearner
+from hier_ssl.policies.learner import Checkpoint
 
 
 def main() -> None:
@@ -39,11 +40,11 @@ def main() -> None:
     config = parse_config(data)
     times: list[float] = []
 
-    def score(policy, step, transitions, train_time_s, state) -> None:
-        times.append(train_time_s)
+    def timed(checkpoint: Checkpoint) -> None:
+        times.append(checkpoint.train_time_s)
 
     with tempfile.TemporaryDirectory() as run_dir:
-        CandidateLearner(config, Path(run_dir), score, progress=False).learn()
+        CandidateLearner(config, Path(run_dir), progress=False).learn(args.rounds + args.iterations, timed)
     each = np.diff([0.0, *times])
     rounds, iterations = each[: args.rounds], each[args.rounds :]
     ppo = config.candidates.ppo

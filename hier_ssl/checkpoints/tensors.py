@@ -1,4 +1,5 @@
-"""Reading checkpoints: plain tensors only, through ``torch.load(weights_only=True)``.
+"""Checkpoints: written whole or not at all (``save_checkpoint``), read as plain tensors only, through
+``torch.load(weights_only=True)`` (``load_checkpoint``).
 
 A file holding anything else (pickled Python objects, which run code as they are unpickled) is refused
 with an error that names the file and what it holds and says that hier_ssl will not load it. torch's own
@@ -15,11 +16,18 @@ from typing import Any
 
 import torch
 
+from hier_ssl.checkpoints.files import atomic_write
 from hier_ssl.config import ConfigError
 
 
 class UnsafeCheckpointError(ConfigError):
     """A checkpoint that holds more than plain tensors (a ``ConfigError``: the command ends with it)."""
+
+
+def save_checkpoint(obj: Any, path: str | Path) -> None:
+    """``torch.save(obj)`` into ``path`` through ``atomic_write``: a run killed mid-save keeps its previous
+    checkpoint."""
+    atomic_write(path, lambda f: torch.save(obj, f))
 
 
 def load_checkpoint(path: str | Path, map_location: str | torch.device | None = None) -> Any:
@@ -43,4 +51,4 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device | None = 
         raise pickle.UnpicklingError(f"not a file of plain tensors ({detail})") from None
 
 
-__all__ = ["UnsafeCheckpointError", "load_checkpoint"]
+__all__ = ["UnsafeCheckpointError", "load_checkpoint", "save_checkpoint"]

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from hier_ssl.checkpoints.files import write_text
 from hier_ssl.config import TaskConfig
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.field import STEP, Cameras, camera_frames, camera_strips
@@ -111,8 +112,7 @@ def tracking_error(
 def untrained_export(folder: Path, task: str = "obstacle", fmt: str = "torchscript") -> Path:
     """An exported manager (``fmt``: torchscript or onnx) for ``task`` (a paper task or a scenario) of the
     size training gives (SAC, 2 x 256 units), with random weights."""
-    import torch
-
+    from hier_ssl.checkpoints.tensors import save_checkpoint
     from hier_ssl.config import dump_config
     from hier_ssl.envs import parse_config
     from hier_ssl.policies.export import export_manager
@@ -125,9 +125,9 @@ def untrained_export(folder: Path, task: str = "obstacle", fmt: str = "torchscri
     scenario = make_scenario(config.task_config)
     run = folder / f"untrained-{task}"
     run.mkdir(parents=True, exist_ok=True)
-    (run / "config.yaml").write_text(dump_config(config))
+    write_text(dump_config(config), run / "config.yaml")
     actor = SquashedGaussianActor(scenario.obs_dim, scenario.act_dim)
-    torch.save({"actor": actor.state_dict(), "step": 0}, run / "best_actor.pt")
+    save_checkpoint({"actor": actor.state_dict(), "step": 0}, run / "best_actor.pt")
     return export_manager(run, fmt)
 
 

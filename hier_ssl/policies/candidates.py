@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import copy
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +29,8 @@ from torch import nn
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hier_ssl.config import TrainConfig
+from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
+from hier_ssl.config import ConfigError, TrainConfig
 from hier_ssl.config.learners import CandidatePPOConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
@@ -44,12 +44,10 @@ from hier_ssl.policies.candidate_graph import (
     stored_features,
 )
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
 from hier_ssl.policies.networks import NumpyPolicy, mlp
-from hier_ssl.policies.sac_runner import MODEL_FILE, atomic_save
-
-Selection = Callable[[NumpyPolicy, int, int, float, Callable[[], dict]], Any]
-"""Model selection: ``(policy, step, transitions, train_time_s, state)``; ``state()`` is what
-``best_actor.pt`` keeps (``hier_ssl.runs.train``)."""
+from hier_ssl.policies.ppo import clipped_surrogate, gae, minibatches, normalized, value_loss
+from hier_ssl.policies.sac_runner import MODEL_FILE
 
 
 def candidate_planner(config: TrainConfig) -> SamplingPlanner:
@@ -82,28 +80,6 @@ def outcome_reward(
     return reward
 
 
-def advantages(
-    rewards: torch.Tensor,
-    values: torch.Tensor,
-    last_values: torch.Tensor,
-    dones: torch.Tensor,
-    gamma: float,
-    lam: float,
-) -> torch.Tensor:
-    """Generalised advantage estimates (T, R) of a rollout: rewards, values, dones (T, R), the values of
-    the observations after its last step (R,). A done step does not bootstrap (a truncation's bootstrap is
-    already in its reward)."""
-    out = torch.zeros_like(rewards)
-    running = torch.zeros_like(last_values)
-    for t in reversed(range(len(rewards))):
-        following = last_values if t == len(rewards) - 1 else values[t + 1]
-        keep = 1.0 - dones[t]
-        delta = rewards[t] + gamma * following * keep - values[t]
-        running = delta + gamma * lam * keep * running
-        out[t] = running
-    return out
-
-
 def _seed(config: TrainConfig, phase: int, index: int) -> int:
     # Far from the selection and evaluation seeds (hier_ssl.runs.train), so no training episode is theirs.
     return (config.seed + 1) * 1_000_000 + phase * 100_000 + index
@@ -118,42 +94,59 @@ def missing_keys(saved: dict[str, Any]) -> list[str]:
 
 
 class CandidateLearner:
-    """Both phases over one run directory. ``model.pt`` is rewritten after every DAgger round and every
-    ``ppo.eval_interval`` PPO iterations, then ``score`` rates the greedy policy (curve step: the round,
-    then rounds + the iteration). A resumed PPO phase starts new episodes."""
+    """Both phases over one run directory, a ``Learner`` (``hier_ssl.policies.learner``) whose step is the
+    DAgger round, then rounds + the PPO iteration. ``model.pt`` is rewritten after every DAgger round and
+    every ``ppo.eval_interval`` PPO iterations, each then a checkpoint of the greedy policy. A resumed PPO
+    phase starts new episodes."""
 
-    def __init__(self, config: TrainConfig, run_dir: Path, score: Selection, progress: bool = True) -> None:
-        self.config, self.run_dir, self.score = config, run_dir, score
+    def __init__(self, config: TrainConfig, run_dir: Path, progress: bool = True) -> None:
+        self.config, self.run_dir = config, run_dir
         self.settings = config.candidates
         self.planner = candidate_planner(config)
         self.geometry = candidate_geometry(config, self.planner)
-        self.train_time = 0.0  # rollouts and updates, without the scoring
+        self.train_time_s = 0.0  # rollouts and updates, without the checkpoints' scoring
         self.net: nn.Module | None = None
         self.writer = SummaryWriter(run_dir)
         total = self.settings.rounds + self.settings.ppo.iterations
         self.bar = tqdm(total=total, desc="candidates (DAgger, then PPO)", disable=not progress)
+        self.resumed: dict[str, Any] = {}  # the model.pt that ``load`` read
+        self.phase = "dagger"
+        self.on_checkpoint: OnCheckpoint | None = None
 
-    def learn(self, saved: dict[str, Any] | None = None) -> nn.Module:
-        """Both phases, continuing ``saved`` (a ``model.pt``) where given; the final network."""
+    def load(self, run_dir: str | Path) -> None:
+        """Continue from ``run_dir``'s ``model.pt``, in the phase it was saved in."""
+        path = Path(run_dir) / MODEL_FILE
+        saved = load_checkpoint(path)
+        if missing := missing_keys(saved):
+            raise ConfigError(f"cannot resume {run_dir}: {path} lacks {missing}")
+        self.resumed = saved
+
+    def learn(self, total_steps: int, on_checkpoint: OnCheckpoint | None = None) -> None:
+        """Both phases, from where ``load`` left them, until DAgger round ``total_steps`` or PPO iteration
+        ``total_steps - rounds``."""
         torch.manual_seed(self.config.seed)
-        saved = saved or {}
+        saved, self.on_checkpoint = self.resumed, on_checkpoint
         if saved:
-            self.train_time = saved["train_time_s"]
+            self.train_time_s = saved["train_time_s"]
             self.net = chooser_from_state(saved["net"])
         try:
             if saved.get("phase", "dagger") == "dagger":
-                self.dagger(saved)
+                self.dagger(saved, min(total_steps, self.settings.rounds))
                 saved = {}
-            if self.settings.ppo.iterations:
-                self.ppo(saved)
+            iterations = min(total_steps - self.settings.rounds, self.settings.ppo.iterations)
+            if iterations > 0:
+                self.ppo(saved, iterations)
         finally:
+            self.on_checkpoint = None
             self.bar.close()
             self.writer.close()
-        assert self.net is not None
-        return self.net
 
-    def dagger(self, saved: dict[str, Any]) -> None:
-        """Phase 1: ``rounds`` DAgger rounds, from round ``saved["round"] + 1`` where given."""
+    def policy(self) -> NumpyPolicy:
+        """The greedy choice of the network over the planner's candidates, a live view of its weights."""
+        return candidate_policy(self.manager)
+
+    def dagger(self, saved: dict[str, Any], rounds: int) -> None:
+        """Phase 1: DAgger rounds until ``rounds``, from round ``saved["round"] + 1`` where given."""
         settings, planner, geometry = self.settings, self.planner, self.geometry
         obs_parts = [saved["obs"].numpy()] if saved else []
         label_parts = [saved["labels"].numpy()] if saved else []
@@ -188,7 +181,7 @@ class CandidateLearner:
 
             return policy
 
-        for round_ in range(first, settings.rounds):
+        for round_ in range(first, rounds):
             began = time.perf_counter()
             core = HierarchicalCore(self.config.task_config, settings.episodes, autoreset=False)
             ends = play(core, labelling(self.net), _seed(self.config, 0, round_))
@@ -203,7 +196,7 @@ class CandidateLearner:
             if optimizer is None:
                 optimizer = torch.optim.Adam(net.parameters(), lr=settings.learning_rate)
             loss, agreement = fit_chooser(net, optimizer, inputs, p, settings.epochs, settings.batch_size)
-            self.train_time += time.perf_counter() - began
+            self.train_time_s += time.perf_counter() - began
             step = round_ + 1
             for key, value in (
                 ("losses/cross_entropy", loss),
@@ -214,16 +207,17 @@ class CandidateLearner:
             ):
                 self.writer.add_scalar(key, value, step)
             # Saved before scoring: a run killed while scoring resumes at the next round, no curve row twice.
-            weights = {"net": net.state_dict(), "optimizer": optimizer.state_dict(), "obs": x, "labels": p}
-            self.save({"phase": "dagger", "round": round_, "states": len(x), **weights})
-            self.scored(step, len(x))
+            self.dagger_round, self.optimizer, self.dagger_obs, self.dagger_labels = round_, optimizer, x, p
+            self.save()
+            self.checkpoint(step, len(x))
             self.bar.update(1)
             self.bar.set_postfix(states=len(x), agreement=f"{agreement:.2f}", played=played["success_rate"])
         self.states = len(obs_parts[0]) if obs_parts else 0
 
-    def ppo(self, saved: dict[str, Any]) -> None:
-        """Phase 2: ``ppo.iterations`` PPO iterations from the DAgger fit, from ``saved["iteration"]``."""
+    def ppo(self, saved: dict[str, Any], iterations: int) -> None:
+        """Phase 2: PPO iterations from the DAgger fit until ``iterations``, from ``saved["iteration"]``."""
         settings, net = self.settings.ppo, self.net
+        self.phase = "ppo"
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
@@ -243,7 +237,7 @@ class CandidateLearner:
         self.bar.update(self.settings.rounds + first - self.bar.n)
         self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
         self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
-        for iteration in range(first, settings.iterations):
+        for iteration in range(first, iterations):
             began = time.perf_counter()
             if settings.anneal:
                 left = 1.0 - iteration / settings.iterations
@@ -254,21 +248,15 @@ class CandidateLearner:
             batch, logs = self.rollout()
             decisions += len(batch[0])
             logs |= self.update(batch, moving=iteration >= settings.value_warmup)
-            self.train_time += time.perf_counter() - began
+            self.train_time_s += time.perf_counter() - began
             step = self.settings.rounds + iteration + 1
             for key, item in logs.items():
                 self.writer.add_scalar(key, item, step)
             self.bar.update(1)
-            if (iteration + 1) % settings.eval_interval == 0 or iteration + 1 == settings.iterations:
-                weights = {
-                    "net": net.state_dict(),
-                    "reference": self.reference.state_dict(),
-                    "value": self.value.state_dict(),
-                    "optimizers": [optimizer.state_dict() for optimizer in self.optimizers],
-                }
-                progress = {"iteration": iteration + 1, "decisions": decisions, "states": self.states}
-                self.save({"phase": "ppo", **progress, **weights})
-                self.scored(step, self.states + decisions)
+            if (iteration + 1) % settings.eval_interval == 0 or iteration + 1 == iterations:
+                self.iteration, self.decisions = iteration + 1, decisions
+                self.save()
+                self.checkpoint(step, self.states + decisions)
 
     def rollout(self) -> tuple[list[torch.Tensor], dict[str, float]]:
         """``ppo.horizon`` decisions of every field with the sampled policy: the live rows' observations,
@@ -312,7 +300,7 @@ class CandidateLearner:
         with torch.no_grad():
             values = value(obs).squeeze(-1)
             last = value(torch.as_tensor(self.obs)).squeeze(-1)
-        adv = advantages(rewards.float(), values, last, dones.float(), settings.gamma, settings.lam)
+        adv = gae(rewards.float(), values, last, dones.float(), settings.gamma, settings.lam)
         logs = {}
         if ended[2]:
             logs = {
@@ -331,35 +319,28 @@ class CandidateLearner:
         policy_optimizer, value_optimizer = self.optimizers
         obs, choices, old_log_probs, adv, returns, inputs = batch
         logs: dict[str, float] = {}
-        for _ in range(settings.epochs):
-            # Near-equal shares: a scenario's live rows rarely divide evenly, and one row has no spread.
-            for rows in torch.tensor_split(torch.randperm(len(obs)), settings.minibatches):
-                if not len(rows):  # fewer rows than minibatches
-                    continue
-                value_loss = (value(obs[rows]).squeeze(-1) - returns[rows]).square().mean()
-                value_optimizer.zero_grad()
-                value_loss.backward()
-                value_optimizer.step()
-                logs["losses/value"] = value_loss.item()
-                if not moving:
-                    continue
-                log_probs = torch.log_softmax(net(inputs[rows]), 1)
-                ratio = (log_probs.gather(1, choices[rows, None])[:, 0] - old_log_probs[rows]).exp()
-                a = adv[rows] - adv[rows].mean()
-                a = a / (a.std() + 1e-8) if len(rows) > 1 else a
-                clipped = ratio.clamp(1.0 - settings.clip, 1.0 + settings.clip)
-                surrogate = -torch.min(ratio * a, clipped * a).mean()
-                loss = surrogate
-                if settings.kl_weight:  # the reference's forward pass costs a scorer as much as its own
-                    with torch.no_grad():
-                        anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
-                    kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
-                    loss = loss + settings.kl_weight * kl
-                    logs["losses/kl_to_dagger"] = kl.item()
-                policy_optimizer.zero_grad()
-                loss.backward()
-                policy_optimizer.step()
-                logs["losses/surrogate"] = surrogate.item()
+        for rows in minibatches(len(obs), settings.minibatches, settings.epochs):
+            fit = value_loss(value(obs[rows]).squeeze(-1), returns[rows])
+            value_optimizer.zero_grad()
+            fit.backward()
+            value_optimizer.step()
+            logs["losses/value"] = fit.item()
+            if not moving:
+                continue
+            log_probs = torch.log_softmax(net(inputs[rows]), 1)
+            taken = log_probs.gather(1, choices[rows, None])[:, 0]
+            surrogate = clipped_surrogate(taken, old_log_probs[rows], normalized(adv[rows]), settings.clip)
+            loss = surrogate
+            if settings.kl_weight:  # the reference's forward pass costs a scorer as much as its own
+                with torch.no_grad():
+                    anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
+                kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
+                loss = loss + settings.kl_weight * kl
+                logs["losses/kl_to_dagger"] = kl.item()
+            policy_optimizer.zero_grad()
+            loss.backward()
+            policy_optimizer.step()
+            logs["losses/surrogate"] = surrogate.item()
         return logs
 
     @property
@@ -368,19 +349,49 @@ class CandidateLearner:
         assert self.net is not None
         return CandidateManager(self.geometry, self.net)
 
-    def save(self, state: dict[str, Any]) -> None:
-        extra = {"train_time_s": self.train_time, "torch_rng": torch.get_rng_state()}
-        atomic_save({**state, **extra}, self.run_dir / MODEL_FILE)
-
-    def scored(self, step: int, transitions: int) -> None:
+    def save(self) -> None:
+        """``model.pt``: the network, the phase's progress (DAgger: the last round done, the states met
+        and their labels; PPO: the iterations done, the reference, the value), its optimisers, the
+        training time and torch's generator."""
         assert self.net is not None
-        kept = {"net": copy.deepcopy(self.net.state_dict()), "step": step}
-        self.score(candidate_policy(self.manager), step, transitions, self.train_time, lambda: kept)
+        if self.phase == "dagger":
+            state = {
+                "phase": "dagger",
+                "round": self.dagger_round,
+                "states": len(self.dagger_obs),
+                "net": self.net.state_dict(),
+                "optimizer": self.optimizer.state_dict(),
+                "obs": self.dagger_obs,
+                "labels": self.dagger_labels,
+            }
+        else:
+            progress = {"iteration": self.iteration, "decisions": self.decisions, "states": self.states}
+            state = {
+                "phase": "ppo",
+                **progress,
+                "net": self.net.state_dict(),
+                "reference": self.reference.state_dict(),
+                "value": self.value.state_dict(),
+                "optimizers": [optimizer.state_dict() for optimizer in self.optimizers],
+            }
+        extra = {"train_time_s": self.train_time_s, "torch_rng": torch.get_rng_state()}
+        save_checkpoint({**state, **extra}, self.run_dir / MODEL_FILE)
+
+    def checkpoint(self, step: int, transitions: int) -> None:
+        """Hand the greedy policy after ``step`` to ``on_checkpoint``; ``best_actor.pt`` keeps its net."""
+        if self.on_checkpoint is None:
+            return
+        net = self.net
+        assert net is not None
+
+        def state() -> dict[str, Any]:
+            return {"net": net.state_dict(), "step": step}
+
+        self.on_checkpoint(Checkpoint(step, transitions, self.train_time_s, self.policy(), state))
 
 
 __all__ = [
     "CandidateLearner",
-    "advantages",
     "candidate_manager",
     "candidate_planner",
     "candidate_policy",

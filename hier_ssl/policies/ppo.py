@@ -1,4 +1,7 @@
-"""PPO through rsl-rl-lib 5.x: our typed ``PPOConfig`` as rsl-rl's nested ``train_cfg``, a runner over the
+"""PPO: through rsl-rl-lib 5.x for the Gaussian actors (``algo: ppo`` managers, the goToPoint worker), and
+its pieces as functions for the candidate learner's categorical policy (``hier_ssl.policies.candidates``).
+
+For the Gaussian actors: our typed ``PPOConfig`` as rsl-rl's nested ``train_cfg``, a runner over the
 batched vector env, and the trained actor as a numpy policy for ``hier_ssl.evaluation.evaluate``.
 
 rsl-rl owns the loop, the update, logging and checkpoints (``runner.learn``, ``runner.save``). Two of
@@ -9,11 +12,18 @@ its habits matter here:
   ``weights_only=True`` and hands the dict to the algorithm's own ``load``.
 - The runner writes resolved fields (``obs_groups``, ``multi_gpu``) into the train_cfg it is given, so
   every call of ``ppo_train_cfg`` returns a fresh dict and ``make_ppo_runner`` never shares one.
+
+rsl-rl's ``PPO`` cannot train the candidate learner: its distributions are Gaussian only, its update one
+optimiser over actor and critic with a clipped value loss, an entropy bonus and gradient clipping, where
+the candidate learner has a categorical policy over a variable set of candidates, a KL penalty towards its
+DAgger fit, and a value fitted alone before the policy moves. That learner builds its update from
+``gae``, ``minibatches``, ``value_loss``, ``normalized`` and ``clipped_surrogate`` here.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -22,9 +32,11 @@ import torch
 from rsl_rl.runners import OnPolicyRunner
 from tensordict import TensorDict
 
-from hier_ssl.checkpoints.tensors import load_checkpoint
+from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
+from hier_ssl.config import ConfigError
 from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
 from hier_ssl.policies.networks import NumpyPolicy
 
 
@@ -97,13 +109,17 @@ def ppo_train_cfg(
 
 
 class SelectingRunner(OnPolicyRunner):
-    """rsl-rl's ``OnPolicyRunner`` that calls ``on_save(self)`` after every checkpoint it writes (every
-    ``save_interval`` iterations and at the end), so a run can score and keep its best policy there."""
+    """rsl-rl's ``OnPolicyRunner`` that writes its checkpoints atomically and calls ``on_save(self)`` after
+    every one (every ``save_interval`` iterations and at the end), so a run can score and keep its best
+    policy there."""
 
     on_save: Callable[[OnPolicyRunner], None] | None = None
 
     def save(self, path: str, infos: dict | None = None) -> None:
-        super().save(path, infos)
+        # rsl-rl's own save, through save_checkpoint: its torch.save straight to the path leaves a truncated
+        # file when the run is killed mid-write, and --resume reads the newest file.
+        save_checkpoint({**self.alg.save(), "iter": self.current_learning_iteration, "infos": infos}, path)
+        self.logger.save_model(path, self.current_learning_iteration)
         if self.on_save is not None:
             self.on_save(self)
 
@@ -167,4 +183,143 @@ def load_ppo(runner: OnPolicyRunner, path: str | Path, map_location: str | None 
         runner.current_learning_iteration = loaded["iter"]
 
 
-__all__ = ["NumpyPolicy", "SelectingRunner", "load_ppo", "make_ppo_runner", "ppo_policy", "ppo_train_cfg"]
+class PPOLearner:
+    """PPO through rsl-rl as a ``Learner`` (``hier_ssl.policies.learner``): its runner over ``env`` writes
+    ``model_<iteration>.pt`` into ``run_dir`` every ``checkpoint_interval`` vector steps (in whole
+    iterations, at least one) and at the end, and each is a checkpoint. ``seed`` seeds the networks'
+    initial weights, the exploration noise and the env's first reset."""
+
+    def __init__(
+        self,
+        env: TorchView,
+        cfg: PPOConfig,
+        run_dir: str | Path,
+        device: str | torch.device = "cpu",
+        *,
+        seed: int = 0,
+        checkpoint_interval: int,
+    ) -> None:
+        self.steps_per_iteration, self.num_envs = cfg.num_steps_per_env, env.num_envs
+        self.run_dir = Path(run_dir)
+        torch.manual_seed(seed)  # the networks' initial weights and the policy's exploration noise
+        every = max(1, checkpoint_interval // self.steps_per_iteration)
+        self.runner = make_ppo_runner(env, cfg, self.run_dir, device, seed=seed, save_interval=every)
+        self.train_time_s = 0.0  # of the last ``learn``: rsl-rl keeps no clock across resumes
+        self._policy = ppo_policy(self.runner)
+        self._on_checkpoint: OnCheckpoint | None = None
+        self._started, self._evaluating, self._last_step = 0.0, 0.0, -1
+
+    def learn(self, total_steps: int, on_checkpoint: OnCheckpoint | None = None) -> None:
+        """Learn until iteration ``total_steps // num_steps_per_env`` (at least one)."""
+        remaining = max(1, total_steps // self.steps_per_iteration) - self.runner.current_learning_iteration
+        self._started, self._evaluating = time.perf_counter(), 0.0
+        if remaining > 0:  # a resumed run that had finished has nothing left to learn
+            self._on_checkpoint, self.runner.on_save = on_checkpoint, self._saved
+            try:
+                self.runner.learn(remaining)
+            finally:
+                self._on_checkpoint, self.runner.on_save = None, None
+        self.train_time_s = time.perf_counter() - self._started - self._evaluating
+
+    def policy(self) -> NumpyPolicy:
+        """The actor's Gaussian mean clipped to [-1, 1] (``ppo_policy``), a live view of its weights."""
+        return self._policy
+
+    def save(self) -> None:
+        """``model_<iteration>.pt`` of the iteration reached, as rsl-rl's own saves."""
+        self.runner.save(str(self.run_dir / f"model_{self.runner.current_learning_iteration}.pt"))
+
+    def load(self, run_dir: str | Path) -> None:
+        """Continue after the highest-numbered ``model_<iteration>.pt`` in ``run_dir``."""
+        run_dir = Path(run_dir)
+        saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
+        if not saved:
+            raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
+        load_ppo(self.runner, saved[-1])
+        self.runner.current_learning_iteration += 1  # rsl-rl saves the index of the last finished iteration
+
+    def _saved(self, runner: OnPolicyRunner) -> None:
+        """``on_save``: the file rsl-rl just wrote is a checkpoint."""
+        step = (runner.current_learning_iteration + 1) * self.steps_per_iteration
+        if self._on_checkpoint is None or step == self._last_step:  # the final save repeats the last one
+            return
+        began = time.perf_counter()
+        self.train_time_s = began - self._started - self._evaluating
+        iteration = runner.current_learning_iteration
+
+        def state() -> dict[str, Any]:  # what runner.save writes
+            return {**runner.alg.save(), "iter": iteration}
+
+        self._on_checkpoint(Checkpoint(step, step * self.num_envs, self.train_time_s, self._policy, state))
+        self._last_step = step
+        self._evaluating += time.perf_counter() - began
+
+
+def gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    last_values: torch.Tensor,
+    dones: torch.Tensor,
+    gamma: float,
+    lam: float,
+) -> torch.Tensor:
+    """Generalised advantage estimates (T, N) of a rollout (Schulman et al., 2016): rewards, values, dones
+    (T, N) with dones 0 or 1, the values of the observations after its last step (N,). A done step does
+    not bootstrap (a truncation's bootstrap belongs in its reward); the returns are advantages + values."""
+    out = torch.zeros_like(rewards)
+    running = torch.zeros_like(last_values)
+    for t in reversed(range(len(rewards))):
+        following = last_values if t == len(rewards) - 1 else values[t + 1]
+        keep = 1.0 - dones[t]
+        delta = rewards[t] + gamma * following * keep - values[t]
+        running = delta + gamma * lam * keep * running
+        out[t] = running
+    return out
+
+
+def minibatches(rows: int, count: int, epochs: int) -> Iterator[torch.Tensor]:
+    """The row indices of ``epochs`` passes over ``rows`` rows, each a fresh permutation (torch's global
+    generator) cut into ``count`` near-equal minibatches: a rollout's live rows rarely divide evenly. Empty
+    ones (fewer rows than ``count``) are skipped."""
+    for _ in range(epochs):
+        for minibatch in torch.tensor_split(torch.randperm(rows), count):
+            if len(minibatch):
+                yield minibatch
+
+
+def value_loss(predicted: torch.Tensor, returns: torch.Tensor) -> torch.Tensor:
+    """Mean squared error of the value's predictions (B,) against the returns (B,)."""
+    return (predicted - returns).square().mean()
+
+
+def normalized(advantages: torch.Tensor) -> torch.Tensor:
+    """A minibatch's advantages (B,) at zero mean and unit spread; a single row, which has no spread, is
+    only centred."""
+    centred = advantages - advantages.mean()
+    return centred / (centred.std() + 1e-8) if len(advantages) > 1 else centred
+
+
+def clipped_surrogate(
+    log_probs: torch.Tensor, old_log_probs: torch.Tensor, advantages: torch.Tensor, clip: float
+) -> torch.Tensor:
+    """PPO's clipped surrogate loss (Schulman et al., 2017), to minimise: log-probabilities of the taken
+    actions now and at the rollout, advantages, all (B,)."""
+    ratio = (log_probs - old_log_probs).exp()
+    clipped = ratio.clamp(1.0 - clip, 1.0 + clip)
+    return -torch.min(ratio * advantages, clipped * advantages).mean()
+
+
+__all__ = [
+    "NumpyPolicy",
+    "PPOLearner",
+    "SelectingRunner",
+    "clipped_surrogate",
+    "gae",
+    "load_ppo",
+    "make_ppo_runner",
+    "minibatches",
+    "normalized",
+    "ppo_policy",
+    "ppo_train_cfg",
+    "value_loss",
+]

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 from collections import defaultdict
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -14,7 +13,9 @@ import torch
 from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
-from hier_ssl.checkpoints.tensors import load_checkpoint
+from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
+from hier_ssl.policies.networks import NumpyPolicy, sac_policy
 from hier_ssl.policies.sac import SAC, SACConfig
 from hier_ssl.policies.teacher import Teacher, make_teacher, teacher_labels, teacher_weight
 
@@ -49,9 +50,6 @@ class VectorEnv(Protocol):
         ...
 
 
-EvalCallback = Callable[["SACRunner"], Mapping[str, float] | None]
-
-
 def to_learner(
     device: torch.device,
     next_obs: torch.Tensor,
@@ -81,25 +79,8 @@ def to_learner(
     return next_obs, flags[:, 0], final_obs, flags[:, 1], live_mask
 
 
-def atomic_save(obj: object, path: Path) -> None:
-    """``torch.save`` to a temporary file in the same folder, then rename over ``path``.
-
-    A run killed mid-write leaves the previous file intact instead of a truncated one.
-    """
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(obj, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 class SACRunner:
-    """Owns the SAC training loop over a ``VectorEnv``.
+    """Owns the SAC training loop over a ``VectorEnv``; a ``Learner`` (``hier_ssl.policies.learner``).
 
     Step counts are vector steps (one call of ``env.step``, ``num_envs`` transitions). ``learning_starts``
     in the config counts transitions collected, vector steps x num_envs (rows of robots that have left
@@ -126,10 +107,9 @@ class SACRunner:
         seed: seeds the networks, SAC's generator and the first ``env.reset``.
         device: where the learner lives; None means the env's device.
         log_interval: vector steps between TensorBoard writes.
-        save_interval: vector steps between checkpoints (one is always written when ``learn`` returns).
-        eval_interval: vector steps between calls of ``eval_callback``.
-        eval_callback: called with the runner; a returned mapping is logged under ``eval/``. Its time is
-            not counted in ``train_time_s``.
+        save_interval: vector steps between saves into ``run_dir`` (one is always written when ``learn``
+            returns).
+        eval_interval: vector steps between the checkpoints ``learn`` hands to its ``on_checkpoint``.
         progress: show a tqdm progress bar.
         teacher: the numpy policy that teaches, in place of the planner ``config.teacher`` names (which
             must then be set).
@@ -146,15 +126,12 @@ class SACRunner:
         log_interval: int = 100,
         save_interval: int = 10_000,
         eval_interval: int | None = None,
-        eval_callback: EvalCallback | None = None,
         progress: bool = True,
         teacher: Teacher | None = None,
     ) -> None:
         for name, value in (("log_interval", log_interval), ("save_interval", save_interval)):
             if value < 1:
                 raise ValueError(f"{name} must be >= 1, got {value}")
-        if (eval_interval is None) != (eval_callback is None):
-            raise ValueError("eval_interval and eval_callback must be given together")
         if eval_interval is not None and eval_interval < 1:
             raise ValueError(f"eval_interval must be >= 1, got {eval_interval}")
         self.env = env
@@ -172,7 +149,6 @@ class SACRunner:
         self.log_interval = log_interval
         self.save_interval = save_interval
         self.eval_interval = eval_interval
-        self.eval_callback = eval_callback
         self.progress = progress
         self.step = 0  # vector steps taken
         self.train_time_s = 0.0  # wall time spent collecting and learning, summed over resumes
@@ -185,8 +161,12 @@ class SACRunner:
         """Transitions collected so far (vector steps x num_envs)."""
         return self.step * self.env.num_envs
 
-    def learn(self, total_steps: int) -> None:
-        """Train until ``self.step == total_steps`` vector steps (a resumed run continues to the same end)."""
+    def learn(self, total_steps: int, on_checkpoint: OnCheckpoint | None = None) -> None:
+        """Train until ``self.step == total_steps`` vector steps (a resumed run continues to the same end),
+        calling ``on_checkpoint`` every ``eval_interval`` vector steps and with the final policy. What it
+        returns is logged under ``eval/``; its time is not counted in ``train_time_s``."""
+        if on_checkpoint is not None and self.eval_interval is None:
+            raise ValueError("on_checkpoint: this runner has no eval_interval")
         cfg = self.sac.config
         self.run_dir.mkdir(parents=True, exist_ok=True)
         if self._writer is None:
@@ -237,18 +217,18 @@ class SACRunner:
                     self._log(update_stats, episode_stats, bar)
                     update_stats.clear()
                     episode_stats.clear()
-                if self.eval_interval is not None and self.step % self.eval_interval == 0:
-                    self._evaluate()
+                if on_checkpoint is not None and self.step % self.eval_interval == 0:
+                    self._checkpoint(on_checkpoint)
                 if self.step % self.save_interval == 0:
                     self.save()
             # The final policy is scored too (a run shorter than eval_interval still has a curve and a best),
             # once: not again by a finished run resumed.
-            if self.eval_interval is not None and self.step % self.eval_interval and self.step > start:
-                self._evaluate()
+            if on_checkpoint is not None and self.step % self.eval_interval and self.step > start:
+                self._checkpoint(on_checkpoint)
             self.save()
         finally:
             bar.close()
-            self._writer.flush()
+            self.close()
 
     def _labels(self) -> torch.Tensor | None:
         """The teacher's actions (num_envs, num_actions) for the current observations, while they are used
@@ -298,11 +278,22 @@ class SACRunner:
         if postfix:
             bar.set_postfix(postfix, refresh=False)
 
-    def _evaluate(self) -> None:
-        """Run the callback and log what it returns under ``eval/``."""
-        assert self.eval_callback is not None and self._writer is not None
-        metrics = self.eval_callback(self)
-        for key, value in (metrics or {}).items():
+    def policy(self) -> NumpyPolicy:
+        """The actor's deterministic policy, tanh of its mean, as a live view of its weights."""
+        return sac_policy(self.sac.actor)
+
+    def _checkpoint(self, on_checkpoint: OnCheckpoint) -> None:
+        """Hand the current policy to ``on_checkpoint``; log what it returns under ``eval/``."""
+        assert self._writer is not None
+        actor, step = self.sac.actor, self.step
+        checkpoint = Checkpoint(
+            step,
+            self.num_transitions,
+            self.train_time_s,
+            self.policy(),
+            lambda: {"actor": actor.state_dict(), "step": step},
+        )
+        for key, value in (on_checkpoint(checkpoint) or {}).items():
             self._writer.add_scalar(f"eval/{key}", value, self.step)
 
     def save(self) -> None:
@@ -312,8 +303,8 @@ class SACRunner:
         the replay content it was saved with.
         """
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        atomic_save(self.sac.replay.state_dict(), self.run_dir / REPLAY_FILE)
-        atomic_save(
+        save_checkpoint(self.sac.replay.state_dict(), self.run_dir / REPLAY_FILE)
+        save_checkpoint(
             {
                 "sac": self.sac.state_dict(),
                 "config": self.sac.config.model_dump(),
@@ -343,7 +334,7 @@ class SACRunner:
         self.close()
 
     def close(self) -> None:
-        """Close the TensorBoard writer; a later ``learn`` opens a new one."""
+        """Close the TensorBoard writer (``learn`` does as it returns); a later ``learn`` opens a new one."""
         if self._writer is not None:
             self._writer.close()
             self._writer = None

@@ -17,9 +17,10 @@ from pathlib import Path
 from typing import Any, Literal
 
 from hier_ssl.checkpoints.actor import CONFIG_FILE
+from hier_ssl.checkpoints.files import write_text
 from hier_ssl.config import TrainConfig
 from hier_ssl.policies.sac_runner import MODEL_FILE
-from hier_ssl.runs.train import EVAL_FILE, atomic_write_text, train
+from hier_ssl.runs.train import EVAL_FILE, train
 
 STOPPED_FILE = "stopped.json"
 # Fault injection for the tests: "RUN_NAME@STEP" makes the process training RUN_NAME exit hard at its first
@@ -86,7 +87,7 @@ def _with_exit_once(job: Job, report: Callable[[dict], None] | None) -> Callable
 def mark_stopped(job: Job, step: int, reason: str) -> None:
     """Record that a scheduler stopped ``job`` at ``step``, so that reruns skip it."""
     text = json.dumps({"step": step, "reason": reason}) + "\n"
-    atomic_write_text(text, job.run_dir / STOPPED_FILE)
+    write_text(text, job.run_dir / STOPPED_FILE)
 
 
 __all__ = [

@@ -9,10 +9,8 @@ best on the selection episodes), ``curve.csv`` (success rate against training wa
 from __future__ import annotations
 
 import csv
+import io
 import json
-import os
-import tempfile
-import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -21,18 +19,19 @@ from typing import Any
 import torch
 
 from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
-from hier_ssl.checkpoints.tensors import load_checkpoint
+from hier_ssl.checkpoints.files import write_text
+from hier_ssl.checkpoints.tensors import save_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig, dump_config
 from hier_ssl.config.files import load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.gotopoint import GoToPointEnv, print_worker_summary, worker_summary
-from hier_ssl.envs.vector import TorchVectorEnv, TorchView
+from hier_ssl.envs.vector import TorchVectorEnv
 from hier_ssl.evaluation.evaluate import Policy, evaluate
 from hier_ssl.policies.actor import load_policy
-from hier_ssl.policies.candidates import CandidateLearner, candidate_policy, missing_keys
-from hier_ssl.policies.networks import sac_policy
-from hier_ssl.policies.ppo import load_ppo, make_ppo_runner, ppo_policy
-from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner, atomic_save
+from hier_ssl.policies.candidates import CandidateLearner
+from hier_ssl.policies.learner import Checkpoint, Learner
+from hier_ssl.policies.ppo import PPOLearner
+from hier_ssl.policies.sac_runner import MODEL_FILE, SACRunner
 
 CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
 # Model selection and the final evaluation draw their episodes from different seeds, so the reported
@@ -40,22 +39,10 @@ CURVE_FILE, EVAL_FILE = "curve.csv", "eval.json"
 SELECTION_SEED, EVALUATION_SEED = 10_000, 20_000
 
 
-def atomic_write_text(text: str, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 def resume_config(run_dir: Path) -> TrainConfig:
     """The config a run was started with; errors name the missing file."""
-    for name in (CONFIG_FILE,):
-        if not (run_dir / name).is_file():
-            raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / name}")
+    if not (run_dir / CONFIG_FILE).is_file():
+        raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / CONFIG_FILE}")
     config = parse_config(load_yaml(run_dir / CONFIG_FILE))
     if config.algo in ("sac", "candidates") and not (run_dir / MODEL_FILE).is_file():
         raise ConfigError(f"cannot resume {run_dir}: missing checkpoint file {run_dir / MODEL_FILE}")
@@ -72,71 +59,48 @@ def selection_score(rows: list[dict[str, Any]], window: int) -> tuple[float, flo
     )
 
 
-class _Selection:
-    """Model selection: score the policy on the selection episodes, append the row to the learning curve
-    and keep the best policy's state in ``best_actor.pt`` (``selection_score`` over the last
-    ``selection_window`` rows)."""
+class Selection:
+    """Model selection at each checkpoint of a learner: score its policy on the selection episodes, add the
+    row to the learning curve and keep the best policy's state in ``best_actor.pt`` (``selection_score``
+    over the last ``selection_window`` rows). A resumed run's selection goes on from its curve."""
 
     def __init__(
         self, config: TrainConfig, run_dir: Path, on_selection: Callable[[dict], None] | None = None
     ) -> None:
         self.config, self.run_dir, self.on_selection = config, run_dir, on_selection
         self.best: tuple[float, float] | None = None
-        self.last_step = -1
         curve = run_dir / CURVE_FILE
         self.rows = list(csv.DictReader(curve.open())) if curve.is_file() else []
         if self.rows:
             window = config.selection_window
             self.best = max(selection_score(self.rows[: i + 1], window) for i in range(len(self.rows)))
-            self.last_step = int(self.rows[-1]["step"])
 
-    def record(
-        self,
-        policy: Policy,
-        step: int,
-        transitions: int,
-        train_time_s: float,
-        state: Callable[[], dict[str, Any]],
-    ) -> dict[str, float]:
-        """Score ``policy`` after ``step`` vector steps; ``state()`` is what ``best_actor.pt`` keeps."""
+    def __call__(self, checkpoint: Checkpoint) -> dict[str, float]:
+        """Score the checkpoint's policy; returns the curve row's figures (TensorBoard's ``eval/``)."""
         cfg = self.config
-        result = evaluate_run(policy, cfg, SELECTION_SEED + cfg.seed)
+        result = evaluate_run(checkpoint.policy, cfg, SELECTION_SEED + cfg.seed)
         row = {
-            "step": step,
-            "transitions": transitions,
-            "train_time_s": round(train_time_s, 2),
+            "step": checkpoint.step,
+            "transitions": checkpoint.transitions,
+            "train_time_s": round(checkpoint.train_time_s, 2),
             "success_rate": result["success_rate"],
             "collision_rate": result["collision_rate"],
             "episode_length_median": result["episode_length"]["median"],
             "cpad_median": result["cpad"]["median"],
         }
-        curve = self.run_dir / CURVE_FILE
-        new = not curve.is_file()
-        with curve.open("a", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(row))
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
-        self.last_step = step
         self.rows.append(row)
+        curve = io.StringIO(newline="")
+        writer = csv.DictWriter(curve, fieldnames=list(row))
+        writer.writeheader()
+        writer.writerows(self.rows)
+        write_text(curve.getvalue(), self.run_dir / CURVE_FILE)
         score = selection_score(self.rows, self.config.selection_window)
         if self.best is None or score > self.best:
             self.best = score
-            atomic_save(state(), self.run_dir / BEST_ACTOR_FILE)
+            save_checkpoint(checkpoint.state(), self.run_dir / BEST_ACTOR_FILE)
         if self.on_selection is not None:
             self.on_selection(row)
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
-
-    def __call__(self, runner: SACRunner) -> dict[str, float]:
-        """SACRunner's evaluation callback."""
-        actor = runner.sac.actor
-        return self.record(
-            sac_policy(actor),
-            runner.step,
-            runner.num_transitions,
-            runner.train_time_s,
-            lambda: {"actor": actor.state_dict(), "step": runner.step},
-        )
 
 
 def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, Any]:
@@ -159,19 +123,14 @@ def train(
     torch.set_num_threads(config.threads)
     run_dir.mkdir(parents=True, exist_ok=True)
     if not resume:
-        atomic_write_text(dump_config(config), run_dir / CONFIG_FILE)
+        write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
-    if config.algo == "candidates":
-        policy, train_wall_s = _train_candidates(config, run_dir, resume, progress, on_selection)
-    else:
-        # SAC keeps the world on the CPU; its runner puts the learner on config.device.
-        env_device = "cpu" if config.algo == "sac" else config.device
-        env = TorchVectorEnv(config.task_config, config.num_envs, env_device)
-        if config.algo == "sac":
-            policy, train_wall_s = _train_sac(config, env, run_dir, resume, progress, on_selection)
-        else:
-            policy, train_wall_s = _train_ppo(config, env, run_dir, resume, on_selection=on_selection)
+    learner = _learner(config, run_dir, progress)
+    if resume:
+        learner.load(run_dir)
+    learner.learn(_budget(config), Selection(config, run_dir, on_selection))
+    policy, train_wall_s = learner.policy(), learner.train_time_s
     # Both policies on the held-out episodes: the paper reports its final models, we keep the best.
     final = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
     best = final
@@ -188,7 +147,7 @@ def train(
         # Figures are per robot; "episodes" counts fields.
         "robots": best["robots"],
     }
-    atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
+    write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
 
 
@@ -205,9 +164,43 @@ def _figures(result: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _train_sac(
-    config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, progress: bool, on_selection=None
-):
+def _learner(config: TrainConfig, run_dir: Path, progress: bool) -> Learner:
+    """The learner ``config.algo`` names, over a fresh environment."""
+    if config.algo == "candidates":  # plays its own fields: a fixed number per phase
+        return CandidateLearner(config, run_dir, progress)
+    # SAC keeps the world on the CPU; its runner puts the learner on config.device.
+    env_device = "cpu" if config.algo == "sac" else config.device
+    env = TorchVectorEnv(config.task_config, config.num_envs, env_device)
+    if config.algo == "ppo":
+        return PPOLearner(
+            env,
+            config.ppo,
+            run_dir,
+            config.device,
+            seed=config.seed,
+            checkpoint_interval=config.eval_interval,
+        )
+    _warn_if_only_warm_up(config)
+    return SACRunner(
+        env,
+        config.sac,
+        run_dir,
+        seed=config.seed,
+        device=config.device,
+        eval_interval=config.eval_interval,
+        progress=progress,
+        save_interval=config.save_interval,
+    )
+
+
+def _budget(config: TrainConfig) -> int:
+    """Where the learner stops, in its own steps (``hier_ssl.policies.learner.Checkpoint``)."""
+    if config.algo == "candidates":
+        return config.candidates.rounds + config.candidates.ppo.iterations
+    return config.total_steps
+
+
+def _warn_if_only_warm_up(config: TrainConfig) -> None:
     transitions = config.total_steps * config.num_envs
     if transitions < config.sac.learning_starts:
         warnings.warn(
@@ -215,86 +208,23 @@ def _train_sac(
             f"{transitions} transitions, fewer than sac.learning_starts = {config.sac.learning_starts}: it "
             "only takes warm-up actions and never updates the policy; raise total_steps or lower "
             "sac.learning_starts",
-            stacklevel=3,
+            stacklevel=4,
         )
-    selection = _Selection(config, run_dir, on_selection)
-    runner = SACRunner(
-        env,
-        config.sac,
-        run_dir,
-        seed=config.seed,
-        device=config.device,
-        eval_interval=config.eval_interval,
-        eval_callback=selection,
-        progress=progress,
-        save_interval=config.save_interval,
-    )
-    if resume:
-        runner.load(run_dir)
-    runner.learn(config.total_steps)
-    runner.close()
-    return sac_policy(runner.sac.actor), runner.train_time_s
-
-
-def _train_candidates(config: TrainConfig, run_dir: Path, resume: bool, progress: bool, on_selection=None):
-    """The classifier or scorer over the planner's candidates (``hier_ssl.policies.candidates``): DAgger,
-    then PPO."""
-    learner = CandidateLearner(config, run_dir, _Selection(config, run_dir, on_selection).record, progress)
-    saved = load_checkpoint(run_dir / MODEL_FILE) if resume else None
-    if saved is not None and (missing := missing_keys(saved)):
-        raise ConfigError(f"cannot resume {run_dir}: {run_dir / MODEL_FILE} lacks {missing}")
-    learner.learn(saved)
-    return candidate_policy(learner.manager), learner.train_time
-
-
-def _train_ppo(
-    config: TrainConfig, env: TorchView, run_dir: Path, resume: bool, select: bool = True, on_selection=None
-):
-    """PPO through rsl-rl. With ``select`` (managers) the policy is scored on the selection episodes at
-    every rsl-rl checkpoint (after the first iteration, then every ``eval_interval`` vector steps, and at
-    the end) and the best one is returned, as for SAC; without it checkpoints follow ``save_interval``."""
-    steps_per_iteration = config.ppo.num_steps_per_env
-    every = (config.eval_interval if select else config.save_interval) // steps_per_iteration
-    torch.manual_seed(config.seed)  # the networks' initial weights and the policy's exploration noise
-    runner = make_ppo_runner(
-        env, config.ppo, str(run_dir), config.device, seed=config.seed, save_interval=max(1, every)
-    )
-    if resume:
-        saved = sorted(run_dir.glob("model_*.pt"), key=lambda p: int(p.stem.split("_")[1]))
-        if not saved:
-            raise ConfigError(f"cannot resume {run_dir}: no PPO checkpoint model_*.pt in it")
-        load_ppo(runner, saved[-1])
-        runner.current_learning_iteration += 1  # rsl-rl saves the index of the last finished iteration
-    policy, selection = ppo_policy(runner), _Selection(config, run_dir, on_selection)
-    start, evaluating = time.perf_counter(), 0.0
-
-    def state() -> dict[str, Any]:  # what runner.save writes, for load_ppo and load_actor
-        return {**runner.alg.save(), "iter": runner.current_learning_iteration}
-
-    def score(runner: Any) -> None:
-        nonlocal evaluating
-        step = (runner.current_learning_iteration + 1) * steps_per_iteration
-        if step == selection.last_step:  # the final save repeats the last periodic one
-            return
-        began = time.perf_counter()
-        selection.record(policy, step, step * env.num_envs, began - start - evaluating, state)
-        evaluating += time.perf_counter() - began
-
-    runner.on_save = score if select else None
-    remaining = max(1, config.total_steps // steps_per_iteration) - runner.current_learning_iteration
-    if remaining > 0:  # a resumed run that had finished has nothing left to learn
-        runner.learn(remaining)
-    runner.on_save = None
-    return policy, time.perf_counter() - start - evaluating
 
 
 def _train_worker(config: TrainConfig, run_dir: Path, resume: bool) -> dict[str, Any]:
     """``kind: worker``: PPO on the goToPoint task, then the worker beside the scripted ones."""
     env = GoToPointEnv(config.env, config.gotopoint, config.num_envs, config.device, seed=config.seed)
-    policy, train_wall_s = _train_ppo(config, env, run_dir, resume, select=False)
-    summary = worker_summary(policy, config, EVALUATION_SEED + config.seed)
-    summary["train_wall_s"] = round(train_wall_s, 1)
-    atomic_write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
+    # No model selection: rsl-rl's checkpoints follow save_interval, and the final policy is the worker.
+    learner = PPOLearner(
+        env, config.ppo, run_dir, config.device, seed=config.seed, checkpoint_interval=config.save_interval
+    )
+    if resume:
+        learner.load(run_dir)
+    learner.learn(config.total_steps)
+    summary = worker_summary(learner.policy(), config, EVALUATION_SEED + config.seed)
+    summary["train_wall_s"] = round(learner.train_time_s, 1)
+    write_text(json.dumps(summary, indent=2) + "\n", run_dir / EVAL_FILE)
     return summary
 
 

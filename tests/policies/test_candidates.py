@@ -177,19 +177,6 @@ def test_the_ppo_reward_prices_time_success_and_collisions() -> None:
     np.testing.assert_allclose(reward, [-0.32, -0.32 + 10.0, -0.14 - 30.0, -0.32], rtol=1e-6)
 
 
-def test_advantages_stop_at_episode_ends() -> None:
-    from hier_ssl.policies.candidates import advantages
-
-    rewards = torch.tensor([[1.0], [2.0], [3.0]])
-    values = torch.tensor([[0.5], [0.25], [1.0]])
-    dones = torch.tensor([[0.0], [1.0], [0.0]])
-    adv = advantages(rewards, values, torch.tensor([2.0]), dones, gamma=0.9, lam=0.5)
-    last = 3.0 + 0.9 * 2.0 - 1.0  # bootstraps from the value after the rollout
-    second = 2.0 - 0.25  # the episode ended: no bootstrap, nothing from the next episode
-    first = (1.0 + 0.9 * 0.25 - 0.5) + 0.9 * 0.5 * second
-    torch.testing.assert_close(adv, torch.tensor([[first], [second], [last]]))
-
-
 def test_ppo_takes_the_classifier_past_the_obstacle_where_imitation_left_it(
     tmp_path: Path, one_thread: None
 ) -> None:
@@ -211,7 +198,7 @@ def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: 
     from hier_ssl.policies.candidates import CandidateLearner
     from hier_ssl.policies.networks import mlp
 
-    learner = CandidateLearner(parse_config(_config()), tmp_path, score=lambda *args: None, progress=False)
+    learner = CandidateLearner(parse_config(_config()), tmp_path, progress=False)
     learner.net, learner.reference, learner.value = mlp(6, (8,), 4), mlp(6, (8,), 4), mlp(6, (8,), 1)
     learner.optimizers = tuple(torch.optim.Adam(m.parameters()) for m in (learner.net, learner.value))
     # Five live rows in four minibatches (a scenario whose robots left at different times).
@@ -264,3 +251,18 @@ def test_a_resumed_dagger_phase_ends_with_the_weights_of_an_uninterrupted_run(tm
     # the resumed round shuffles its minibatches as the uninterrupted one did.
     for key, value in torch.load(whole / "model.pt")["net"].items():
         torch.testing.assert_close(torch.load(halves / "model.pt")["net"][key], value, rtol=0, atol=0)
+
+
+def test_a_candidate_learner_stops_at_its_step_budget_and_goes_on_from_there(tmp_path: Path) -> None:
+    from hier_ssl.policies.candidates import CandidateLearner
+
+    ppo = {"iterations": 2, "fields": 8, "horizon": 4, "value_warmup": 1, "eval_interval": 1}
+    config = parse_config(_config(ppo=ppo, rounds=2, episodes=10))
+    steps: list[int] = []
+    CandidateLearner(config, tmp_path, progress=False).learn(1, lambda c: steps.append(c.step))
+    assert steps == [1] and torch.load(tmp_path / "model.pt")["round"] == 0  # one DAgger round of two
+    later = CandidateLearner(config, tmp_path, progress=False)
+    later.load(tmp_path)
+    later.learn(3, lambda c: steps.append(c.step))  # the second round, then one PPO iteration of two
+    saved = torch.load(tmp_path / "model.pt")
+    assert steps == [1, 2, 3] and saved["phase"] == "ppo" and saved["iteration"] == 1

@@ -3,6 +3,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -10,7 +11,8 @@ from torch.overrides import TorchFunctionMode
 
 import hier_ssl
 from hier_ssl.policies import SACConfig, SACRunner
-from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, atomic_save, to_learner
+from hier_ssl.policies.learner import Checkpoint
+from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE, to_learner
 
 OBS_DIM, ACT_DIM = 4, 2
 TINY = {"hidden": (32, 32), "batch_size": 32, "buffer_size": 4096, "learning_starts": 0}
@@ -88,11 +90,11 @@ def _mean_final_distance(policy: Callable[[torch.Tensor], torch.Tensor], episode
 
 def test_runner_checkpoints_resume_and_calls_back(tmp_path: Path) -> None:
     cfg = SACConfig(**{**TINY, "learning_starts": 64, "updates_per_step": 0.5})
-    calls: list[int] = []
+    calls: list[Checkpoint] = []
 
-    def on_eval(runner: SACRunner) -> dict[str, float]:
-        calls.append(runner.step)
-        return {"steps": float(runner.step)}
+    def on_checkpoint(checkpoint: Checkpoint) -> dict[str, float]:
+        calls.append(checkpoint)
+        return {"steps": float(checkpoint.step)}
 
     runner = SACRunner(
         PointEnv(num_envs=4),
@@ -102,13 +104,20 @@ def test_runner_checkpoints_resume_and_calls_back(tmp_path: Path) -> None:
         log_interval=5,
         save_interval=10,
         eval_interval=15,
-        eval_callback=on_eval,
         progress=False,
     )
-    runner.learn(total_steps=32)
+    runner.learn(total_steps=32, on_checkpoint=on_checkpoint)
     # Warm-up is 64 transitions = 16 vector steps; then half an update per step.
     # Scored every eval_interval steps, and the final policy.
-    assert runner.step == 32 and runner.sac.num_updates == 8 and calls == [15, 30, 32]
+    assert runner.step == 32 and runner.sac.num_updates == 8
+    assert [(c.step, c.transitions) for c in calls] == [(15, 60), (30, 120), (32, 128)]
+    # The last checkpoint's state is the final actor, and its policy acts with it.
+    assert calls[-1].state()["step"] == 32
+    for key, value in calls[-1].state()["actor"].items():
+        assert torch.equal(value, runner.sac.actor.state_dict()[key])
+    obs = torch.rand(3, OBS_DIM)
+    greedy = runner.sac.act(obs, deterministic=True).detach().numpy()
+    np.testing.assert_array_equal(calls[-1].policy(obs.numpy()), greedy)
     assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("events")) == [
         MODEL_FILE,
         REPLAY_FILE,
@@ -281,15 +290,6 @@ def test_to_learner_splits_what_it_packed() -> None:
         assert got.dtype == want.dtype
         assert torch.equal(got, want)
     assert to_learner(torch.device("cpu"), next_obs, rewards, final_obs, terminated, None)[4] is None
-
-
-def test_atomic_save_keeps_the_old_file_when_writing_fails(tmp_path: Path) -> None:
-    path = tmp_path / MODEL_FILE
-    atomic_save({"step": 1}, path)
-    with pytest.raises(Exception, match="pickle"):
-        atomic_save({"step": 2, "bad": lambda: None}, path)  # fails halfway through pickling
-    assert torch.load(path, weights_only=True) == {"step": 1}
-    assert [p.name for p in tmp_path.iterdir()] == [MODEL_FILE]
 
 
 def test_runner_drives_the_real_vector_env(tmp_path: Path) -> None:

@@ -17,10 +17,11 @@ from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.manager import decode_subgoal
 from hier_ssl.policies.actor import load_policy
+from hier_ssl.policies.learner import Checkpoint
 from hier_ssl.policies.networks import SquashedGaussianActor
 from hier_ssl.policies.sac_runner import MODEL_FILE, REPLAY_FILE
 from hier_ssl.runs import train as train_module
-from hier_ssl.runs.train import EVALUATION_SEED, _Selection, train
+from hier_ssl.runs.train import EVALUATION_SEED, Selection, train
 
 TINY = {
     "name": "tiny",
@@ -315,12 +316,12 @@ def test_selection_keeps_the_checkpoint_that_ends_the_best_stretch_of_evaluation
 
     monkeypatch.setattr(train_module, "evaluate_run", scores)
     config = parse_config({**SHORT, "selection_window": window})
-    selection = _Selection(config, tmp_path)
+    selection = Selection(config, tmp_path)
     for step in range(5):
-        selection.record(None, step, step, 0.0, lambda step=step: {"step": step})
+        selection(Checkpoint(step, step, 0.0, None, lambda step=step: {"step": step}))
     assert torch.load(tmp_path / "best_actor.pt")["step"] == kept
     # Resumed from its curve, the selection ranks the next evaluation against the same windows.
-    _Selection(config, tmp_path).record(None, 5, 5, 0.0, lambda: {"step": 5})
+    Selection(config, tmp_path)(Checkpoint(5, 5, 0.0, None, lambda: {"step": 5}))
     assert torch.load(tmp_path / "best_actor.pt")["step"] == kept
 
 

@@ -7,7 +7,9 @@ defense area, the opponent's defense area, the ball in STOP) and its limit from 
 Every call decides the 11 robots of one such state (batch 11, one call); ``--states`` different states,
 after ``--warmup`` calls. ``trajectory`` is called with rows (its memory of winners, as ``play`` calls it).
 Prints, per planner and with / without the rules, the median and 90th percentile per call and the median
-per robot. The process is pinned to one core (``--core``); numpy's elementwise work is one thread anyway.
+per robot, and the median CPU time of the process per call (on a machine shared with other work, the wall
+time includes waiting for the core; the CPU time less so). The process is pinned to one core (``--core``);
+numpy's elementwise work is one thread anyway.
 
 Run: python benchmarks/team_decision.py [--states 200] [--obstacles 5] [--core 0] [--profile sampling]
 """
@@ -102,17 +104,18 @@ def main() -> None:
     )
     for name in ("direct", "sampling", "trajectory"):
         for ruled in (False, True):
-            made, times = planner(name), []
+            made, times, cpu = planner(name), [], []
             for i, (obs, rule) in enumerate(zip(observations, rules, strict=True)):
-                start = time.perf_counter()
+                start, start_cpu = time.perf_counter(), time.process_time()
                 decide(made, name, obs, rule if ruled else None)
                 if i >= args.warmup:
                     times.append(time.perf_counter() - start)
+                    cpu.append(time.process_time() - start_cpu)
             median, p90 = np.median(times) * 1e3, np.percentile(times, 90) * 1e3
             label = "rules" if ruled else "none"
             print(
                 f"  {name:10s} {label:5s} median {median:7.2f} ms, p90 {p90:7.2f} ms per call, "
-                f"{median / TEAM:5.2f} ms per robot"
+                f"{median / TEAM:5.2f} ms per robot; CPU median {np.median(cpu) * 1e3:7.2f} ms"
             )
     if args.profile:
         made = planner(args.profile)

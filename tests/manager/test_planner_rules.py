@@ -172,3 +172,18 @@ def test_trajectory_checks_find_the_first_step_into_a_zone() -> None:
     assert not still_ok[0]
     # A robot that starts in the zone is leaving it: that zone does not stop its path.
     assert np.isinf(check([False, False, False, True]).zone_time[0])
+
+
+@pytest.mark.parametrize("name", ["sampling", "trajectory"])
+def test_a_robot_inside_a_zone_is_sent_out_of_it(name: str) -> None:
+    # STOP is called with the robot 0.2 m from the ball: its sub-goal is outside the zone (0.59 m or more
+    # from the ball), and the zone it is in does not keep it from moving.
+    planner = _planner(name)
+    subgoal = _subgoal(planner, planner(_obs((0.2, 0.0), (-1.5, 0.0)), rules=STOP))[0, :2]
+    assert np.hypot(*subgoal) >= 0.59
+    assert np.hypot(*(subgoal - [0.2, 0.0])) > 0.3
+
+
+def test_rules_for_other_rows_are_refused() -> None:
+    with pytest.raises(ValueError, match="rules for 2 robots, observations of 1"):
+        _planner("direct")(_obs((0.0, 0.0), (1.0, 0.0)), rules=_rules(WALLS, rows=2))

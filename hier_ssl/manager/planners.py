@@ -22,7 +22,8 @@ Without it (the default) a planner does exactly what it did before the rules. Wi
 its nearest point ``zone_margin`` beyond every zone's clearance (``ruled_scene``: ``nearest_legal``) and its
 velocity is capped at the limit; ``direct`` hands that target; ``sampling`` rolls out at the limit and ranks
 only legal candidates whose straight legs keep clear of the zones (``SamplingPlanner.zone_detour``);
-``trajectory`` plans at the limit with the zones as still obstacles and no sub-destination inside one. A
+``trajectory`` plans at the limit with the zones as still obstacles (``first_collisions``) and no
+sub-destination inside one, going round a zone it cannot pass in one sub-path (``plan``'s fallback). A
 sub-goal inside a zone is never handed. A robot in HALT (limit 0) is handed its own position, at rest.
 """
 

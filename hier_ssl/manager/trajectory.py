@@ -17,7 +17,8 @@ no code of theirs is copied. Every call, for each robot:
    switch, then the bang-bang trajectory from the state there to rest on the target. The first acceptable
    path (sub-destination by sub-destination, switch times in order) wins.
 3. Failing all: of the rejected paths (those the still obstacles accepted), the one whose first collision
-   with a moving obstacle lies closest to the target; if there is none, stop where the robot is.
+   with a moving obstacle lies closest to the target; if there is none, stop where the robot is. (Under
+   the rules, first the path whose step into a zone lies closest to the target: ``TrajectoryPlanner.plan``.)
 
 Collisions: at times ``initial_time_offset`` + k ``collision_check_step`` along a path, until it arrives,
 and on the straight lines between those checks, against the obstacles predicted at constant velocity for
@@ -105,6 +106,7 @@ class Collisions:
     moving_time: np.ndarray
     moving_pos: np.ndarray
     zone_time: np.ndarray | None = None  # the first check stepping into a zone (inf: none); None: unchecked
+    zone_pos: np.ndarray | None = None  # the position at that check
 
 
 def first_collisions(
@@ -140,7 +142,7 @@ def first_collisions(
         rule, leaving = zones
         rule = Zones(per_path(rule.kind), per_path(rule.shape, 2), per_path(rule.clearance))
         leaving, last = per_path(leaving), path_at(0.0)
-        out = dataclasses.replace(out, zone_time=inf.copy())
+        out = dataclasses.replace(out, zone_time=inf.copy(), zone_pos=np.zeros(total.shape, complex))
     before = None
     for k in range(max(count, 0)):
         t = offset + k * step
@@ -158,7 +160,8 @@ def first_collisions(
         if zones is not None:
             broken = ((path_clearance(rule, last, pos) < 0.0) & ~leaving).any(-1)
             last = pos
-            out.zone_time[broken & on & np.isinf(out.zone_time)] = t
+            new = broken & on & np.isinf(out.zone_time)
+            out.zone_time[new], out.zone_pos[new] = t, pos[new]
         for hits, times, where in (
             ((hit & still).any(-1), out.still_time, out.still_pos),
             ((hit & ~still).any(-1), out.moving_time, out.moving_pos),
@@ -248,8 +251,8 @@ class TrajectoryPlanner:
         """Sub-goal positions (N,) complex, and the winning sub-destinations relative to the robot-target
         line (N,) complex, NaN where none won; ``last`` (N,) the previous winners (NaN: none). Under
         ``rules``: towards ``ruled_scene``'s target, at each robot's speed limit, the zones still obstacles
-        (``first_collisions``), no sub-destination inside a zone, and where the robot stops, the nearest
-        legal point to it."""
+        (``first_collisions``), no sub-destination inside a zone, a path that cannot avoid a zone replaced
+        by one that goes round it (``detour``), and where the robot stops, the nearest legal point to it."""
         scene = ruled_scene(scene, rules, self.zone_margin)
         pos = scene.robot_pos @ np.array([1.0, 1j])
         vel = scene.robot_vel @ np.array([1.0, 1j])
@@ -350,13 +353,26 @@ class TrajectoryPlanner:
         )
         valid = valid[:, :, None] & (switch < first.total_time)
         start, end, now = pos[:, None, None], goal[:, None, None], np.abs(vel)[:, None, None]
-        still_ok, moving_ok = accepted(hits, start, end, now, self.brake_accel or accel, p)
+        brake = self.brake_accel or accel
+        still_ok, moving_ok = accepted(hits, start, end, now, brake, p)
         good = (valid & still_ok & moving_ok).reshape(len(pos), -1)
         miss = np.where(valid & still_ok, np.abs(hits.moving_pos - end) ** 2, np.inf).reshape(len(pos), -1)
         # Column 0: the direct path (rejected); then the sub-paths in the order they are tried.
         score = np.concatenate([direct_miss[:, None], np.where(good, -np.inf, miss)], axis=1)
         best = np.argmin(score, axis=1)  # the first acceptable (-inf), else the closest miss
         found = np.isfinite(score[np.arange(len(pos)), best]) | good.any(axis=1)
+        if zones is not None:
+            # Every path rejected, zones among the reasons (a target behind the ball, out of reach of one
+            # sub-path): of the paths clear of them until their switch and accepted by the obstacles
+            # otherwise, the one whose step into a zone lies closest to the target (as the moving
+            # obstacles' fallback). The robot heads for its sub-destination and goes round over the next
+            # decisions, as ``sampling`` does.
+            free_ok, _ = accepted(dataclasses.replace(hits, zone_time=None), start, end, now, brake, p)
+            near = valid & free_ok & moving_ok & (hits.zone_time > switch)
+            near = np.where(near, np.abs(hits.zone_pos - end), np.inf).reshape(len(pos), -1)
+            round_zones = ~found & np.isfinite(near.min(axis=1, initial=np.inf))
+            best = np.where(round_zones, np.argmin(near, axis=1) + 1, best)
+            found |= round_zones
         index = np.maximum(best - 1, 0) // count
         via = found & (best > 0)
         stop = pos

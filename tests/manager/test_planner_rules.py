@@ -187,3 +187,23 @@ def test_a_robot_inside_a_zone_is_sent_out_of_it(name: str) -> None:
 def test_rules_for_other_rows_are_refused() -> None:
     with pytest.raises(ValueError, match="rules for 2 robots, observations of 1"):
         _planner("direct")(_obs((0.0, 0.0), (1.0, 0.0)), rules=_rules(WALLS, rows=2))
+
+
+@pytest.mark.parametrize("name", ["sampling", "trajectory"])
+def test_a_target_behind_the_ball_is_reached_round_it(name: str) -> None:
+    # No one sub-goal takes the robot from (-1.5, 0) round the ball to (0.64, 0) on two clear straight legs,
+    # so each decision sends it a step round. A robot that moves 0.15 m a decision straight at its sub-goal
+    # (1.5 m/s, 0.1 s) gets there within 150 decisions and never comes within 0.59 m of the ball.
+    planner = _planner(name)
+    rows = {"rows": np.array([0])} if name == "trajectory" else {}
+    if rows:
+        planner.forget(1)
+    robot, closest = np.array([-1.5, 0.0]), np.inf
+    for _ in range(150):
+        subgoal = _subgoal(planner, planner(_obs(tuple(robot), (0.3, 0.0)), rules=STOP, **rows))[0, :2]
+        assert np.hypot(*subgoal) >= 0.59
+        step = subgoal - robot
+        moved = robot + step * min(1.0, 0.15 / max(np.hypot(*step), 1e-12))
+        closest, robot = min(closest, _leg_gap(robot, moved)), moved
+    assert robot == pytest.approx([0.59 + ZONE_MARGIN, 0.0], abs=1e-6)
+    assert closest >= 0.59 - 1e-3

@@ -207,3 +207,17 @@ def test_a_target_behind_the_ball_is_reached_round_it(name: str) -> None:
         closest, robot = min(closest, _leg_gap(robot, moved)), moved
     assert robot == pytest.approx([0.59 + ZONE_MARGIN, 0.0], abs=1e-6)
     assert closest >= 0.59 - 1e-3
+
+
+def test_sampling_under_the_rules_is_row_wise() -> None:
+    # Each row is decided from its own observation and rules: a subset of rows gets the same actions.
+    rng = np.random.default_rng(2)
+    obs = np.concatenate([_obs(rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2)) for _ in range(5)])
+    rules = _rules(WALLS, EMPTY, EMPTY, BALL, speed=1.5, rows=5)
+    planner = _planner("sampling")
+    every = planner(obs, rules=rules)
+    some = RowRules(
+        z.Zones(rules.zones.kind[[3, 0]], rules.zones.shape[[3, 0]], rules.zones.clearance[[3, 0]]),
+        rules.speed[[3, 0]],
+    )
+    assert planner(obs[[3, 0]], rules=some).tobytes() == every[[3, 0]].tobytes()

@@ -120,8 +120,9 @@ def bang_bang_2d(
 ) -> Profile2D:
     """The 2-D profiles from position ``p0`` at velocity ``v0`` to rest at ``p1`` (complex x + iy, any
     broadcastable shapes), each axis within its share of the limits so that the vector never exceeds
-    v_max nor a_max, and both axes arriving together (to the bisection's precision)."""
-    if not (v_max > 0 and a_max > 0):
+    v_max nor a_max, and both axes arriving together (to the bisection's precision). The limits may be
+    arrays that broadcast against the positions (a speed limit per robot)."""
+    if not (np.all(np.asarray(v_max) > 0) and np.all(np.asarray(a_max) > 0)):
         raise ValueError(f"v_max and a_max must be > 0, got {v_max!r}, {a_max!r}")
     p0, p1, v0 = np.broadcast_arrays(*(np.asarray(x, dtype=np.complex128) for x in (p0, p1, v0)))
     alpha = np.full(p0.shape, math.pi / 4)

@@ -14,6 +14,17 @@ manager is (``policy(obs (N, O)) -> actions (N, A)`` in [-1, 1]).
 Everything a planner knows about the world comes from the observation (docs/paper.md "Observations", or the
 "neighbours" layout, whose neighbours it treats as obstacles) and from constants given at construction: the
 field, the robot's limits, the action form and frame.
+
+The rules (docs/guide/ssl-game.md "Planners and the rules"): every planner, ``trajectory`` included, takes
+``rules=`` beside the observations, a ``hier_ssl.game.legal.RowRules``: the zones of each row's robot
+(arrays (B, S), ``forbidden_zones`` flattened field by field by ``row_rules``) and its speed limit (B,).
+Without it (the default) a planner does exactly what it did before the rules. With it: the target becomes
+its nearest point ``zone_margin`` beyond every zone's clearance (``ruled_scene``: ``nearest_legal``) and its
+velocity is capped at the limit; ``direct`` hands that target; ``sampling`` rolls out at the limit and ranks
+only legal candidates whose straight legs keep clear of the zones (``SamplingPlanner.zone_detour``);
+``trajectory`` plans at the limit with the zones as still obstacles (``first_collisions``) and no
+sub-destination inside one, going round a zone it cannot pass in one sub-path (``plan``'s fallback). A
+sub-goal inside a zone is never handed. A robot in HALT (limit 0) is handed its own position, at rest.
 """
 
 from __future__ import annotations
@@ -24,9 +35,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hier_ssl.game.legal import RowRules, distances, path_clearance
+from hier_ssl.game.zones import Zones
 from hier_ssl.manager.actions import action_dim, encode_subgoal
 from hier_ssl.manager.candidate_points import candidate_points, candidate_weights
-from hier_ssl.manager.scene import Scene, read_scene, scene_action, subgoal_poses
+from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
 from hier_ssl.manager.trajectory import TrajectoryParams, TrajectoryPlanner
 from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.frames import as_complex
@@ -36,6 +49,9 @@ if TYPE_CHECKING:
     from hier_ssl.config import TaskSettings
 
 PLANNERS = ("direct", "sampling", "trajectory")
+# m beyond a zone's clearance where the planners move a target inside it: a path may then reach it from the
+# side without grazing the zone (a target on a ball's circle is reachable only from outside its tangent).
+ZONE_MARGIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -48,14 +64,18 @@ class DirectPlanner:
     max_v: float = 2.5
     observation: str = "paper"  # layout of the observations read (``read_scene``)
     action_frame: str = "field"  # frame of the actions written (``decode_subgoal``)
+    zone_margin: float = ZONE_MARGIN  # m beyond a zone's clearance where a target inside it is moved
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Actions (N, A) for manager observations (N, O)."""
+    def __call__(self, obs: np.ndarray, rules: RowRules | None = None) -> np.ndarray:
+        """Actions (N, A) for manager observations (N, O), under the rules of the N robots (module
+        docstring) where given."""
         max_pos = self.max_pos or self.field.max_pos
         scene = read_scene(obs, max_pos, self.max_v, self.observation)
+        ruled = ruled_scene(scene, rules, self.zone_margin)
         fld = self.field
+        # The action frame's target is the observation's (the environment's), not the one made legal.
         return encode_subgoal(
-            scene.target,
+            halted(scene, rules, ruled.target),
             self.action_form,
             fld.half_length,
             fld.half_width,
@@ -118,6 +138,7 @@ class SamplingPlanner:
     seed: int = 0
     observation: str = "paper"  # as DirectPlanner's
     action_frame: str = "field"
+    zone_margin: float = ZONE_MARGIN  # as DirectPlanner's
 
     def __post_init__(self) -> None:
         action_dim(self.action_form)
@@ -153,13 +174,17 @@ class SamplingPlanner:
         cand = candidate_points(points, *self.candidate_maps(scene.obstacle_pos.shape[1]), -half, half)
         return as_complex(cand)
 
-    def rollout(self, scene: Scene, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def rollout(
+        self, scene: Scene, cand: np.ndarray, speed: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Each candidate's trajectory scored, all (N, M): arrival time in s (horizon + remaining distance
         / speed when it does not arrive); the smallest clearance in m to the nearest predicted obstacle
-        beyond the growing safety distance; the same beyond the fixed one (collision distance + margin).
-        Clearances are +inf without obstacles and only count before arrival, within check_horizon."""
+        beyond the growing safety distance; the same beyond the fixed one (collision distance + margin);
+        the same within the prediction window. Clearances are +inf without obstacles and only count before
+        arrival. ``speed`` (N,) m/s caps each row's speed below the planner's (the rules' limit)."""
         n, m = cand.shape
-        dt, speed = self.dt, self.speed
+        dt = self.dt
+        speed = self.speed if speed is None else np.minimum(self.speed, speed)[:, None]
         step = self.robot.max_accel * dt
         two_brake = 2.0 * (self.brake_accel or self.robot.max_accel)
         goal = (scene.target[:, 0] + 1j * scene.target[:, 1])[:, None]
@@ -204,35 +229,69 @@ class SamplingPlanner:
             if not np.isinf(arrival).any():
                 break
         late = np.isinf(arrival)
-        arrival[late] = self.horizon + np.abs(goal - p)[late] / speed
+        arrival[late] = self.horizon + (np.abs(goal - p) / speed)[late]
         return arrival, clearance, hard, near
 
-    def score(self, scene: Scene, cand: np.ndarray) -> np.ndarray:
+    def score(self, scene: Scene, cand: np.ndarray, rules: RowRules | None = None) -> np.ndarray:
         """How the planner ranks the candidates (N, M): the highest is its choice. Within the best tier it
         can choose from, minus the arrival time (the candidates clear of the growing safety distance;
         failing those, the ones clear of the fixed one), -inf outside it; failing both, the distance kept
-        from the obstacles over the prediction window (1e3 without obstacles)."""
-        arrival, clearance, hard, near = self.rollout(scene, cand)
+        from the obstacles over the prediction window (1e3 without obstacles). Under ``rules``, only the
+        candidates clear of the zones are ranked so; a row without any ranks by ``zone_detour``."""
+        # A halted robot's row keeps the planner's speed: ``halted`` gives it its own position anyway.
+        limit = None if rules is None else np.where(rules.speed > 0, rules.speed, np.inf)
+        arrival, clearance, hard, near = self.rollout(scene, cand, limit)
         safe, close = clearance >= 0.0, hard >= 0.0
         score = np.where(np.isfinite(near), near, 1e3)
+        if rules is not None:
+            clear, detour = self.zone_detour(scene, cand, rules)
+            safe, close = safe & clear, close & clear
+            score = np.where(clear, score, -np.inf)
         score = np.where(close.any(1, keepdims=True), np.where(close, -arrival, -np.inf), score)
-        return np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
+        score = np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
+        return score if rules is None else np.where(clear.any(1, keepdims=True), score, detour)
 
-    def plan(self, scene: Scene) -> np.ndarray:
-        """The chosen sub-goal poses (N, 5): x, y, the target's heading, zero velocity."""
+    @staticmethod
+    def zone_detour(scene: Scene, cand: np.ndarray, rules: RowRules) -> tuple[np.ndarray, np.ndarray]:
+        """(N, M) bool, the candidates the rules let the planner rank as usual, and (N, M) the ranking of a
+        row that has none. A sub-goal inside a zone is never chosen. Clear: a legal sub-goal whose legs
+        (robot -> sub-goal, sub-goal -> target, straight) both keep clear of every zone, as the rollout's
+        obstacles. A row without one (a target behind a zone, out of reach of one sub-goal) takes, of the
+        sub-goals whose first leg is clear (the leg the robot drives before it replans), the one whose
+        second leg comes least into the zones, to go round them over the next decisions; failing those,
+        the target, legal (``ruled_scene``). A zone the robot already breaks does not bar its first leg:
+        it is leaving it."""
+        zones = rules.zones
+        per_row = Zones(zones.kind[:, None], zones.shape[:, None], zones.clearance[:, None])
+        xy = np.stack([cand.real, cand.imag], axis=-1)
+        legal = (distances(per_row, xy) >= 0.0).all(-1)
+        robot = scene.robot_pos[:, 0] + 1j * scene.robot_pos[:, 1]
+        goal = (scene.target[:, 0] + 1j * scene.target[:, 1])[:, None]
+        leaving = (distances(zones, scene.robot_pos) < 0.0)[:, None]  # (N, 1, S)
+        from_robot = path_clearance(per_row, np.broadcast_to(robot[:, None], cand.shape), cand)
+        first = legal & ((from_robot >= 0.0) | leaving).all(-1)
+        second = path_clearance(per_row, cand, np.broadcast_to(goal, cand.shape)).min(-1)
+        detour = np.where(first, second, -np.inf)
+        detour[:, 0] = np.where(first.any(1), detour[:, 0], 0.0)  # column 0, the target, is legal
+        return first & (second >= 0.0), detour
+
+    def plan(self, scene: Scene, rules: RowRules | None = None) -> np.ndarray:
+        """The chosen sub-goal poses (N, 5): x, y, the target's heading, zero velocity; under ``rules``
+        (module docstring), of ``ruled_scene``'s target."""
+        scene = ruled_scene(scene, rules, self.zone_margin)
         cand = self.candidates(scene)
-        best = np.argmax(self.score(scene, cand), axis=1)  # ties to the earlier candidate
-        return self.subgoals(scene, cand[np.arange(len(cand)), best])
+        best = np.argmax(self.score(scene, cand, rules), axis=1)  # ties to the earlier candidate
+        return halted(scene, rules, self.subgoals(scene, cand[np.arange(len(cand)), best]))
 
     subgoals = staticmethod(subgoal_poses)
 
     def read(self, obs: np.ndarray) -> Scene:
         return read_scene(obs, self.max_pos or self.field.max_pos, self.robot.max_speed, self.observation)
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        """Actions (N, A) for manager observations (N, O)."""
+    def __call__(self, obs: np.ndarray, rules: RowRules | None = None) -> np.ndarray:
+        """Actions (N, A) for manager observations (N, O), under the rules of the N robots where given."""
         scene = self.read(obs)
-        return self.action(scene, self.plan(scene))
+        return self.action(scene, self.plan(scene, rules))
 
     def action(self, scene: Scene, subgoal: np.ndarray) -> np.ndarray:
         """The actions (N, A) that name sub-goal poses (N, 5) in ``scene``'s task."""

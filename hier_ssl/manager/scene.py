@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from hier_ssl.game.legal import RowRules, cap_speed, nearest_legal
 from hier_ssl.manager.actions import encode_subgoal
 from hier_ssl.manager.neighbours import as_obstacle_observation, drop_encounters
 from hier_ssl.manager.observation import (
@@ -80,6 +82,34 @@ def subgoal_poses(scene: Scene, chosen: np.ndarray) -> np.ndarray:
     return subgoal
 
 
+def ruled_scene(scene: Scene, rules: RowRules | None, margin: float = 0.0) -> Scene:
+    """``scene`` with its target where the rules let the robot go: moved to the nearest point that keeps
+    ``margin`` m beyond every zone's clearance (``nearest_legal``) if it is not there already, and its
+    velocity capped at the robot's speed limit. Without rules, the scene itself."""
+    if rules is None:
+        return scene
+    if len(rules.speed) != len(scene.target):
+        raise ValueError(f"rules for {len(rules.speed)} robots, observations of {len(scene.target)}")
+    target = scene.target.copy()
+    zones = rules.zones
+    if margin:
+        zones = dataclasses.replace(zones, clearance=zones.clearance + margin)
+    target[:, 0:2] = nearest_legal(zones, target[:, 0:2])
+    target[:, 3:5] = cap_speed(target[:, 3:5], rules.speed)
+    return dataclasses.replace(scene, target=target)
+
+
+def halted(scene: Scene, rules: RowRules | None, subgoal: np.ndarray) -> np.ndarray:
+    """Sub-goal poses (N, 5) with every robot a HALT holds (speed limit 0) given its own position, at rest:
+    the rules forbid it to move, wherever its zones are."""
+    if rules is None or not (rules.speed <= 0).any():
+        return subgoal
+    stop = rules.speed <= 0
+    subgoal = subgoal.copy()
+    subgoal[stop, 0:2], subgoal[stop, 3:5] = scene.robot_pos[stop], 0.0
+    return subgoal
+
+
 def scene_action(
     scene: Scene, subgoal: np.ndarray, field: Field, max_v: float, action_form: str, action_frame: str
 ) -> np.ndarray:
@@ -96,4 +126,4 @@ def scene_action(
     )
 
 
-__all__ = ["OBSERVATIONS", "Scene", "read_scene", "scene_action", "subgoal_poses"]
+__all__ = ["OBSERVATIONS", "Scene", "halted", "read_scene", "ruled_scene", "scene_action", "subgoal_poses"]

@@ -17,7 +17,8 @@ no code of theirs is copied. Every call, for each robot:
    switch, then the bang-bang trajectory from the state there to rest on the target. The first acceptable
    path (sub-destination by sub-destination, switch times in order) wins.
 3. Failing all: of the rejected paths (those the still obstacles accepted), the one whose first collision
-   with a moving obstacle lies closest to the target; if there is none, stop where the robot is.
+   with a moving obstacle lies closest to the target; if there is none, stop where the robot is. (Under
+   the rules, first the path whose step into a zone lies closest to the target: ``TrajectoryPlanner.plan``.)
 
 Collisions: at times ``initial_time_offset`` + k ``collision_check_step`` along a path, until it arrives,
 and on the straight lines between those checks, against the obstacles predicted at constant velocity for
@@ -50,9 +51,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hier_ssl.game.legal import RowRules, distances, nearest_legal, path_clearance
+from hier_ssl.game.zones import Zones
 from hier_ssl.manager.actions import action_dim
 from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d
-from hier_ssl.manager.scene import Scene, read_scene, scene_action, subgoal_poses
+from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec
 
@@ -95,12 +98,15 @@ class TrajectoryParams:
 @dataclass(frozen=True)
 class Collisions:
     """First collisions along a batch of paths (all arrays of the paths' shape): time (s, inf without)
-    and position (complex) of the first with a still obstacle, and with a moving one."""
+    and position (complex) of the first with a still obstacle, and with a moving one; and where the rules'
+    zones were checked, the time of the first step into a zone."""
 
     still_time: np.ndarray
     still_pos: np.ndarray
     moving_time: np.ndarray
     moving_pos: np.ndarray
+    zone_time: np.ndarray | None = None  # the first check stepping into a zone (inf: none); None: unchecked
+    zone_pos: np.ndarray | None = None  # the position at that check
 
 
 def first_collisions(
@@ -109,18 +115,34 @@ def first_collisions(
     obstacles: tuple[np.ndarray, np.ndarray, np.ndarray],
     radius: float,
     params: TrajectoryParams,
+    zones: tuple[Zones, np.ndarray] | None = None,
 ) -> Collisions:
     """Walk paths along time (``path_at(t)``: positions of the shape of ``total``, the paths' durations)
     against obstacles (position, velocity complex and a still mask, each (N, K), N the paths' first axis).
 
     A check at time t also covers the interval from the previous one: the closest approach of the robot
     and each obstacle moving in straight lines between the two checks (two robots closing at 4.4 m/s
-    travel 0.44 m between checks, more than a collision distance)."""
-    q, u, still = (x.reshape(x.shape[:1] + (1,) * (total.ndim - 1) + x.shape[1:]) for x in obstacles)
+    travel 0.44 m between checks, more than a collision distance).
+
+    ``zones``: the rules' zones (arrays (N, S)) and which of them each robot already breaks (N, S), as
+    still obstacles of any shape: each check's step, a straight line from the previous check's position
+    (the path's start for the first), must keep clear of every zone the robot does not already break (it
+    is leaving those)."""
+
+    def per_path(x: np.ndarray, tail: int = 1) -> np.ndarray:  # (N, ...) -> (N, 1, ..., 1, ...)
+        return x.reshape(x.shape[:1] + (1,) * (total.ndim - 1) + x.shape[x.ndim - tail :])
+
+    q, u, still = (per_path(x) for x in obstacles)
     inf = np.full(total.shape, np.inf)
     out = Collisions(inf.copy(), np.zeros(total.shape, complex), inf.copy(), np.zeros(total.shape, complex))
     offset, step = params.initial_time_offset, params.collision_check_step
-    count = math.ceil((float(total.max(initial=0.0)) - offset) / step) if q.shape[-1] else 0
+    checked = q.shape[-1] or zones is not None
+    count = math.ceil((float(total.max(initial=0.0)) - offset) / step) if checked else 0
+    if zones is not None:
+        rule, leaving = zones
+        rule = Zones(per_path(rule.kind), per_path(rule.shape, 2), per_path(rule.clearance))
+        leaving, last = per_path(leaving), path_at(0.0)
+        out = dataclasses.replace(out, zone_time=inf.copy(), zone_pos=np.zeros(total.shape, complex))
     before = None
     for k in range(max(count, 0)):
         t = offset + k * step
@@ -135,6 +157,11 @@ def first_collisions(
             hit |= np.abs(before + np.clip(along, 0.0, 1.0) * move) < radius
         before = now
         on = t < total
+        if zones is not None:
+            broken = ((path_clearance(rule, last, pos) < 0.0) & ~leaving).any(-1)
+            last = pos
+            new = broken & on & np.isinf(out.zone_time)
+            out.zone_time[new], out.zone_pos[new] = t, pos[new]
         for hits, times, where in (
             ((hit & still).any(-1), out.still_time, out.still_pos),
             ((hit & ~still).any(-1), out.moving_time, out.moving_pos),
@@ -158,6 +185,8 @@ def accepted(
     threshold = np.clip(hits.still_time / p.threshold_max_collision_time, 0.0, 1.0)
     relative = np.abs(hits.still_pos - goal) / np.maximum(np.abs(start - goal), 1e-9)
     still_ok = np.isinf(hits.still_time) | (relative < threshold)
+    if hits.zone_time is not None:  # no leniency near the end: the target was made legal, the path must be
+        still_ok &= np.isinf(hits.zone_time)
     moving_ok = hits.moving_time > speed / accel + p.brake_time_offset
     return still_ok, moving_ok
 
@@ -181,6 +210,7 @@ class TrajectoryPlanner:
     params: TrajectoryParams = dataclasses.field(default_factory=TrajectoryParams)
     observation: str = "paper"
     action_frame: str = "field"
+    zone_margin: float = 0.05  # m beyond a zone's clearance where a target inside it is moved (planners')
 
     def __post_init__(self) -> None:
         action_dim(self.action_form)
@@ -199,22 +229,31 @@ class TrajectoryPlanner:
         self.memory = np.full(count, np.nan + 0j)
         self.rng = np.random.default_rng(self.params.seed)
 
-    def __call__(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def __call__(
+        self, obs: np.ndarray, rows: np.ndarray | None = None, rules: RowRules | None = None
+    ) -> np.ndarray:
         """Actions (B, A) for manager observations (B, O) of the robots ``rows`` (B,) ints, indices into
-        the memory ``forget`` sized; without ``rows``, nothing remembered."""
+        the memory ``forget`` sized; without ``rows``, nothing remembered. ``rules``: the B robots' zones
+        and speed limits (``hier_ssl.manager.planners``' docstring), none without."""
         scene = read_scene(obs, self.max_pos or self.field.max_pos, self.robot.max_speed, self.observation)
         last = np.full(len(obs), np.nan + 0j) if rows is None else self.memory[rows]
-        chosen, winner = self.plan(scene, last)
+        chosen, winner = self.plan(scene, last, rules)
         if rows is not None:
             self.memory[rows] = np.where(np.isnan(winner), last, winner)
-        poses = subgoal_poses(scene, chosen)
+        poses = halted(scene, rules, subgoal_poses(scene, chosen))
         return scene_action(
             scene, poses, self.field, self.robot.max_speed, self.action_form, self.action_frame
         )
 
-    def plan(self, scene: Scene, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def plan(
+        self, scene: Scene, last: np.ndarray, rules: RowRules | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Sub-goal positions (N,) complex, and the winning sub-destinations relative to the robot-target
-        line (N,) complex, NaN where none won; ``last`` (N,) the previous winners (NaN: none)."""
+        line (N,) complex, NaN where none won; ``last`` (N,) the previous winners (NaN: none). Under
+        ``rules``: towards ``ruled_scene``'s target, at each robot's speed limit, the zones still obstacles
+        (``first_collisions``), no sub-destination inside a zone, a path that cannot avoid a zone replaced
+        by one that goes round it (``detour``), and where the robot stops, the nearest legal point to it."""
+        scene = ruled_scene(scene, rules, self.zone_margin)
         pos = scene.robot_pos @ np.array([1.0, 1j])
         vel = scene.robot_vel @ np.array([1.0, 1j])
         goal = scene.target[:, :2] @ np.array([1.0, 1j])
@@ -222,9 +261,16 @@ class TrajectoryPlanner:
         u = scene.obstacle_vel @ np.array([1.0, 1j])
         obstacles = (q, u, np.abs(u) < self.params.motionless_speed)
         (speed, accel), radius = self.limits, self.collision_distance + self.params.obstacle_margin
+        zones = None
+        if rules is not None:
+            # A halted robot's rows keep the planner's speed: ``halted`` gives them their own position.
+            speed = np.where(rules.speed > 0, np.minimum(speed, rules.speed), speed)
+            zones = (rules.zones, distances(rules.zones, scene.robot_pos) < 0.0)
         draws = self.draw(len(pos))
         direct = bang_bang_2d(pos, goal, vel, speed, accel)
-        hits = first_collisions(lambda t: direct.at(t)[0], direct.total_time, obstacles, radius, self.params)
+        hits = first_collisions(
+            lambda t: direct.at(t)[0], direct.total_time, obstacles, radius, self.params, zones
+        )
         brake = self.brake_accel or accel
         still_ok, moving_ok = accepted(hits, pos, goal, np.abs(vel), brake, self.params)
         chosen, winner = goal.copy(), np.full(len(pos), np.nan + 0j)
@@ -233,8 +279,19 @@ class TrajectoryPlanner:
             # The direct path's rejection competes with the sub-paths' (first in ties: TIGERs tries it first).
             direct_miss = np.where(still_ok, np.abs(hits.moving_pos - goal) ** 2, np.inf)[rows]
             normal = np.concatenate([last[rows, None], draws[rows]], axis=1)
+            ruled = None
+            if zones is not None:
+                z = zones[0]
+                sub = Zones(z.kind[rows], z.shape[rows], z.clearance[rows])
+                ruled = (sub, zones[1][rows], np.asarray(speed)[rows])
             picked, won = self.detour(
-                pos[rows], vel[rows], goal[rows], normal, direct_miss, (q[rows], u[rows], obstacles[2][rows])
+                pos[rows],
+                vel[rows],
+                goal[rows],
+                normal,
+                direct_miss,
+                (q[rows], u[rows], obstacles[2][rows]),
+                ruled,
             )
             chosen[rows], winner[rows] = picked, won
         return chosen, winner
@@ -256,12 +313,17 @@ class TrajectoryPlanner:
         normal: np.ndarray,
         direct_miss: np.ndarray,
         obstacles: tuple[np.ndarray, np.ndarray, np.ndarray],
+        rules: tuple[Zones, np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Steps 2 and 3 for R robots whose direct path was rejected: (R,) sub-goal positions and winning
         sub-destinations (NaN: none). ``normal`` (R, S) the sub-destinations relative to the robot-target
         line (NaN: no such candidate); ``direct_miss`` (R,) the direct path's rejection score (inf: not
-        among the rejected)."""
+        among the rejected). ``rules``: the robots' zones (R, Z), which they already break, and their
+        speeds (R,) (``plan``)."""
         p, (speed, accel) = self.params, self.limits
+        zones = None
+        if rules is not None:
+            zones, speed = rules[:2], rules[2][:, None, None]
         radius = self.collision_distance + p.obstacle_margin
         order = np.argsort(
             np.where(np.isnan(normal), np.inf, np.abs(np.angle(normal))), axis=1, kind="stable"
@@ -272,6 +334,13 @@ class TrajectoryPlanner:
         sub = pos[:, None] + np.where(valid, normal, 0.0) * line
         half_l, half_w = self.field.half_length, self.field.half_width
         sub = np.clip(sub.real, -half_l, half_l) + 1j * np.clip(sub.imag, -half_w, half_w)
+        if zones is not None:  # a sub-destination inside a zone is no candidate
+            z = zones[0]
+            inside = distances(
+                Zones(z.kind[:, None], z.shape[:, None], z.clearance[:, None]),
+                np.stack([sub.real, sub.imag], axis=-1),
+            )
+            valid &= (inside >= 0.0).all(-1)
         # Sub-paths (R, S, 1), switch times (J,), paths (R, S, J): the sub-path, then the target.
         first = bang_bang_2d(pos[:, None, None], sub[:, :, None], vel[:, None, None], speed, accel)
         last_switch = float(first.total_time.max(initial=0.0))
@@ -280,20 +349,37 @@ class TrajectoryPlanner:
         at, going = first.at(switch)
         then = bang_bang_2d(at, goal[:, None, None], going, speed, accel)
         hits = first_collisions(
-            lambda t: composite(first, then, switch, t), switch + then.total_time, obstacles, radius, p
+            lambda t: composite(first, then, switch, t), switch + then.total_time, obstacles, radius, p, zones
         )
         valid = valid[:, :, None] & (switch < first.total_time)
         start, end, now = pos[:, None, None], goal[:, None, None], np.abs(vel)[:, None, None]
-        still_ok, moving_ok = accepted(hits, start, end, now, self.brake_accel or accel, p)
+        brake = self.brake_accel or accel
+        still_ok, moving_ok = accepted(hits, start, end, now, brake, p)
         good = (valid & still_ok & moving_ok).reshape(len(pos), -1)
         miss = np.where(valid & still_ok, np.abs(hits.moving_pos - end) ** 2, np.inf).reshape(len(pos), -1)
         # Column 0: the direct path (rejected); then the sub-paths in the order they are tried.
         score = np.concatenate([direct_miss[:, None], np.where(good, -np.inf, miss)], axis=1)
         best = np.argmin(score, axis=1)  # the first acceptable (-inf), else the closest miss
         found = np.isfinite(score[np.arange(len(pos)), best]) | good.any(axis=1)
+        if zones is not None:
+            # Every path rejected, zones among the reasons (a target behind the ball, out of reach of one
+            # sub-path): of the paths clear of them until their switch and accepted by the obstacles
+            # otherwise, the one whose step into a zone lies closest to the target (as the moving
+            # obstacles' fallback). The robot heads for its sub-destination and goes round over the next
+            # decisions, as ``sampling`` does.
+            free_ok, _ = accepted(dataclasses.replace(hits, zone_time=None), start, end, now, brake, p)
+            near = valid & free_ok & moving_ok & (hits.zone_time > switch)
+            near = np.where(near, np.abs(hits.zone_pos - end), np.inf).reshape(len(pos), -1)
+            round_zones = ~found & np.isfinite(near.min(axis=1, initial=np.inf))
+            best = np.where(round_zones, np.argmin(near, axis=1) + 1, best)
+            found |= round_zones
         index = np.maximum(best - 1, 0) // count
         via = found & (best > 0)
-        picked = np.where(via, sub[np.arange(len(pos)), index], np.where(found, goal, pos))
+        stop = pos
+        if zones is not None:  # stopping inside a zone is no stop: the nearest legal point to it
+            legal = nearest_legal(zones[0], np.stack([pos.real, pos.imag], axis=-1))
+            stop = legal[:, 0] + 1j * legal[:, 1]
+        picked = np.where(via, sub[np.arange(len(pos)), index], np.where(found, goal, stop))
         won = np.where(via, normal[np.arange(len(pos)), index], np.nan + 0j)
         return picked, won
 

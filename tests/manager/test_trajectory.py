@@ -17,6 +17,7 @@ from hier_ssl.manager.trajectory import (
     TrajectoryParams,
     TrajectoryPlanner,
     accepted,
+    composite,
     first_collisions,
 )
 from hier_ssl.world.field import get_field
@@ -123,14 +124,17 @@ def test_the_same_seed_gives_the_same_decisions() -> None:
 
 
 @pytest.mark.parametrize(
-    "config",
-    [env_config(task=t, frame_skip=8) for t in ("baseline", "proposed", "obstacle")]
-    + [scenario_config(s, frame_skip=8) for s in ("crossing", "crowd", "formation")],
-    ids=lambda c: c.scenario_name,
+    ("config", "least"),
+    [(env_config(task=t, frame_skip=8), 1.0) for t in ("baseline", "proposed", "obstacle")]
+    + [(scenario_config("crowd", frame_skip=8), 1.0)]
+    + [(scenario_config(s, frame_skip=8), 0.8) for s in ("crossing", "formation")],
+    ids=lambda c: getattr(c, "scenario_name", ""),
 )
-def test_trajectory_plays_every_task_and_scenario(config) -> None:
+def test_trajectory_plays_every_task_and_scenario(config, least: float) -> None:
+    # Seed 0, 4 episodes: every robot of the one-robot tasks arrives, and of the 24 robots crossing or in
+    # formation 22 and 21 do (from 0.8: up to 4 may fail or collide).
     result = evaluate(make_planner("trajectory", config), config, 4, seed=0)
-    assert result["robots"] >= 4 and 0.0 <= result["success_rate"] <= 1.0
+    assert result["robots"] >= 4 and result["success_rate"] >= least
 
 
 def test_params_are_checked() -> None:
@@ -160,3 +164,64 @@ def test_checks_cover_the_motion_between_them_and_the_acceptors_follow_tigers() 
     # Moving: at 2 m/s braking at 1 m/s^2, a first collision must come after 2 + 0.5 s.
     late = Collisions(np.full(2, np.inf), np.zeros(2, complex), np.array([2.4, 2.6]), np.zeros(2, complex))
     assert accepted(late, start, goal, np.full(2, 2.0), 1.0, p)[1].tolist() == [False, True]
+
+
+def _plan(planner: TrajectoryPlanner, obstacles, last: complex = complex(np.nan, 0.0)):
+    """``plan`` for the robot at rest at (-1, 0) going to (1, 0) among still ``obstacles``."""
+    scene = read_scene(_obs((-1.0, 0.0), (1.0, 0.0), obstacles=obstacles), FIELD.max_pos, 2.5)
+    chosen, winner = planner.plan(scene, np.array([last]))
+    return complex(chosen[0]), complex(winner[0])
+
+
+def test_the_direct_path_is_checked_by_position_not_velocity() -> None:
+    # A still robot at (1.8, 0), 0.8 m past the target: the path from -1 to 1 never comes within 0.25 m,
+    # though its velocity (0 to 2.2 m/s along x) passes through 1.8.
+    chosen, winner = _plan(make_planner("trajectory", env_config(task="obstacle")), [(1.8, 0.0)])
+    assert chosen == pytest.approx(1.0, abs=1e-6) and np.isnan(winner)
+
+
+def test_a_remembered_sub_destination_whose_paths_all_hit_the_still_obstacle_is_refused() -> None:
+    # The only candidate, 5 degrees off the line through the still robot at the origin: every switch
+    # passes within 0.25 m of it, so nothing is accepted and no rejected path is clear of it: stop.
+    planner = make_planner("trajectory", env_config(task="obstacle"), num_sub_destinations=0)
+    chosen, winner = _plan(planner, [(0.0, 0.0)], last=cmath.exp(1j * math.radians(5)))
+    assert chosen == pytest.approx(-1.0, abs=1e-6) and np.isnan(winner)
+
+
+def test_the_memory_holds_the_winner_and_keeps_it_when_the_direct_path_wins() -> None:
+    planner = make_planner("trajectory", env_config(task="obstacle"))
+    planner.forget(2)
+    blocked = _obs((-1.0, 0.0), (1.0, 0.0), obstacles=[(0.0, 0.0)])
+    sub = _xy(planner(blocked, rows=np.array([1])))
+    remembered = planner.memory[1]
+    assert np.isnan(planner.memory[0]) and not np.isnan(remembered)
+    # The winner is relative to the 2 m robot-target line along +x; its sub-goal clipped to the field.
+    free = -1.0 + 2.0 * remembered
+    half_l, half_w = FIELD.half_length, FIELD.half_width
+    clipped = complex(np.clip(free.real, -half_l, half_l), np.clip(free.imag, -half_w, half_w))
+    assert sub == pytest.approx(clipped, abs=1e-3)
+    free_field = _obs((-1.0, 0.0), (1.0, 0.0), obstacles=[(0.0, 1.5)])
+    assert _xy(planner(free_field, rows=np.array([1]))) == pytest.approx(1.0, abs=1e-3)
+    assert planner.memory[1] == remembered
+
+
+def test_a_composite_path_follows_the_sub_path_until_the_switch_and_the_target_after() -> None:
+    first = bang_bang_2d(0j, 1 + 1j, 0j, 2.0, 3.0)
+    then = bang_bang_2d(1j, 2 + 0j, 0.5 + 0j, 2.0, 3.0)
+    switch = np.array([0.3, 0.5])
+    np.testing.assert_allclose(composite(first, then, switch, 0.4), [then.at(0.1)[0], first.at(0.4)[0]])
+
+
+def test_first_collisions_are_placed_in_the_plane() -> None:
+    # Along y = 0.5 at 4.4 m/s past a still obstacle at (-0.34, 0.5) and a robot moving at (0.12, 0.5)
+    # 0.5 m/s across: both first found at 0.2 s (x = -0.12), recorded with their y.
+    path = (lambda t: np.array([-1.0 + 4.4 * t + 0.5j]), np.array([0.5]))
+    obstacles = (
+        np.array([[-0.34 + 0.5j, -0.02 + 0.5j]]),
+        np.array([[0j, -0.5 + 0j]]),
+        np.array([[True, False]]),
+    )
+    hits = first_collisions(*path, obstacles, 0.2, TrajectoryParams())
+    assert (float(hits.still_time[0]), float(hits.moving_time[0])) == pytest.approx((0.2, 0.2))
+    assert complex(hits.still_pos[0]) == pytest.approx(-0.12 + 0.5j)
+    assert complex(hits.moving_pos[0]) == pytest.approx(-0.12 + 0.5j)

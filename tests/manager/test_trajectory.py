@@ -225,3 +225,70 @@ def test_first_collisions_are_placed_in_the_plane() -> None:
     assert (float(hits.still_time[0]), float(hits.moving_time[0])) == pytest.approx((0.2, 0.2))
     assert complex(hits.still_pos[0]) == pytest.approx(-0.12 + 0.5j)
     assert complex(hits.moving_pos[0]) == pytest.approx(-0.12 + 0.5j)
+
+
+def _plans(planner: TrajectoryPlanner, scenes, last):
+    """``plan`` over a batch of scenes (robot, target, obstacles, obstacle velocities or None), robots at
+    rest."""
+    obs = np.concatenate([_obs(r, t, obstacles=o, obstacle_vel=v) for r, t, o, v in scenes])
+    return planner.plan(read_scene(obs, FIELD.max_pos, 2.5), np.asarray(last, complex))
+
+
+def test_a_line_off_both_axes_blocked_by_a_still_obstacle_gets_a_detour() -> None:
+    # (0, 1) to (2, 1) through a still robot at (1, 1): a detour from (0, 1) along the 2 m line, its
+    # sub-goal clipped to the field's half width of 2 m.
+    planner = make_planner("trajectory", env_config(task="obstacle"))
+    chosen, winner = _plans(planner, [((0.0, 1.0), (2.0, 1.0), [(1.0, 1.0)], None)], [np.nan])
+    assert not np.isnan(winner[0])
+    free = 1j + 2.0 * winner[0]
+    assert complex(chosen[0]) == pytest.approx(
+        complex(np.clip(free.real, -3.0, 3.0), np.clip(free.imag, -2, 2))
+    )
+
+
+def test_an_obstacle_within_the_margin_of_the_line_blocks_it() -> None:
+    # A still robot 0.2 m off the line: outside the collision distance (0.2) but inside it plus the
+    # margin (0.25).
+    planner = make_planner("trajectory", env_config(task="obstacle"))
+    chosen, winner = _plans(planner, [((0.0, 1.0), (2.0, 1.0), [(1.0, 1.2)], None)], [np.nan])
+    assert not np.isnan(winner[0]) and abs(complex(chosen[0]) - (2 + 1j)) > 0.5
+
+
+def test_robots_of_one_call_are_planned_each_on_its_own() -> None:
+    # Two robots blocked alike, each with its one remembered candidate: 60 degrees (clear) is taken, 5
+    # degrees (through the obstacle) leaves the other robot stopped where it is.
+    planner = make_planner("trajectory", env_config(task="obstacle"), num_sub_destinations=0)
+    scene = ((-1.0, 0.0), (1.0, 0.0), [(0.0, 0.0)], None)
+    good, bad = 0.7 * cmath.exp(1j * math.radians(60)), cmath.exp(1j * math.radians(5))
+    chosen, winner = _plans(planner, [scene, scene], [good, bad])
+    assert complex(chosen[0]) == pytest.approx(-1.0 + 1.4 * cmath.exp(1j * math.radians(60)), abs=1e-3)
+    assert complex(winner[0]) == pytest.approx(good)
+    assert complex(chosen[1]) == pytest.approx(-1.0, abs=1e-6) and np.isnan(winner[1])
+
+
+def test_when_a_moving_obstacle_rejects_every_path_the_closest_miss_is_taken() -> None:
+    # A robot 0.3 m above the start moving down at 0.5 m/s meets every path within 0.2 s, before the
+    # 0.5 s the moving acceptor asks of a robot at rest.
+    planner = make_planner("trajectory", env_config(task="obstacle"), num_sub_destinations=0)
+    crossing = ((-1.0, 0.0), (1.0, 0.0), [(-1.0, 0.3)], [(0.0, -0.5)])
+    # Nothing else to try: the rejected direct path, the only one, is taken: straight to the target.
+    chosen, winner = _plans(planner, [crossing], [np.nan])
+    assert complex(chosen[0]) == pytest.approx(1.0, abs=1e-6) and np.isnan(winner[0])
+    # With a still robot on the line the direct path is out; the remembered 60-degree candidate, rejected
+    # by the moving robot only, is the closest (the only) miss.
+    blocked = ((-1.0, 0.0), (1.0, 0.0), [(0.0, 0.0), (-1.0, 0.3)], [(0.0, 0.0), (0.0, -0.5)])
+    good = 0.7 * cmath.exp(1j * math.radians(60))
+    chosen, winner = _plans(planner, [blocked], [good])
+    assert complex(chosen[0]) == pytest.approx(-1.0 + 1.4 * cmath.exp(1j * math.radians(60)), abs=1e-3)
+    assert complex(winner[0]) == pytest.approx(good)
+
+
+def test_sub_destinations_are_drawn_either_side_within_the_angles_and_scales() -> None:
+    planner = make_planner("trajectory", env_config(task="obstacle"))
+    draws = planner.draw(400)
+    assert draws.shape == (400, 5)
+    angle, scale = np.degrees(np.abs(np.angle(draws))), np.abs(draws)
+    assert angle.min() >= 20.0 and angle.max() <= 140.0
+    assert angle.min() < 25.0 and angle.max() > 135.0  # the whole range, not a corner of it
+    assert (np.angle(draws) > 0).any() and (np.angle(draws) < 0).any()
+    assert scale.min() >= 0.5 and scale.max() <= 1.5 and np.ptp(scale, axis=1).min() > 0.0

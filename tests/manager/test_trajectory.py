@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import cmath
+import dataclasses
 import math
 
 import numpy as np
@@ -292,3 +293,20 @@ def test_sub_destinations_are_drawn_either_side_within_the_angles_and_scales() -
     assert angle.min() < 25.0 and angle.max() > 135.0  # the whole range, not a corner of it
     assert (np.angle(draws) > 0).any() and (np.angle(draws) < 0).any()
     assert scale.min() >= 0.5 and scale.max() <= 1.5 and np.ptp(scale, axis=1).min() > 0.0
+
+
+def test_a_moving_obstacle_is_judged_by_the_workers_braking() -> None:
+    # At 1.5 m/s along x from (-1, 0) to (2, 0), the direct path passes x = 1.52 at 1.2 s, where a robot
+    # moving up at 0.15 m/s (predicted for 1 s: 0.15 m off the line) is met at about 1.1-1.2 s. Braking at
+    # the paper worker's 1 m/s^2 that is before 1.5 / 1 + 0.5 = 2 s: rejected, a detour. A worker braking
+    # at 3 m/s^2 would need only 1.5 / 3 + 0.5 = 1 s: the direct path stands.
+    obs = _obs(
+        (-1.0, 0.0), (2.0, 0.0), obstacles=[(1.517, 0.0)], obstacle_vel=[(0.0, 0.15)], robot_vel=(1.5, 0.0)
+    )
+    scene = read_scene(obs, FIELD.max_pos, 2.5)
+    planner = make_planner("trajectory", env_config(task="obstacle"))
+    assert planner.brake_accel == 1.0
+    assert not np.isnan(planner.plan(scene, np.array([np.nan + 0j]))[1][0])
+    hard = dataclasses.replace(planner, brake_accel=3.0)
+    chosen, winner = hard.plan(scene, np.array([np.nan + 0j]))
+    assert complex(chosen[0]) == pytest.approx(2.0, abs=1e-6) and np.isnan(winner[0])

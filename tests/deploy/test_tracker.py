@@ -302,6 +302,7 @@ def test_commands_superseded_at_the_filters_time_are_dropped_and_a_same_time_com
     for since in (0.0, 0.02, 2 / 60):
         tracker.command(BLUE0, since, (since, 0.0, 0.0))
     tracker.command(BLUE0, 2 / 60, (1.0, 0.0, 0.0))
+    assert tracker.tracks[BLUE0].commands[1:] == [(0.02, (0.02, 0.0, 0.0)), (2 / 60, (1.0, 0.0, 0.0))]
     tracker.update(_frame(2 / 60, Detection("blue", 0, 0.0, 0.0, 0.0)), arrival=2 / 60)
     assert tracker.tracks[BLUE0].commands == [(2 / 60, (1.0, 0.0, 0.0))]
 

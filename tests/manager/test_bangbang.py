@@ -156,3 +156,12 @@ def test_2d_a_pure_axis_move_takes_the_1d_time_within_unit_limits() -> None:
 def test_2d_a_zero_acceleration_limit_is_refused() -> None:
     with pytest.raises(ValueError, match="v_max and a_max must be > 0"):
         bang_bang_2d(0j, 1j, 0j, 2.0, 0.0)
+
+
+def test_1d_a_start_whose_braking_lands_on_the_target_just_brakes() -> None:
+    # At -2.1 m/s towards -0.735 m, a_max 3: braking at once stops on it, 2.1^2 / 6 = 0.735 m in 0.7 s;
+    # no cruise, not even the rounding of 0.735 m divided by a zero peak speed.
+    p = bang_bang_1d(0.0, -0.735, -2.1, 3.0, 3.0)
+    assert float(p.t2) == 0.0
+    assert float(p.total_time) == pytest.approx(0.7, abs=1e-12)
+    _limits_hold(p, 3.0, 3.0, -0.735)

@@ -134,9 +134,11 @@ def test_1d_a_start_above_v_max_decelerates_first() -> None:
 
 
 def test_1d_single_precision_inputs_are_computed_in_double() -> None:
-    # 0.5 m at a_max 3 from rest, every input float32: 2 sqrt(0.5 / 3) s to double precision.
-    p = bang_bang_1d(*(np.array([x], np.float32) for x in (0.0, 0.5, 0.0, 2.0, 3.0)))
-    assert abs(float(p.total_time[0]) - 2 * math.sqrt(0.5 / 3)) < 1e-12  # float32 is off by ~1e-8
+    # From 0.1 to 0.6 as float32 (0.10000000149 and 0.60000002384): the distance is 0.50000002235 m, which
+    # float32 arithmetic would round to 0.5; from rest at a_max 3 the time is 2 sqrt(d / 3).
+    p = bang_bang_1d(*(np.array([x], np.float32) for x in (0.1, 0.6, 0.0, 2.0, 3.0)))
+    d = float(np.float32(0.6)) - float(np.float32(0.1))
+    assert abs(float(p.total_time[0]) - 2 * math.sqrt(d / 3)) < 1e-12  # float32 is off by 2e-8
 
 
 def test_2d_velocity_points_along_the_move() -> None:

@@ -310,3 +310,16 @@ def test_a_moving_obstacle_is_judged_by_the_workers_braking() -> None:
     hard = dataclasses.replace(planner, brake_accel=3.0)
     chosen, winner = hard.plan(scene, np.array([np.nan + 0j]))
     assert complex(chosen[0]) == pytest.approx(2.0, abs=1e-6) and np.isnan(winner[0])
+
+
+@pytest.mark.parametrize(("x", "side", "corner"), [(2.5, 1, 3 - 2j), (-2.5, 1, -3 + 2j), (-2.5, -1, -3 - 2j)])
+def test_a_sub_destination_past_the_field_is_clipped_to_its_corner(
+    x: float, side: int, corner: complex
+) -> None:
+    # 2 m towards the centre along x, blocked half-way; the one candidate, 130 degrees off the line at 1.5
+    # times its length, lies 1.93 m behind the robot and 2.30 m aside: past the 3 x 2 m half field.
+    planner = make_planner("trajectory", env_config(task="obstacle"), num_sub_destinations=0)
+    toward = -math.copysign(2.0, x)
+    scene = ((x, 0.0), (x + toward, 0.0), [(x + toward / 2, 0.0)], None)
+    chosen, _ = _plans(planner, [scene], [1.5 * cmath.exp(side * 1j * math.radians(130))])
+    assert complex(chosen[0]) == pytest.approx(corner)

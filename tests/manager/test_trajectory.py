@@ -323,3 +323,59 @@ def test_a_sub_destination_past_the_field_is_clipped_to_its_corner(
     scene = ((x, 0.0), (x + toward, 0.0), [(x + toward / 2, 0.0)], None)
     chosen, _ = _plans(planner, [scene], [1.5 * cmath.exp(side * 1j * math.radians(130))])
     assert complex(chosen[0]) == pytest.approx(corner)
+
+
+def _still_hit(time: float, pos: complex) -> Collisions:
+    return Collisions(np.array([time]), np.array([pos]), np.array([np.inf]), np.zeros(1, complex))
+
+
+@pytest.mark.parametrize(
+    ("start", "goal", "time", "pos", "ok"),
+    [
+        # 1 to 3 (2 m), at 2 s (threshold 0.5): 0.4 m short of the end (0.2) passes, 1.5 m (0.75) does not.
+        (1.0, 3.0, 2.0, 2.6, True),
+        (1.0, 3.0, 2.0, 1.5, False),
+        # A 0.5 m path, at 1 s (threshold 0.25): 0.2 m short of the end is 0.4 of it, rejected.
+        (0.0, 0.5, 1.0, 0.3, False),
+        # After 8 s the threshold stays 1: a collision farther from the end than the start is rejected.
+        (0.0, 2.0, 8.0, -1.0, False),
+    ],
+)
+def test_the_still_acceptor_compares_the_collisions_share_of_the_distance_with_its_time(
+    start: float, goal: float, time: float, pos: float, ok: bool
+) -> None:
+    still_ok, _ = accepted(_still_hit(time, complex(pos)), start, goal, 0.0, 1.0, TrajectoryParams())
+    assert bool(still_ok[0]) is ok
+
+
+def test_a_moving_collision_exactly_at_the_braking_time_is_rejected() -> None:
+    # 2 m/s braking at 1 m/s^2 plus 0.5 s: 2.5 s exactly is not later than it.
+    hits = Collisions(np.array([np.inf]), np.zeros(1, complex), np.array([2.5]), np.zeros(1, complex))
+    assert not accepted(hits, 0.0, 2.0, 2.0, 1.0, TrajectoryParams())[1][0]
+
+
+def test_moving_straight_away_from_an_obstacle_is_no_collision() -> None:
+    # From 0.3 m to 0.4 m from a still obstacle between the checks at 0.1 s and 0.2 s: the closest point of
+    # that stretch is its start, 0.3 m, outside 0.25 m (the line through it, not the stretch, meets it).
+    path = (lambda t: np.array([0.2 + 1.0 * t + 0j]), np.array([0.25]))
+    still = (np.zeros((1, 1), complex), np.zeros((1, 1), complex), np.ones((1, 1), bool))
+    assert np.isinf(first_collisions(*path, still, 0.25, TrajectoryParams()).still_time[0])
+
+
+def test_a_check_at_the_paths_end_time_does_not_count() -> None:
+    # Checks at 0.1, 0.2, 0.3 s; the path ends at the third, where it would first meet the obstacle.
+    p = TrajectoryParams()
+    end = p.initial_time_offset + 2 * p.collision_check_step
+    path = (lambda t: np.array([-1.0 + 4.4 * t + 0j]), np.array([end]))
+    still = (np.array([[-1.0 + 4.4 * end + 0j]]), np.zeros((1, 1), complex), np.ones((1, 1), bool))
+    assert np.isinf(first_collisions(*path, still, 0.2, p).still_time[0])
+
+
+def test_an_empty_batch_of_paths_has_no_collisions() -> None:
+    obstacles = (np.zeros((0, 1), complex), np.zeros((0, 1), complex), np.ones((0, 1), bool))
+    hits = first_collisions(lambda t: np.zeros(0, complex), np.zeros(0), obstacles, 0.2, TrajectoryParams())
+    assert hits.still_time.shape == (0,)
+
+
+def test_a_new_planner_remembers_no_robot() -> None:
+    assert make_planner("trajectory", env_config(task="obstacle")).memory.shape == (0,)

@@ -379,3 +379,10 @@ def test_an_empty_batch_of_paths_has_no_collisions() -> None:
 
 def test_a_new_planner_remembers_no_robot() -> None:
     assert make_planner("trajectory", env_config(task="obstacle")).memory.shape == (0,)
+
+
+def test_a_robot_exactly_at_the_collision_distance_does_not_collide() -> None:
+    # Standing 0.25 m from a still obstacle through every check (and between them): "under" the distance.
+    path = (lambda t: np.array([0.25 + 0j]), np.array([0.5]))
+    still = (np.zeros((1, 1), complex), np.zeros((1, 1), complex), np.ones((1, 1), bool))
+    assert np.isinf(first_collisions(*path, still, 0.25, TrajectoryParams()).still_time[0])

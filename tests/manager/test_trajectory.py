@@ -386,3 +386,10 @@ def test_a_robot_exactly_at_the_collision_distance_does_not_collide() -> None:
     path = (lambda t: np.array([0.25 + 0j]), np.array([0.5]))
     still = (np.zeros((1, 1), complex), np.zeros((1, 1), complex), np.ones((1, 1), bool))
     assert np.isinf(first_collisions(*path, still, 0.25, TrajectoryParams()).still_time[0])
+
+
+def test_params_take_their_range_ends_and_refuse_what_is_past_them() -> None:
+    TrajectoryParams(min_angle=0.0, max_angle=0.0, min_scale=1.0, max_scale=1.0, num_sub_destinations=0)
+    for bad in ({"min_scale": 0.0}, {"num_sub_destinations": -1}):
+        with pytest.raises(ValueError, match="bad sub-destination range"):
+            TrajectoryParams(**bad)

@@ -97,9 +97,6 @@ class _Axis:
         """The value ``lag`` >= 0 seconds ago."""
         return self.p - self.v * lag
 
-    def at(self, dt: float) -> tuple[float, float]:
-        return self.p + self.v * max(dt, 0.0), self.v
-
 
 def follow(
     vx: float,

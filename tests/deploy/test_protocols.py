@@ -3,6 +3,7 @@ messages put their fields at the public protocols' numbers and types (bytes buil
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import struct
@@ -140,3 +141,135 @@ def test_values_no_camera_reports_are_invalid() -> None:
         wire.parse_vision(
             wire.encode_detection(0, wire.DetectionFrame(1.0, 1.0, 0, (wire.Detection("blue", 16, 0, 0, 0),)))
         )
+
+
+def _dropped(parse, data: bytes) -> str:
+    """The text of the PacketError ``parse`` raises on ``data``: its reason (the counter), a colon, why."""
+    with pytest.raises(wire.PacketError) as err:
+        parse(data)
+    assert str(err.value).startswith(f"{err.value.reason}: ")
+    return str(err.value)
+
+
+def _detection(*robots: wire.Detection, t_capture: float = 1.0, t_sent: float = 1.0) -> bytes:
+    return wire.encode_detection(0, wire.DetectionFrame(t_capture, t_sent, 0, robots))
+
+
+def _padded(packet: bytes, size: int) -> bytes:
+    """``packet`` with an unknown field (number 9, length-delimited) that makes it ``size`` bytes."""
+    body = size - len(packet) - 3  # its tag is one byte and its length two (128 to 16383 bytes)
+    return packet + _tag(9, 2) + _varint(body) + b"\x00" * body
+
+
+def test_a_packet_of_exactly_the_maximum_size_is_read_and_one_byte_more_is_dropped() -> None:
+    frame = wire.DetectionFrame(1.0, 1.0, 0, (wire.Detection("blue", 0, 1.0, 2.0, 0.5),))
+    packet = _padded(wire.encode_detection(0, frame), wire.MAX_PACKET)
+    assert len(packet) == wire.MAX_PACKET and wire.parse_vision(packet) == frame
+    over = _padded(wire.encode_detection(0, frame), wire.MAX_PACKET + 1)
+    assert _dropped(wire.parse_vision, over) == "oversized: vision packet of 16385 bytes > 16384"
+
+
+@pytest.mark.parametrize(
+    ("parse", "what"),
+    [
+        (wire.parse_vision, "vision packet"),
+        (wire.parse_grsim, "grSim packet"),
+        (wire.parse_simulation, "robot control"),
+        (wire.parse_response, "robot control response"),
+    ],
+)
+def test_bytes_that_do_not_parse_are_malformed_and_named(parse, what: str) -> None:
+    assert _dropped(parse, b"\xff" * 10).startswith(f"malformed: {what} does not parse (Error parsing")
+
+
+def test_missing_required_fields_are_named_up_to_three() -> None:
+    # An empty detection frame lacks all four of its required fields; the first three are named.
+    missing = "detection.frame_number, detection.t_capture, detection.t_sent"
+    assert (
+        _dropped(wire.parse_vision, _message(1, b""))
+        == f"malformed: vision packet lacks required fields ({missing})"
+    )
+
+
+def test_a_packet_with_neither_detection_nor_geometry_is_empty() -> None:
+    assert _dropped(wire.parse_vision, b"") == "empty: vision packet holds neither detection nor geometry"
+
+
+@pytest.mark.parametrize(("t_capture", "t_sent"), [(math.nan, 1.0), (1.0, math.inf)])
+def test_a_frame_time_that_is_not_finite_is_invalid(t_capture: float, t_sent: float) -> None:
+    data = _detection(t_capture=t_capture, t_sent=t_sent)
+    assert _dropped(wire.parse_vision, data) == "invalid: frame time is not finite"
+
+
+@pytest.mark.parametrize(("x", "y"), [(math.nan, 0.0), (0.0, math.nan)])
+def test_a_robot_position_that_is_not_finite_is_invalid(x: float, y: float) -> None:
+    data = _detection(wire.Detection("blue", 1, x, y, 0.0))
+    assert _dropped(wire.parse_vision, data) == "invalid: robot position is not finite"
+
+
+def test_a_robot_orientation_that_is_not_finite_is_invalid() -> None:
+    data = _detection(wire.Detection("blue", 1, 0.0, 0.0, math.nan))
+    assert _dropped(wire.parse_vision, data) == "invalid: robot orientation is not finite"
+
+
+def test_a_detection_without_orientation_has_no_angle() -> None:
+    frame = wire.DetectionFrame(1.0, 1.0, 0, (wire.Detection("blue", 1, 0.5, -0.5, None),))
+    assert wire.parse_vision(wire.encode_detection(0, frame)) == frame
+
+
+def test_a_yellow_robot_round_trips_as_yellow() -> None:
+    frame = wire.DetectionFrame(1.0, 1.0, 2, (wire.Detection("yellow", 4, -1.0, 2.5, -3.0),))
+    assert wire.parse_vision(wire.encode_detection(0, frame)) == frame
+
+
+def test_robot_id_15_and_20_m_from_the_centre_are_the_largest_read() -> None:
+    edge = (wire.Detection("blue", 15, 20.0, -20.0, 0.0), wire.Detection("yellow", 15, -20.0, 20.0, 0.0))
+    assert wire.parse_vision(_detection(*edge)).robots == edge
+    for x, y in ((20.001, 0.0), (0.0, -20.001)):
+        message = _dropped(wire.parse_vision, _detection(wire.Detection("blue", 1, x, y, 0.0)))
+        assert message == f"invalid: blue robot 1 at ({x * 1000:.1f}, {y * 1000:.1f}) mm"
+    assert _dropped(wire.parse_vision, _detection(wire.Detection("yellow", 16, 0, 0, 0))) == (
+        "invalid: yellow robot id 16"
+    )
+
+
+def test_a_robot_without_an_id_is_invalid() -> None:
+    robot = _float(1, 1.0) + _float(3, 0.0) + _float(4, 0.0) + _float(6, 0.0) + _float(7, 0.0)
+    frame = _tag(1, 0) + _varint(0) + _double(2, 1.0) + _double(3, 1.0) + _tag(4, 0) + _varint(0)
+    data = _message(1, frame + _message(7, robot))
+    assert _dropped(wire.parse_vision, data) == "invalid: blue robot id None"
+
+
+def test_the_geometry_packet_carries_the_goal_and_boundary_in_millimetres() -> None:
+    packet = ssl_vision_pb2.SSL_WrapperPacket.FromString(
+        wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.7), 1.0, goal_depth=0.6)
+    )
+    field = packet.geometry.field
+    assert (field.goal_width, field.goal_depth, field.boundary_width) == (1000, 600, 700)
+    default = ssl_vision_pb2.SSL_WrapperPacket.FromString(
+        wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)
+    )
+    assert default.geometry.field.goal_depth == 180
+
+
+@pytest.mark.parametrize("bad", [0, 1, 2])
+def test_a_command_component_that_is_not_finite_is_invalid(bad: int) -> None:
+    values = [1.0, -0.5, 0.25]
+    values[bad] = math.nan
+    grsim = wire.encode_grsim([(2, *values)], yellow=False, timestamp=0.0)
+    assert _dropped(wire.parse_grsim, grsim) == "invalid: robot 2's command is not finite"
+    simulation = wire.encode_simulation([(2, *values)])
+    assert _dropped(wire.parse_simulation, simulation) == "invalid: robot 2's command is not finite"
+
+
+def test_a_grsim_packet_without_commands_is_empty() -> None:
+    replacement = _message(2, b"")  # a grSim_Packet holding only an (empty) replacement
+    assert _dropped(wire.parse_grsim, replacement) == "empty: grSim packet without commands"
+
+
+def test_grsim_wheel_speeds_are_unsupported() -> None:
+    robot = _tag(1, 0) + _varint(2) + _float(2, 0.0) + _float(3, 0.0) + _float(4, 0.0) + _float(5, 0.0)
+    robot += _float(6, 0.0) + _tag(7, 0) + _varint(0) + _tag(8, 0) + _varint(1)  # wheelsspeed = true
+    data = _message(1, _double(1, 0.0) + _tag(2, 0) + _varint(0) + _message(3, robot))
+    message = "unsupported: grSim wheel speeds (only local velocities are simulated)"
+    assert _dropped(wire.parse_grsim, data) == message

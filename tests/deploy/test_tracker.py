@@ -9,8 +9,17 @@ import numpy as np
 import pytest
 
 from hier_ssl.deploy.bench import tracking_error
-from hier_ssl.deploy.tracker import COMMANDS_KEPT, PREDICT_HORIZON, Tracker, TrackerSettings
+from hier_ssl.deploy.tracker import (
+    COMMANDS_KEPT,
+    PREDICT_HORIZON,
+    Track,
+    Tracker,
+    TrackerSettings,
+    _Axis,
+    follow,
+)
 from hier_ssl.deploy.wire import Detection, DetectionFrame
+from hier_ssl.world.robot import RobotSpec
 
 BLUE0 = ("blue", 0)
 
@@ -130,3 +139,183 @@ def test_a_robot_not_seen_yet_is_not_told_and_commands_are_kept_for_a_short_whil
     for k in range(20):
         tracker.command(BLUE0, k * 0.025, (1.0, 0.0, 0.0))
     assert len(tracker.tracks[BLUE0].commands) == COMMANDS_KEPT
+
+
+def _textbook(state, cov, dt: float, q: float, dv: float, z: float | None, r: float):
+    """One constant-velocity Kalman step as the textbooks write it: x' = F x + (dv dt / 2, dv),
+    P' = F P F^T + q G G^T with G = (dt^2 / 2, dt), then (if z) the update with H = (1, 0)."""
+    f = np.array([[1.0, dt], [0.0, 1.0]])
+    g = np.array([[dt * dt / 2], [dt]])
+    state = f @ state + np.array([dv * dt / 2, dv])
+    cov = f @ cov @ f.T + q * (g @ g.T)
+    if z is not None:
+        gain = cov[:, 0] / (cov[0, 0] + r)
+        state = state + gain * (z - state[0])
+        cov = cov - np.outer(gain, cov[0])
+    return state, cov
+
+
+def _axis_matches(axis: _Axis, state, cov) -> None:
+    np.testing.assert_allclose([axis.p, axis.v], state, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose([[axis.a, axis.b], [axis.b, axis.c]], cov, rtol=1e-12, atol=1e-15)
+
+
+def test_an_axis_predicts_and_measures_as_the_textbook_kalman_filter() -> None:
+    # From the prior (value 0.2, variance 0.01; rate 0 of variance 5^2): 0.1 s on with a known rate change
+    # of 0.3 and q = 36, measured at 0.25 (r = 1e-4), then 0.05 s on with a change of -0.2.
+    axis = _Axis(0.2, 0.01)
+    state, cov = np.array([0.2, 0.0]), np.diag([0.01, 25.0])
+    _axis_matches(axis, state, cov)
+    axis.predict(0.1, 36.0, 0.3)
+    state, cov = _textbook(state, cov, 0.1, 36.0, 0.3, None, 0.0)
+    _axis_matches(axis, state, cov)
+    axis.update(0.25 - axis.p, 1e-4)
+    state, cov = _textbook(state, cov, 0.0, 0.0, 0.0, 0.25, 1e-4)
+    _axis_matches(axis, state, cov)
+    axis.predict(0.05, 36.0, -0.2)
+    _axis_matches(axis, *_textbook(state, cov, 0.05, 36.0, -0.2, None, 0.0))
+
+
+def test_an_axis_without_a_rate_change_moves_at_constant_rate_and_a_zero_step_changes_nothing() -> None:
+    axis = _Axis(1.0, 0.01)
+    axis.update(0.0, 1e-4)  # a covariance with every entry set
+    before = (axis.p, axis.v, axis.a, axis.b, axis.c)
+    axis.predict(0.0, 36.0, 0.5)
+    assert (axis.p, axis.v, axis.a, axis.b, axis.c) == before
+    axis.v = 2.0
+    axis.predict(0.1, 0.0)
+    assert (axis.p, axis.v) == pytest.approx((1.2, 2.0))
+
+
+SETTINGS = TrackerSettings(pos_noise=0.01, angle_noise=0.05, accel=3.0, ang_accel=5.0, command_accel=0.5)
+
+
+def test_an_untold_robot_is_filtered_with_the_white_noise_acceleration_of_its_settings() -> None:
+    # Seen at rest at (0, 0) heading 0.1, then 0.1 s later at (0.02, -0.01) heading 0.15: x and y with
+    # q = 3^2 and r = 0.01^2, the heading with q = 5^2 and r = 0.05^2, each from its prior.
+    tracker = Tracker(SETTINGS)
+    tracker.update(_frame(0.0, Detection("blue", 0, 0.0, 0.0, 0.1)), arrival=0.0)
+    tracker.update(_frame(0.1, Detection("blue", 0, 0.02, -0.01, 0.15)), arrival=0.1)
+    x, y, angle, vx, vy, w = tracker.state([BLUE0], 0.1)[0]
+    for (value, rate), z, start, q, r in (
+        ((x, vx), 0.02, 0.0, 9.0, 1e-4),
+        ((y, vy), -0.01, 0.0, 9.0, 1e-4),
+        ((angle, w), 0.15, 0.1, 25.0, 0.0025),
+    ):
+        expected, _ = _textbook(np.array([start, 0.0]), np.diag([r, 25.0]), 0.1, q, 0.0, z, r)
+        np.testing.assert_allclose([value, rate], expected, rtol=1e-9)
+
+
+def test_a_told_robot_is_predicted_with_the_commanded_change_and_its_own_process_noise() -> None:
+    # At rest heading 0, told (1 m/s forward, 4 rad/s) from 0 s: in 0.1 s at 3 m/s^2 and 60 rad/s^2 the
+    # rates change by 0.3 m/s along x and 4 rad/s, with q = 0.5^2 (position) and 10^2 (heading).
+    tracker = Tracker(SETTINGS)
+    tracker.update(_frame(0.0, Detection("blue", 0, 0.0, 0.0, 0.0)), arrival=0.0)
+    tracker.command(BLUE0, 0.0, (1.0, 0.0, 4.0))
+    tracker.update(_frame(0.1, Detection("blue", 0, 0.02, 0.0, 0.19)), arrival=0.1)
+    track = tracker.tracks[BLUE0]
+    _axis_matches(track.x, *_textbook(np.zeros(2), np.diag([1e-4, 25.0]), 0.1, 0.25, 0.3, 0.02, 1e-4))
+    expected = _textbook(np.zeros(2), np.diag([0.0025, 25.0]), 0.1, 100.0, 4.0, 0.19, 0.0025)
+    _axis_matches(track.angle, *expected)
+
+
+def test_follow_caps_a_command_above_max_speed_along_its_direction() -> None:
+    # (3, 4) m/s in the robot's frame at heading pi/2 is (-4, 3) in the field's: 5 m/s, capped to 2.5.
+    vx, vy, spin = follow(0.0, 0.0, 0.0, (3.0, 4.0, 0.0), math.pi / 2, 10.0, RobotSpec())
+    assert (vx, vy, spin) == pytest.approx((-2.0, 1.5, 0.0))
+
+
+def test_follow_limits_the_change_of_velocity_as_a_vector() -> None:
+    # From rest towards (1.2, 1.6) m/s (2 m/s): 0.1 s at 3 m/s^2 gives 0.3 m/s of it, (0.18, 0.24).
+    vx, vy, _ = follow(0.0, 0.0, 0.0, (1.2, 1.6, 0.0), 0.0, 0.1, RobotSpec())
+    assert (vx, vy) == pytest.approx((0.18, 0.24))
+
+
+def test_a_track_without_a_command_or_time_has_no_rate_change() -> None:
+    track = Track(_Axis(0.0, 1e-4), _Axis(0.0, 1e-4), _Axis(0.0, 1e-4), 0.0, 0.0)
+    assert track.change(None, 0.1, RobotSpec()) == (0.0, 0.0, 0.0)
+    assert track.change((1.0, 1.0, 1.0), 0.0, RobotSpec()) == (0.0, 0.0, 0.0)
+
+
+def _moving(tracker: Tracker) -> None:
+    """Blue 0 seen along x at 1 m/s, 60 Hz from 0 s to 0.5 s."""
+    for k in range(31):
+        tracker.update(_frame(k / 60, Detection("blue", 0, k / 60, 0.0, 0.0)), arrival=k / 60)
+
+
+def test_a_robot_unseen_longer_than_forget_restarts_where_it_is_seen_again() -> None:
+    # Last seen at 0.5 s; at 1.6 s it is where 1 m/s would have taken it, but 1.1 s > forget (1 s).
+    tracker = Tracker()
+    _moving(tracker)
+    tracker.update(_frame(1.6, Detection("blue", 0, 1.6, 0.0, 0.0)), arrival=1.6)
+    x, _, _, vx, _, _ = tracker.state([BLUE0], 1.6)[0]
+    assert (x, vx) == (1.6, 0.0)
+
+
+def test_a_robot_unseen_for_exactly_forget_is_still_tracked() -> None:
+    tracker = Tracker()
+    _moving(tracker)
+    tracker.update(_frame(1.5, Detection("blue", 0, 1.5, 0.0, 0.0)), arrival=1.5)
+    assert tracker.state([BLUE0], 1.5)[0, 3] == pytest.approx(1.0, abs=0.05)
+
+
+def _at_rest() -> Tracker:
+    """Blue 0 seen exactly at the origin, at rest, three times: its filter stands exactly there."""
+    tracker = Tracker()
+    for k in range(3):
+        tracker.update(_frame(k / 60, Detection("blue", 0, 0.0, 0.0, 0.0)), arrival=k / 60)
+    return tracker
+
+
+@pytest.mark.parametrize(("x", "y"), [(0.6, 0.0), (0.0, -0.6)])
+def test_a_jump_past_the_gate_along_one_axis_restarts_the_filter(x: float, y: float) -> None:
+    tracker = _at_rest()
+    tracker.update(_frame(3 / 60, Detection("blue", 0, x, y, 0.0)), arrival=3 / 60)
+    assert tuple(tracker.state([BLUE0], 3 / 60)[0, [0, 1, 3, 4]]) == (x, y, 0.0, 0.0)
+
+
+def test_a_detection_exactly_at_the_gate_is_measured() -> None:
+    tracker = _at_rest()
+    tracker.update(_frame(3 / 60, Detection("blue", 0, 0.5, 0.0, 0.0)), arrival=3 / 60)
+    x, _, _, vx, _, _ = tracker.state([BLUE0], 3 / 60)[0]
+    assert 0.0 < x < 0.5 and vx > 0.0  # filtered towards it, not restarted on it
+
+
+def test_a_robot_restarted_past_the_gate_keeps_its_commands() -> None:
+    tracker = _at_rest()
+    tracker.command(BLUE0, 2 / 60, (1.0, 0.0, 0.0))
+    tracker.update(_frame(3 / 60, Detection("blue", 0, 2.0, 0.0, 0.0)), arrival=3 / 60)
+    assert tracker.tracks[BLUE0].commands == [(2 / 60, (1.0, 0.0, 0.0))]
+
+
+def test_a_robot_seen_without_orientation_is_tracked_at_heading_zero() -> None:
+    tracker = Tracker()
+    for k in range(30):
+        tracker.update(_frame(k / 60, Detection("blue", 0, 0.5 * k / 60, 0.0, None)), arrival=k / 60)
+    x, _, angle, vx, _, w = tracker.state([BLUE0], 29 / 60)[0]
+    assert x == pytest.approx(0.5 * 29 / 60, abs=0.005) and vx == pytest.approx(0.5, abs=0.05)
+    assert (angle, w) == (0.0, 0.0)
+
+
+def test_commands_superseded_at_the_filters_time_are_dropped_and_a_same_time_command_replaces() -> None:
+    tracker = _at_rest()  # its filter stands at 2/60 s
+    for since in (0.0, 0.02, 2 / 60):
+        tracker.command(BLUE0, since, (since, 0.0, 0.0))
+    tracker.command(BLUE0, 2 / 60, (1.0, 0.0, 0.0))
+    assert tracker.tracks[BLUE0].commands[1:] == [(0.02, (0.02, 0.0, 0.0)), (2 / 60, (1.0, 0.0, 0.0))]
+    tracker.update(_frame(2 / 60, Detection("blue", 0, 0.0, 0.0, 0.0)), arrival=2 / 60)
+    assert tracker.tracks[BLUE0].commands == [(2 / 60, (1.0, 0.0, 0.0))]
+
+
+def test_the_vision_clock_reads_zero_before_any_frame_and_follows_the_last_arrival_of_a_send_time() -> None:
+    tracker = Tracker()
+    assert tracker.vision_time(5.0) == 0.0
+    for arrival in (10.0, 10.25):  # two cameras' frames sent at 1 s, the second read 0.25 s later
+        tracker.update(DetectionFrame(0.9, 1.0, 0, ()), arrival=arrival)
+    assert tracker.vision_time(10.5) == 1.25
+
+
+def test_a_robot_seen_exactly_max_age_ago_is_fresh() -> None:
+    tracker = Tracker()
+    tracker.update(_frame(0.0, Detection("blue", 0, 0.0, 0.0, 0.0)), arrival=0.5)
+    assert tracker.fresh(BLUE0, 0.75, 0.25)

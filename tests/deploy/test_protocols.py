@@ -6,12 +6,13 @@ from __future__ import annotations
 import math
 import re
 import shutil
-import struct
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from protobuf_bytes import double, float32, tag, varint
+from protobuf_bytes import message as embed
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.proto import grsim_pb2, ssl_simulation_pb2, ssl_vision_pb2
@@ -22,31 +23,6 @@ PROTO = ROOT / "hier_ssl" / "deploy" / "proto"
 _VERSION = re.compile(
     r"# Protobuf Python Version: .*\n|_runtime_version\.ValidateProtobufRuntimeVersion\([^)]*\)\n"
 )
-
-
-def _tag(number: int, wire_type: int) -> bytes:
-    return _varint(number << 3 | wire_type)
-
-
-def _varint(value: int) -> bytes:
-    out = b""
-    while True:
-        low, value = value & 0x7F, value >> 7
-        out += bytes([low | (0x80 if value else 0)])
-        if not value:
-            return out
-
-
-def _float(number: int, value: float) -> bytes:
-    return _tag(number, 5) + struct.pack("<f", value)
-
-
-def _double(number: int, value: float) -> bytes:
-    return _tag(number, 1) + struct.pack("<d", value)
-
-
-def _message(number: int, body: bytes) -> bytes:
-    return _tag(number, 2) + _varint(len(body)) + body
 
 
 @pytest.mark.parametrize("name", ["ssl_vision", "grsim", "ssl_simulation", "ssl_gc_referee_message"])
@@ -63,11 +39,11 @@ def test_generated_modules_are_what_protoc_makes_of_the_proto_files(tmp_path: Pa
 
 
 def test_a_detection_packet_has_the_ssl_vision_field_numbers() -> None:
-    robot = _float(1, 1.0) + _tag(2, 0) + _varint(3) + _float(3, 1500.0) + _float(4, -250.0)
-    robot += _float(5, 0.5) + _float(6, 0.0) + _float(7, 0.0)
-    frame = _tag(1, 0) + _varint(7) + _double(2, 10.0) + _double(3, 10.02) + _tag(4, 0) + _varint(1)
-    frame += _message(7, robot)  # robots_blue
-    packet = _message(1, frame)
+    robot = float32(1, 1.0) + tag(2, 0) + varint(3) + float32(3, 1500.0) + float32(4, -250.0)
+    robot += float32(5, 0.5) + float32(6, 0.0) + float32(7, 0.0)
+    frame = tag(1, 0) + varint(7) + double(2, 10.0) + double(3, 10.02) + tag(4, 0) + varint(1)
+    frame += embed(7, robot)  # robots_blue
+    packet = embed(1, frame)
     parsed = wire.parse_vision(packet)
     assert parsed == wire.DetectionFrame(10.0, 10.02, 1, (wire.Detection("blue", 3, 1.5, -0.25, 0.5),))
     ours = wire.encode_detection(7, parsed)
@@ -77,8 +53,8 @@ def test_a_detection_packet_has_the_ssl_vision_field_numbers() -> None:
 
 
 def test_a_geometry_packet_gives_the_field_size() -> None:
-    size = b"".join(_tag(n, 0) + _varint(v) for n, v in ((1, 9000), (2, 6000), (3, 1000), (4, 180), (5, 300)))
-    assert wire.parse_vision(_message(2, _message(1, size))) == wire.FieldSize(9.0, 6.0, 0.3)
+    size = b"".join(tag(n, 0) + varint(v) for n, v in ((1, 9000), (2, 6000), (3, 1000), (4, 180), (5, 300)))
+    assert wire.parse_vision(embed(2, embed(1, size))) == wire.FieldSize(9.0, 6.0, 0.3)
     assert wire.parse_vision(wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)) == wire.FieldSize(
         9.0, 6.0, 0.3
     )
@@ -86,30 +62,30 @@ def test_a_geometry_packet_gives_the_field_size() -> None:
 
 def test_grsim_commands_have_the_grsim_field_numbers() -> None:
     data = wire.encode_grsim([(2, 1.0, -0.5, 0.25)], yellow=True, timestamp=3.0)
-    robot = _tag(1, 0) + _varint(2) + _float(2, 0.0) + _float(3, 0.0) + _float(4, 1.0) + _float(5, -0.5)
-    robot += _float(6, 0.25) + _tag(7, 0) + _varint(0) + _tag(8, 0) + _varint(0)
-    commands = _double(1, 3.0) + _tag(2, 0) + _varint(1) + _message(3, robot)
-    assert grsim_pb2.grSim_Packet.FromString(_message(1, commands)) == grsim_pb2.grSim_Packet.FromString(data)
+    robot = tag(1, 0) + varint(2) + float32(2, 0.0) + float32(3, 0.0) + float32(4, 1.0) + float32(5, -0.5)
+    robot += float32(6, 0.25) + tag(7, 0) + varint(0) + tag(8, 0) + varint(0)
+    commands = double(1, 3.0) + tag(2, 0) + varint(1) + embed(3, robot)
+    assert grsim_pb2.grSim_Packet.FromString(embed(1, commands)) == grsim_pb2.grSim_Packet.FromString(data)
     assert wire.parse_grsim(data) == (True, [(2, 1.0, -0.5, 0.25)])
 
 
 def test_robot_control_has_the_simulation_protocol_field_numbers() -> None:
     data = wire.encode_simulation([(4, 0.5, 0.25, -1.0)])
-    local = _float(1, 0.5) + _float(2, 0.25) + _float(3, -1.0)
-    command = _tag(1, 0) + _varint(4) + _message(2, _message(2, local))
-    expected = ssl_simulation_pb2.RobotControl.FromString(_message(1, command))
+    local = float32(1, 0.5) + float32(2, 0.25) + float32(3, -1.0)
+    command = tag(1, 0) + varint(4) + embed(2, embed(2, local))
+    expected = ssl_simulation_pb2.RobotControl.FromString(embed(1, command))
     assert ssl_simulation_pb2.RobotControl.FromString(data) == expected
     assert wire.parse_simulation(data) == ([(4, 0.5, 0.25, -1.0)], [])
     wheels = (
-        _tag(1, 0)
-        + _varint(5)
-        + _message(2, _message(1, _float(1, 1.0) + _float(2, 1.0) + _float(3, 1.0) + _float(4, 1.0)))
+        tag(1, 0)
+        + varint(5)
+        + embed(2, embed(1, float32(1, 1.0) + float32(2, 1.0) + float32(3, 1.0) + float32(4, 1.0)))
     )
-    assert wire.parse_simulation(_message(1, wheels)) == ([], [5])
+    assert wire.parse_simulation(embed(1, wheels)) == ([], [5])
 
 
 def test_a_response_carries_the_simulators_errors() -> None:
-    error = _message(1, _tag(1, 2) + _varint(4) + b"CODE" + _tag(3, 2) + _varint(3) + b"bad")
+    error = embed(1, tag(1, 2) + varint(4) + b"CODE" + tag(3, 2) + varint(3) + b"bad")
     assert wire.parse_response(error) == ["CODE: bad"]
     assert wire.parse_response(wire.encode_response([("X", "y")])) == ["X: y"]
 
@@ -121,7 +97,7 @@ def test_a_response_carries_the_simulators_errors() -> None:
         (wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)[:-3], "malformed"),
         (b"", "empty"),
         (b"\x00" * (wire.MAX_PACKET + 1), "oversized"),
-        (_message(1, _tag(1, 0) + _varint(1)), "malformed"),  # a frame without its required times
+        (embed(1, tag(1, 0) + varint(1)), "malformed"),  # a frame without its required times
     ],
 )
 def test_bad_vision_packets_raise_a_packet_error_with_its_reason(data: bytes, reason: str) -> None:
@@ -158,7 +134,7 @@ def _detection(*robots: wire.Detection, t_capture: float = 1.0, t_sent: float = 
 def _padded(packet: bytes, size: int) -> bytes:
     """``packet`` with an unknown field (number 9, length-delimited) that makes it ``size`` bytes."""
     body = size - len(packet) - 3  # its tag is one byte and its length two (128 to 16383 bytes)
-    return packet + _tag(9, 2) + _varint(body) + b"\x00" * body
+    return packet + tag(9, 2) + varint(body) + b"\x00" * body
 
 
 def test_a_packet_of_exactly_the_maximum_size_is_read_and_one_byte_more_is_dropped() -> None:
@@ -186,7 +162,7 @@ def test_missing_required_fields_are_named_up_to_three() -> None:
     # An empty detection frame lacks all four of its required fields; the first three are named.
     missing = "detection.frame_number, detection.t_capture, detection.t_sent"
     assert (
-        _dropped(wire.parse_vision, _message(1, b""))
+        _dropped(wire.parse_vision, embed(1, b""))
         == f"malformed: vision packet lacks required fields ({missing})"
     )
 
@@ -234,9 +210,9 @@ def test_robot_id_15_and_20_m_from_the_centre_are_the_largest_read() -> None:
 
 
 def test_a_robot_without_an_id_is_invalid() -> None:
-    robot = _float(1, 1.0) + _float(3, 0.0) + _float(4, 0.0) + _float(6, 0.0) + _float(7, 0.0)
-    frame = _tag(1, 0) + _varint(0) + _double(2, 1.0) + _double(3, 1.0) + _tag(4, 0) + _varint(0)
-    data = _message(1, frame + _message(7, robot))
+    robot = float32(1, 1.0) + float32(3, 0.0) + float32(4, 0.0) + float32(6, 0.0) + float32(7, 0.0)
+    frame = tag(1, 0) + varint(0) + double(2, 1.0) + double(3, 1.0) + tag(4, 0) + varint(0)
+    data = embed(1, frame + embed(7, robot))
     assert _dropped(wire.parse_vision, data) == "invalid: blue robot id None"
 
 
@@ -263,13 +239,13 @@ def test_a_command_component_that_is_not_finite_is_invalid(bad: int) -> None:
 
 
 def test_a_grsim_packet_without_commands_is_empty() -> None:
-    replacement = _message(2, b"")  # a grSim_Packet holding only an (empty) replacement
+    replacement = embed(2, b"")  # a grSim_Packet holding only an (empty) replacement
     assert _dropped(wire.parse_grsim, replacement) == "empty: grSim packet without commands"
 
 
 def test_grsim_wheel_speeds_are_unsupported() -> None:
-    robot = _tag(1, 0) + _varint(2) + _float(2, 0.0) + _float(3, 0.0) + _float(4, 0.0) + _float(5, 0.0)
-    robot += _float(6, 0.0) + _tag(7, 0) + _varint(0) + _tag(8, 0) + _varint(1)  # wheelsspeed = true
-    data = _message(1, _double(1, 0.0) + _tag(2, 0) + _varint(0) + _message(3, robot))
+    robot = tag(1, 0) + varint(2) + float32(2, 0.0) + float32(3, 0.0) + float32(4, 0.0) + float32(5, 0.0)
+    robot += float32(6, 0.0) + tag(7, 0) + varint(0) + tag(8, 0) + varint(1)  # wheelsspeed = true
+    data = embed(1, double(1, 0.0) + tag(2, 0) + varint(0) + embed(3, robot))
     message = "unsupported: grSim wheel speeds (only local velocities are simulated)"
     assert _dropped(wire.parse_grsim, data) == message

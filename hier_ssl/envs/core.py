@@ -118,7 +118,7 @@ class HierarchicalCore:
         self.ep_return = np.zeros((n, m))
         self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
         self.ep_cpad = np.zeros((n, m))
-        self._held = None  # the rules' part that sub-goals and targets fix (``Rules.hold``)
+        self._held = None  # the rules' part that sub-goals and targets fix (``Rules.decision_terms``)
         self._nobody = np.zeros((n, m), dtype=bool)
         self._no_stats = self._stats(np.zeros(0, dtype=np.int64), self._nobody, self._nobody)
 
@@ -178,7 +178,7 @@ class HierarchicalCore:
 
     def _hold(self) -> None:
         """Whatever the rules can compute once for the current sub-goals and targets (after every change)."""
-        self._held = self.rules.hold(self.target, self.subgoal)
+        self._held = self.rules.decision_terms(self.target, self.subgoal)
 
     # -- observations --------------------------------------------------------------------------------------
 

@@ -1,9 +1,12 @@
 """A manager decision's per-robot book-keeping in the core, each part one compiled loop over the robots (at
-one field numpy's per-call overhead, not the arithmetic, was the cost of the array operations these
-replace): the sub-goals taken, the decisions counted, the CPAD grown and the action values clipped
-(``take_decisions``); each control step's reward, departures and time counted (``tally_control_step``)."""
+one field numpy's per-call overhead, not the arithmetic, is the cost of the equivalent array operations):
+the sub-goals taken, the decisions counted, the CPAD grown and the action values clipped
+(``take_decisions``); each control step's reward, departures and time counted into a ``Period``
+(``tally_control_step``)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -78,4 +81,40 @@ def tally_control_step(
     return remaining
 
 
-__all__ = ["take_decisions", "tally_control_step"]
+@dataclass
+class Period:
+    """The running per-robot values (N, M) of one decision period, or of one control step: the robots
+    ``start`` live and those still ``live``, their ``reward``, whether they left with ``success`` or
+    ``collision`` or ran out of time (``timeout``), and the control steps ``elapsed`` while live. New
+    arrays every period: the core's result hands them out."""
+
+    start: np.ndarray
+    live: np.ndarray
+    reward: np.ndarray
+    success: np.ndarray
+    collision: np.ndarray
+    timeout: np.ndarray
+    elapsed: np.ndarray
+
+    @classmethod
+    def begin(cls, start: np.ndarray) -> Period:
+        """A period in which the robots of ``start`` (N, M) bool are live and nothing has happened yet."""
+        shape = start.shape
+        nothing = (np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool))
+        return cls(start, start.copy(), np.zeros(shape), *nothing, start.astype(np.int64))
+
+    def tally(
+        self,
+        outcome: tuple[np.ndarray, np.ndarray, np.ndarray],
+        steps: np.ndarray,
+        max_steps: int,
+        add: bool,
+        count: bool,
+    ) -> int:
+        """One control step's ``outcome`` (reward, success, collision, as ``control_step`` returns them)
+        into the period, as ``tally_control_step`` says; how many robots are still live."""
+        running = (self.live, self.reward, self.success, self.collision, self.elapsed, self.timeout)
+        return tally_control_step(*outcome, steps, max_steps, add, count, self.start, *running)
+
+
+__all__ = ["Period", "take_decisions", "tally_control_step"]

@@ -27,11 +27,21 @@ from hier_ssl.config import (
 )
 from hier_ssl.config.files import apply_overrides, find_config, load_yaml
 from hier_ssl.envs.scenario import Scenario
-from hier_ssl.envs.scenarios import SCENARIOS
+from hier_ssl.envs.scenarios import SCENARIOS, FieldScenario
 from hier_ssl.envs.tasks import TASKS
 from hier_ssl.worker import check_worker_spec
 from hier_ssl.world.field import FIELDS
 from hier_ssl.world.obstacles import OBSTACLES, make_obstacle
+
+
+def register_scenario(cls: type[FieldScenario]) -> type[FieldScenario]:
+    """Make the multi-robot scenario class ``cls`` known by its ``name`` to configs (``scenario: name``),
+    as the shipped ones are; usable as a class decorator. A name already taken is a ValueError."""
+    if cls.name in SCENARIOS:
+        taken = SCENARIOS[cls.name].__qualname__
+        raise ValueError(f"scenario {cls.name!r} is already registered (by {taken})")
+    SCENARIOS[cls.name] = cls
+    return cls
 
 
 def make_scenario(config: TaskConfig) -> Scenario:
@@ -232,6 +242,7 @@ __all__ = [
     "load_config",
     "make_scenario",
     "parse_config",
+    "register_scenario",
     "scenario_config",
     "task_config",
     "with_defaults",

@@ -3,9 +3,10 @@ and trails, drawn with matplotlib's Agg canvas (headless, no pyplot state)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.figure import Figure
@@ -45,6 +46,7 @@ def render_fields(
     robot: RobotSpec | None = None,
     collisions: np.ndarray | None = None,
     collision_robot: Sequence[int] | None = None,
+    extra: Callable[[Axes], None] | None = None,
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
@@ -59,6 +61,8 @@ def render_fields(
     ``ROBOT_COLORS``. ``robot`` gives the disc radius (default: ``RobotSpec()``). ``collisions`` (C, 2) are
     points of this field where controlled robots hit another robot, marked with a cross above everything
     else in the colour of the robot ``collision_robot[c]`` (an index among the controlled ones; default 0).
+    ``extra`` draws on the axes (field frame, m) what a scenario adds, above the field's lines and under
+    everything else.
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -73,6 +77,8 @@ def render_fields(
     colors, controlled = _robot_colors(teams)
     canvas, ax, line_pt = _canvas(field, width, height)
     _draw_field(ax, field, line_pt)
+    if extra is not None:
+        extra(ax)
     if trails is not None:
         _draw_trails(ax, trails, trail_robot, colors, line_pt)
     if subgoals is not None:

@@ -78,7 +78,7 @@ class Rules:
     "obstacle": the rules of ``hier_ssl.manager`` that score a robot) with ``config``'s settings.
 
     The settings are checked here (``RewardOptions``) and held in the form the compiled loops below take:
-    on the few rows of one field numpy's per-call overhead, not the arithmetic, was the cost, so each of
+    on the few rows of one field numpy's per-call overhead, not the arithmetic, is the cost, so each of
     ``decision_terms`` and ``__call__`` is one loop over the robots. The action-centric tasks measure the
     sub-goal, which a decision fixes for its control steps: ``decision_terms`` computes that part once a
     decision.

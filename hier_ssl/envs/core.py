@@ -88,6 +88,10 @@ class HierarchicalCore:
         sizes = [scenario.scales[k] for k in ("half_length", "half_width", "max_v")]
         self._decode = SubgoalDecoder(cfg.action_form, *sizes, scenario.zero_velocity, cfg.action_frame)
         self._sum_rewards = cfg.frame_skip_reward == "sum"
+        # The step hooks the scenario overrides; those it leaves as Scenario's do nothing and are not called.
+        kind = type(scenario)
+        self._pre_step = None if kind.pre_step is Scenario.pre_step else scenario.pre_step
+        self._post_step = None if kind.post_step is Scenario.post_step else scenario.post_step
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
         self.interrupted = False  # an exception stopped a decision part-way: no step until reset()
@@ -232,13 +236,14 @@ class HierarchicalCore:
             np.copyto(
                 command[:, m:], scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot), where=moving
             )
-        scenario = self.scenario
-        scenario.pre_step(self, command)
+        if self._pre_step is not None:
+            self._pre_step(self, command)
         self.world.step(command)
         self.control_steps += 1
         self.steps = self.steps + field_live.astype(np.int64)
-        scenario.post_step(self)
-        reward, success, hit = scenario.score(self._terms, self.target, self.subgoal, self.world)
+        if self._post_step is not None:
+            self._post_step(self)
+        reward, success, hit = self.scenario.score(self._terms, self.target, self.subgoal, self.world)
         return reward, success & live, hit & live
 
     def _controlled(self, s: RobotState) -> RobotState:
@@ -264,7 +269,7 @@ class HierarchicalCore:
         kept = snapshot(self)
         clipped = self.set_subgoal(action, start)
         # One compiled loop a control step tallies the period's running values in place.
-        period = Period.begin(start)
+        period = Period(start)
         try:
             for k in range(cfg.frame_skip):
                 outcome = self.control_step(period.live)
@@ -303,14 +308,12 @@ class HierarchicalCore:
         except Exception:  # from the worker: the sub-goals set above go back (step_guard)
             abandon(self, kept)
             raise
-        timeout = live & ~success & ~hit & (self.steps >= cfg.max_steps)[:, None]
         s = self.world.state
         pose = np.concatenate([s.pos[:, :m], s.angle[:, :m, None]], axis=-1)
         d, delta = pose_errors(pose, self.subgoal)
         worker_reward = distance_reward(d, cfg.d_th) + angle_reward(delta, self.theta_th)
-        left = success | hit | timeout
-        reward = np.where(live, reward, 0.0)
-        period = Period(live, live & ~left, reward, success, hit, timeout, live.astype(np.int64))
+        period = Period(live)
+        period.tally((reward, success, hit), self.steps, cfg.max_steps, False, False)
         result = self.finish(period, clipped)
         result.info["decision"] = decision
         result.info["worker_reward"] = worker_reward

@@ -6,8 +6,6 @@ the sub-goals taken, the decisions counted, the CPAD grown and the action values
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numba
 import numpy as np
 
@@ -81,27 +79,22 @@ def tally_control_step(
     return remaining
 
 
-@dataclass
 class Period:
     """The running per-robot values (N, M) of one decision period, or of one control step: the robots
     ``start`` live and those still ``live``, their ``reward``, whether they left with ``success`` or
     ``collision`` or ran out of time (``timeout``), and the control steps ``elapsed`` while live. New
     arrays every period: the core's result hands them out."""
 
-    start: np.ndarray
-    live: np.ndarray
-    reward: np.ndarray
-    success: np.ndarray
-    collision: np.ndarray
-    timeout: np.ndarray
-    elapsed: np.ndarray
+    __slots__ = ("_running", "collision", "elapsed", "live", "reward", "start", "success", "timeout")
 
-    @classmethod
-    def begin(cls, start: np.ndarray) -> Period:
+    def __init__(self, start: np.ndarray) -> None:
         """A period in which the robots of ``start`` (N, M) bool are live and nothing has happened yet."""
         shape = start.shape
-        nothing = (np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool))
-        return cls(start, start.copy(), np.zeros(shape), *nothing, start.astype(np.int64))
+        self.start, self.live, self.reward = start, start.copy(), np.zeros(shape)
+        self.success, self.collision = np.zeros(shape, bool), np.zeros(shape, bool)
+        self.timeout, self.elapsed = np.zeros(shape, bool), start.astype(np.int64)
+        # What ``tally_control_step`` updates, in its order.
+        self._running = (self.live, self.reward, self.success, self.collision, self.elapsed, self.timeout)
 
     def tally(
         self,
@@ -113,8 +106,7 @@ class Period:
     ) -> int:
         """One control step's ``outcome`` (reward, success, collision, as ``control_step`` returns them)
         into the period, as ``tally_control_step`` says; how many robots are still live."""
-        running = (self.live, self.reward, self.success, self.collision, self.elapsed, self.timeout)
-        return tally_control_step(*outcome, steps, max_steps, add, count, self.start, *running)
+        return tally_control_step(*outcome, steps, max_steps, add, count, self.start, *self._running)
 
 
 __all__ = ["Period", "take_decisions", "tally_control_step"]

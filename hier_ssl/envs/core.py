@@ -76,13 +76,13 @@ class HierarchicalCore:
         self.world = scenario.make_world(num_fields)
         self.field, self.robot = self.world.field, self.world.robot
         self.worker = resolve_worker(cfg.worker if worker is None else worker, self.robot, cfg.dt)
-        # Each group's behaviour moves its obstacles as rows (field f, obstacle j) -> f * count + j.
+        # Each obstacle group's behaviour moves its robots (the world's robot groups after the controlled
+        # one) as rows (field f, obstacle j) -> f * count + j.
         self.obstacles: list[tuple[Any, slice]] = []
-        first = m
-        for group in scenario.groups:
+        moved = self.world.entities.of("robot")[1:]
+        for group, robots in zip(scenario.groups, moved, strict=True):
             behaviour = make_obstacle(group.behaviour, num_fields * group.count, **group.options)
-            self.obstacles.append((behaviour, slice(first, first + group.count)))
-            first += group.count
+            self.obstacles.append((behaviour, robots.rows))
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
         sizes = [scenario.scales[k] for k in ("half_length", "half_width", "max_v")]

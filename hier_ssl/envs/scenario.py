@@ -34,6 +34,7 @@ from hier_ssl.config import Strict, TaskSettings
 from hier_ssl.envs.observations import NeighbourObservation, PaperObservation, observation_layout
 from hier_ssl.envs.rules import DecisionTerms, Rules
 from hier_ssl.manager import action_dim
+from hier_ssl.world.entities import Entities
 from hier_ssl.world.field import get_field
 from hier_ssl.world.physics import RobotSpec, RobotState, World
 
@@ -108,9 +109,14 @@ class Scenario:
     # -- the world -----------------------------------------------------------------------------------------
 
     def make_world(self, num_fields: int) -> World:
-        """The world of ``num_fields`` fields holding this scenario's robots, controlled ones first."""
+        """The world of ``num_fields`` fields holding this scenario's entities: its robots, a group of the
+        controlled ones first, then a group for each obstacle group (``groups``), in their order."""
+        entities = Entities()
+        entities.add("robot", self.num_agents, "controlled")
+        for i, group in enumerate(self.groups):
+            entities.add("robot", group.count, f"obstacles {i}: {group.behaviour}")
         config = self.config
-        return World(num_fields, self.num_robots, self.field, dt=config.dt, substeps=config.substeps)
+        return World(num_fields, entities, self.field, dt=config.dt, substeps=config.substeps)
 
     def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> Placement:
         """Starts and targets of ``num_fields`` new episodes."""

@@ -1,19 +1,18 @@
 """The PettingZoo ``ParallelEnv`` view of one field of the core, and a single-agent Gymnasium view.
 
-================  ===========================================================================================
-Import            ``from hier_ssl.envs import parallel_env`` (or ``HierarchicalSSLEnv(config)``)
-Actions           Continuous
-Parallel API      Yes
-Manual control    No
-Agents            ``agents = ["manager_0", ..., "manager_{M-1}"]`` (+ ``worker_i``, ``obstacle_j`` if exposed)
-Agents count      M, + M with ``expose_worker``, + K with ``expose_obstacles``
-Action shape      manager: (A,) (4 for ``pose4``, 5 for ``pose6``); worker, obstacle: (3,)
-Action values     [-1, 1] (a manager's values beyond are clipped and counted in ``action_clipped``)
-Observation shape manager: (O,) of the scenario's observation; worker: (9,); obstacle: (5,)
-Observation values [-1.2, 1.2]
-State shape       (D,) = (7 R + 13 M,), ``hier_ssl.envs.state``
-State values      [-1.2, 1.2]
-================  ===========================================================================================
+| Import             | ``from hier_ssl.envs import parallel_env``; ``parallel_env(config)``                |
+|--------------------|-------------------------------------------------------------------------------------|
+| Actions            | Continuous                                                                          |
+| Parallel API       | Yes                                                                                 |
+| Manual control     | No                                                                                  |
+| Agents             | ``["manager_0", ..., "manager_{M-1}"]``, + ``worker_i`` and ``obstacle_j`` exposed  |
+| Agents count       | M; + M with ``expose_worker``; + K with ``expose_obstacles``                        |
+| Action shape       | manager (4,) ``pose4`` or (6,) ``pose6``; worker and obstacle (3,)                  |
+| Action values      | [-1, 1]; a manager's values beyond are clipped and counted (``action_clipped``)     |
+| Observation shape  | manager (O,), the scenario's observation; worker (9,); obstacle (7,)                |
+| Observation values | [-1.2, 1.2]                                                                         |
+| State shape        | (7 R + 13 M,): ``hier_ssl.envs.state``                                              |
+| State values       | [-1.2, 1.2]                                                                         |
 
 Arguments: ``parallel_env(config=None, render_mode=None, worker=None, **settings)``: ``config`` a task or
 scenario name, a YAML file or a config (``hier_ssl.envs.task_config``); ``render_mode`` "human" or

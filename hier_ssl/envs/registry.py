@@ -82,7 +82,7 @@ def _check_obstacle(behaviour: str, options: dict[str, Any], key: str) -> None:
 
 def check_task(config: TaskConfig) -> None:
     """What the models cannot check alone: the field, worker and obstacle behaviours are known, and the
-    task or scenario class accepts the config (its options, and that its layout fits the field). A
+    task or scenario class accepts the config (its options, and that its placement fits the field). A
     ValueError's message starts with the key, relative to the section ("field: unknown preset ...")."""
     if config.field not in FIELDS:
         raise ValueError(f"field: unknown preset {config.field!r}; known: {sorted(FIELDS)}")

@@ -101,21 +101,24 @@ def render_fields(
     ax.add_collection(discs)
     ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
     if collisions is not None:
-        points = np.asarray(collisions, dtype=float).reshape(-1, 2)
-        owner = [0] * len(points) if collision_robot is None else collision_robot
-        marks = {
-            "marker": COLLISION_MARKER,
-            "edgecolors": "#101010",
-            "linewidths": 0.8 * line_pt,
-            "zorder": 8,
-        }
-        cross = [colors[controlled[j]] for j in _owner_indices(owner, len(points), len(controlled))]
-        ax.scatter(points[:, 0], points[:, 1], s=(12 * line_pt) ** 2, c=cross, **marks)
+        _draw_collisions(ax, collisions, collision_robot, [colors[i] for i in controlled], line_pt)
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if image.shape != (height, width, 3):
         raise RuntimeError(f"matplotlib drew {image.shape}, expected {(height, width, 3)}")
     return image
+
+
+def _draw_collisions(
+    ax: Axes, collisions: np.ndarray, owner: Sequence[int] | None, colors: list[str], line_pt: float
+) -> None:
+    """Crosses at the points ``collisions`` (C, 2), each in the colour of its controlled robot ``owner[c]``
+    (an index into ``colors``, the controlled robots' colours; default 0), above everything else."""
+    points = np.asarray(collisions, dtype=float).reshape(-1, 2)
+    owner = [0] * len(points) if owner is None else owner
+    marks = {"marker": COLLISION_MARKER, "edgecolors": "#101010", "linewidths": 0.8 * line_pt, "zorder": 8}
+    cross = [colors[j] for j in _owner_indices(owner, len(points), len(colors))]
+    ax.scatter(points[:, 0], points[:, 1], s=(12 * line_pt) ** 2, c=cross, **marks)
 
 
 def _robot_colors(teams: np.ndarray) -> tuple[list[str], np.ndarray]:

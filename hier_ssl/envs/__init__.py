@@ -25,10 +25,11 @@ from hier_ssl.envs.registry import (
     load_config,
     make_scenario,
     parse_config,
+    register_scenario,
     scenario_config,
     task_config,
 )
-from hier_ssl.envs.scenario import Layout, Scenario
+from hier_ssl.envs.scenario import Placement, Scenario
 from hier_ssl.envs.scenarios import SCENARIOS
 from hier_ssl.envs.tasks import TASKS
 
@@ -152,9 +153,9 @@ __all__ = [
     "EnvConfig",
     "HierarchicalCore",
     "HierarchicalSSLEnv",
-    "Layout",
     "ManagerEnv",
     "ManagerVectorEnv",
+    "Placement",
     "Policy",
     "RslRlVecEnv",
     "Scenario",
@@ -171,6 +172,7 @@ __all__ = [
     "parse_config",
     "parallel_env",
     "play",
+    "register_scenario",
     "scenario_config",
     "scenario_env",
     "scenario_vector_env",

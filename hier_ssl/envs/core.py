@@ -4,39 +4,36 @@ Every field holds M controlled robots (robots 0..M-1, agents ``manager_i``) and 
 M..M+K-1) placed and moved as the scenario (``hier_ssl.envs.scenario``) says: the paper's tasks (M = 1) and
 the multi-robot scenarios run here alike. Each controlled robot has its own target, manager decision,
 sub-goal and worker; one manager decision holds every sub-goal for ``frame_skip`` control steps of 25 ms,
-the workers and obstacles act every control step. Observations, rewards, success and collisions are the
-pure functions of ``hier_ssl.manager``, applied to the (field, robot) pairs as rows:
+the workers and obstacles act every control step. The scenario observes, scores and ends; the core is the
+loop around it, generic over scenarios:
 
-- a robot leaves the episode when it succeeds (the task's success rule) or collides (centres closer than
-  ``collision_distance`` to any other robot, or touching one); a collision between two controlled robots
-  counts for both. A robot that has left holds still where it is and stays an obstacle to the others;
+- a robot leaves the episode when the scenario's ``score`` says it succeeded or collided; a robot that has
+  left holds still where it is and stays an obstacle to the others;
 - the field's episode ends when no robot is left in it, or at ``max_steps`` (the rest are truncated).
 
-The core trusts its inputs (the views and ``World`` check what enters); arrays are (N, M, ...) throughout.
+``step`` runs a decision period, ``step_control`` one control step (for views whose workers or obstacles
+are agents). The core trusts its inputs (the views and ``World`` check what enters); arrays are (N, M, ...)
+throughout.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
-from operator import itemgetter
 from typing import Any
 
 import numpy as np
 
 from hier_ssl.config import TaskConfig
-from hier_ssl.envs.decisions import take_decisions, tally_control_step
+from hier_ssl.envs.decisions import Period, take_decisions
 from hier_ssl.envs.registry import make_scenario
-from hier_ssl.envs.rules import Rules
 from hier_ssl.envs.scenario import Scenario
-from hier_ssl.envs.step_guard import abandon, hold
+from hier_ssl.envs.step_guard import abandon, snapshot
 from hier_ssl.manager.actions import SubgoalDecoder
-from hier_ssl.manager.neighbours import neighbour_observation
-from hier_ssl.manager.observation import first_robot_observation, observation_scales
+from hier_ssl.manager.rewards import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.worker.observation import controlled_worker_observation, scale_command
 from hier_ssl.world.obstacles import make_obstacle
-from hier_ssl.world.physics import RobotState, World
+from hier_ssl.world.physics import RobotState
 
 
 @dataclass
@@ -76,35 +73,25 @@ class HierarchicalCore:
         self.num_fields, self.autoreset = num_fields, autoreset
         m, k = scenario.num_agents, scenario.num_obstacles
         self.num_agents, self.num_obstacles = m, k
-        self.world = World(num_fields, m + k, scenario.field, dt=cfg.dt, substeps=cfg.substeps)
+        self.world = scenario.make_world(num_fields)
         self.field, self.robot = self.world.field, self.world.robot
         self.worker = resolve_worker(cfg.worker if worker is None else worker, self.robot, cfg.dt)
-        # Each group's behaviour moves its obstacles as rows (field f, obstacle j) -> f * count + j.
+        # Each obstacle group's behaviour moves its robots (the world's robot groups after the controlled
+        # one) as rows (field f, obstacle j) -> f * count + j.
         self.obstacles: list[tuple[Any, slice]] = []
-        first = m
-        for group in scenario.groups:
+        moved = self.world.entities.of("robot")[1:]
+        for group, robots in zip(scenario.groups, moved, strict=True):
             behaviour = make_obstacle(group.behaviour, num_fields * group.count, **group.options)
-            self.obstacles.append((behaviour, slice(first, first + group.count)))
-            first += group.count
+            self.obstacles.append((behaviour, robots.rows))
         self.obs_dim, self.act_dim = scenario.obs_dim, scenario.act_dim
-        self._layout = scenario.observation
         self.theta_th = np.deg2rad(cfg.theta_th_deg)
-        self.rules = Rules(scenario.reward_task, cfg)
         sizes = [scenario.scales[k] for k in ("half_length", "half_width", "max_v")]
         self._decode = SubgoalDecoder(cfg.action_form, *sizes, scenario.zero_velocity, cfg.action_frame)
-        # The observation's scales as 0-d arrays (see ``Rules``).
-        self._limits = {k: np.array(scenario.scales[k]) for k in ("max_pos", "max_v", "max_w")}
-        # The paper layout's divisors (robot 0 observed, the others its obstacles).
-        self._obs_scales = observation_scales(m + k - 1, *(float(v) for v in self._limits.values()))
         self._sum_rewards = cfg.frame_skip_reward == "sum"
-        # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
-        # _others_of(pos) (N, M, R - 1, 2): a view for one controlled robot, else np.take (a tenth of the cost
-        # of indexing with the array).
-        others = np.array([[j for j in range(m + k) if j != i] for i in range(m)], dtype=np.int64)
-        self._others = others.reshape(m, m + k - 1)
-        self._teammate, take = self._others < m, partial(np.take, indices=self._others, axis=1)
-        self._others_of = itemgetter(np.s_[:, None, 1:]) if m == 1 else take
-        self._own = None if k == 0 else np.s_[:, :m]  # the controlled robots' columns, all if no obstacles
+        # The step hooks the scenario overrides; those it leaves as Scenario's do nothing and are not called.
+        kind = type(scenario)
+        self._pre_step = None if kind.pre_step is Scenario.pre_step else scenario.pre_step
+        self._post_step = None if kind.post_step is Scenario.post_step else scenario.post_step
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
         self.interrupted = False  # an exception stopped a decision part-way: no step until reset()
@@ -118,7 +105,7 @@ class HierarchicalCore:
         self.ep_return = np.zeros((n, m))
         self.ep_length = np.zeros((n, m), dtype=np.int64)  # control steps each robot was live for
         self.ep_cpad = np.zeros((n, m))
-        self._held = None  # the rules' part that sub-goals and targets fix (``Rules.hold``)
+        self._terms = None  # the scenario's decision terms of the current sub-goals and targets
         self._nobody = np.zeros((n, m), dtype=bool)
         self._no_stats = self._stats(np.zeros(0, dtype=np.int64), self._nobody, self._nobody)
 
@@ -153,20 +140,20 @@ class HierarchicalCore:
         if len(fields) == 0:
             return
         m = self.num_agents
-        layout = self.scenario.reset_world_at(len(fields), self.rng)
-        # A scenario is a user's class: its layout is checked here, once a reset (World.set_state checks
-        # the robots' part), and trusted afterwards.
-        if layout.target.shape != (len(fields), m, 5):
+        placement = self.scenario.reset_world_at(len(fields), self.rng)
+        # A scenario is a user's class: its placement is checked here, once a reset (World.set_state
+        # checks the robots' part), and trusted afterwards.
+        if placement.target.shape != (len(fields), m, 5):
             raise ValueError(
-                f"scenario {self.scenario.name!r}: layout target has shape {layout.target.shape}, "
+                f"scenario {self.scenario.name!r}: placement target has shape {placement.target.shape}, "
                 f"expected {(len(fields), m, 5)}"
             )
-        self.world.set_state(fields, layout.pos, layout.angle, layout.vel, layout.ang_vel)
-        self.target[fields] = layout.target
+        self.world.set_state(fields, placement.pos, placement.angle, placement.vel, placement.ang_vel)
+        self.target[fields] = placement.target
         # Until the first decision the sub-goal is the robot's own pose: the worker holds still.
         self.subgoal[fields] = 0.0
-        self.subgoal[fields, :, 0:2] = layout.pos[:, :m]
-        self.subgoal[fields, :, 2] = layout.angle[:, :m]
+        self.subgoal[fields, :, 0:2] = placement.pos[:, :m]
+        self.subgoal[fields, :, 2] = placement.angle[:, :m]
         self.active[fields] = True
         self.steps[fields], self.decisions[fields], self.ep_length[fields] = 0, 0, 0
         self.ep_return[fields], self.ep_cpad[fields] = 0.0, 0.0
@@ -174,41 +161,22 @@ class HierarchicalCore:
         for behaviour, robots in self.obstacles:
             count = robots.stop - robots.start
             behaviour.reset((fields[:, None] * count + np.arange(count)).ravel(), self.rng)
-        self._hold()
+        self._update_terms()
 
-    def _hold(self) -> None:
-        """Whatever the rules can compute once for the current sub-goals and targets (after every change)."""
-        self._held = self.rules.hold(self.target, self.subgoal)
+    def _update_terms(self) -> None:
+        """The scenario's decision terms of the current sub-goals and targets (after every change)."""
+        self._terms = self.scenario.decision_terms(self.target, self.subgoal)
 
     # -- observations --------------------------------------------------------------------------------------
 
     def observe(self, fields: np.ndarray | None = None, state: RobotState | None = None) -> np.ndarray:
-        """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all) in the scenario's layout,
-        of the world's robots or of ``state`` (N, M + K: the deploy view's tracked ones); left ones too."""
+        """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all), the scenario's
+        ``observation`` of the world's robots or of ``state`` (N, M + K: the deploy view's tracked ones);
+        left ones too."""
         s = self.world.state if state is None else state
         s = s if fields is None else s.fields(fields)
         target = self.target if fields is None else self.target[fields]
-        f, m = target.shape[:2]
-        b, limits = f * m, self._limits
-        if self._layout == "paper":  # one robot (column 0): the others are its obstacles
-            obs = first_robot_observation(target, s, self._obs_scales)
-        else:
-            rows = (
-                target.reshape(b, 5),
-                s.pos[:, :m].reshape(b, 2),
-                s.angle[:, :m].reshape(b),
-                s.vel[:, :m].reshape(b, 2),
-                s.ang_vel[:, :m].reshape(b),
-            )
-            j = self._others.shape[1]
-            teammate = np.broadcast_to(self._teammate, (f, m, j)).reshape(b, j)
-            others_pos = self._others_of(s.pos).reshape(b, j, 2)
-            others_vel = self._others_of(s.vel).reshape(b, j, 2)
-            extra = {"encounters": self._layout == "encounters"}
-            obs = neighbour_observation(
-                *rows, others_pos, others_vel, teammate, self.config.neighbours, **limits, **extra
-            )
-        return obs.reshape(f, m, self.obs_dim)
+        return self.scenario.observation(target, s)
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, M, 9) float32."""
@@ -222,15 +190,16 @@ class HierarchicalCore:
         field. Returns how many values were clipped per robot (N, M), 0 where not live."""
         n, m = live.shape
         decoded = self._decode(action.reshape(n * m, self.act_dim), self.target.reshape(n * m, 5))
-        clipped, held = np.empty((n, m), dtype=np.int64), (self.subgoal, self.decisions, self.ep_cpad)
-        take_decisions(action, decoded.reshape(n, m, 5), live, *held, clipped)
-        self._hold()
+        clipped = np.empty((n, m), dtype=np.int64)
+        counters = (self.subgoal, self.decisions, self.ep_cpad)
+        take_decisions(action, decoded.reshape(n, m, 5), live, *counters, clipped)
+        self._update_terms()
         return clipped
 
     def hold_subgoal(self, subgoal: np.ndarray) -> None:
         """Hold ``subgoal`` (N, M, 5) as if decoded (the deploy field server's managers act elsewhere)."""
         np.copyto(self.subgoal, subgoal)
-        self._hold()
+        self._update_terms()
 
     def control_step(
         self,
@@ -241,6 +210,8 @@ class HierarchicalCore:
         """One 25 ms step of every field; robots not ``live`` (N, M) hold still and score nothing, and so do
         the obstacles of fields without a live robot. ``worker_action`` (N, M, 3) and ``obstacle_actions``
         (N, K, 3), normalised to [-1, 1], replace the workers and obstacles when those are exposed as agents.
+        The scenario's ``pre_step`` sees the commands before the world steps, its ``post_step`` the world
+        after, and its ``score`` gives the step's reward, success and collision.
 
         Returns reward (N, M), success (N, M) and collision (N, M), both only where live.
         """
@@ -265,17 +236,14 @@ class HierarchicalCore:
             np.copyto(
                 command[:, m:], scale_command(np.clip(obstacle_actions, -1.0, 1.0), self.robot), where=moving
             )
-        s = self.world.step(command)
+        if self._pre_step is not None:
+            self._pre_step(self, command)
+        self.world.step(command)
         self.control_steps += 1
         self.steps = self.steps + field_live.astype(np.int64)
-
-        # The controlled robots' columns as views (a RobotState of them costs twice as many calls).
-        own = self._own
-        pos, angle, vel = (s.pos, s.angle, s.vel) if own is None else (s.pos[own], s.angle[own], s.vel[own])
-        others, touching = self._others_of(s.pos), self.world.robot_touch[:, :m]
-        reward, success, hit = self.rules(
-            self._held, self.target, self.subgoal, pos, angle, vel, others, touching
-        )
+        if self._post_step is not None:
+            self._post_step(self)
+        reward, success, hit = self.scenario.score(self._terms, self.target, self.subgoal, self.world)
         return reward, success & live, hit & live
 
     def _controlled(self, s: RobotState) -> RobotState:
@@ -298,52 +266,78 @@ class HierarchicalCore:
         start = self.active.copy()
         if not np.count_nonzero(start):
             raise RuntimeError("step() with every episode finished: call reset() first")
-        held = hold(self)
+        kept = snapshot(self)
         clipped = self.set_subgoal(action, start)
-        # New arrays every decision (the result hands them out), updated in place by one compiled loop a
-        # control step.
-        shape = start.shape
-        live, reward, elapsed = start.copy(), np.zeros(shape), start.astype(np.int64)
-        success, collision, timeout = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
-        running, max_steps = (live, reward, success, collision, elapsed, timeout), cfg.max_steps
+        # One compiled loop a control step tallies the period's running values in place.
+        period = Period(start)
         try:
             for k in range(cfg.frame_skip):
-                r, succ, hit = self.control_step(live)
+                outcome = self.control_step(period.live)
                 add, count = k > 0 and self._sum_rewards, k + 1 < cfg.frame_skip
-                if not tally_control_step(r, succ, hit, self.steps, max_steps, add, count, start, *running):
+                if not period.tally(outcome, self.steps, cfg.max_steps, add, count):
                     break
         except Exception:  # from the worker: undone, or the core needs a reset (step_guard)
-            abandon(self, held)
+            abandon(self, kept)
             raise
-        return self.finish(start, reward, success, collision, timeout, elapsed, clipped)
+        return self.finish(period, clipped)
 
-    def finish(
+    def step_control(
         self,
-        start: np.ndarray,
-        reward: np.ndarray,
-        success: np.ndarray,
-        collision: np.ndarray,
-        timeout: np.ndarray,
-        elapsed: np.ndarray,
-        clipped: np.ndarray,
+        action: np.ndarray,
+        worker_action: np.ndarray | None = None,
+        obstacle_actions: np.ndarray | None = None,
     ) -> StepResult:
-        """Book-keeping after a decision period (or, for a view with exposed agents, one control step):
-        returns, per-robot episode statistics, auto-reset. Every argument (N, M)."""
-        # New arrays rather than updates in place (see ``step``): the counters are replaced, never kept.
-        self.ep_return = self.ep_return + reward
-        self.ep_length = self.ep_length + elapsed
-        left = success | collision | timeout
+        """One control step of every field, for views whose workers (``worker_action`` (N, M, 3)) or
+        obstacles (``obstacle_actions`` (N, K, 3)) are agents: the managers' ``action`` (N, M, A) is decoded
+        into sub-goals on a field's decision steps only (every ``frame_skip``-th control step since its
+        reset), and rewards are those of the one control step.
+
+        ``info`` as ``step``'s, with ``decision`` (N,) bool, whether the managers' actions were used, and
+        ``worker_reward`` (N, M), R_d + R_theta of each robot measured against its sub-goal.
+        """
+        cfg, m = self.config, self.num_agents
+        kept = snapshot(self)
+        live = self.active.copy()
+        decision = self.steps % cfg.frame_skip == 0
+        if decision.any():
+            clipped = self.set_subgoal(action, live & decision[:, None])
+        else:
+            clipped = np.zeros(live.shape, dtype=np.int64)
+        try:
+            reward, success, hit = self.control_step(live, worker_action, obstacle_actions)
+        except Exception:  # from the worker: the sub-goals set above go back (step_guard)
+            abandon(self, kept)
+            raise
+        s = self.world.state
+        pose = np.concatenate([s.pos[:, :m], s.angle[:, :m, None]], axis=-1)
+        d, delta = pose_errors(pose, self.subgoal)
+        worker_reward = distance_reward(d, cfg.d_th) + angle_reward(delta, self.theta_th)
+        period = Period(live)
+        period.tally((reward, success, hit), self.steps, cfg.max_steps, False, False)
+        result = self.finish(period, clipped)
+        result.info["decision"] = decision
+        result.info["worker_reward"] = worker_reward
+        return result
+
+    def finish(self, period: Period, clipped: np.ndarray) -> StepResult:
+        """Book-keeping after a decision ``period`` (or one control step): returns, per-robot episode
+        statistics, auto-reset; ``clipped`` (N, M), the action values clipped at the decision."""
+        # New arrays rather than updates in place (see ``Period``): the counters are replaced, never kept.
+        success, collision = period.success, period.collision
+        self.ep_return = self.ep_return + period.reward
+        self.ep_length = self.ep_length + period.elapsed
+        left = success | collision | period.timeout
         # Rows of the robots that left, row = field * M + robot; most decisions have none, and share the
         # same empty columns (an empty array cannot change).
         rows = left.ravel().nonzero()[0]
         stats = self._stats(rows, success, collision) if len(rows) else dict(self._no_stats)
         info: dict[str, Any] = {
-            "control_steps": elapsed,
+            "control_steps": period.elapsed,
             "success": success,
             "collision": collision,
             "action_clipped": clipped,
             "subgoal": self.subgoal.copy(),
-            "live": start,
+            "live": period.start,
             "task": stats,
         }
         self.active = self.active > left
@@ -354,7 +348,8 @@ class HierarchicalCore:
                 obs = obs.copy()
                 self.reset_fields(finished)
                 obs[finished] = self.observe(finished)
-        return StepResult(obs, reward.astype(np.float32), success | collision, timeout, info)
+        reward = period.reward.astype(np.float32)
+        return StepResult(obs, reward, success | collision, period.timeout, info)
 
     def _stats(self, rows: np.ndarray, success: np.ndarray, collision: np.ndarray) -> dict[str, Any]:
         """``info["task"]``: episode statistics of the robots at flat ``rows``; take() reads flat, copies."""

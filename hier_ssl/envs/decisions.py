@@ -1,7 +1,8 @@
 """A manager decision's per-robot book-keeping in the core, each part one compiled loop over the robots (at
-one field numpy's per-call overhead, not the arithmetic, was the cost of the array operations these
-replace): the sub-goals taken, the decisions counted, the CPAD grown and the action values clipped
-(``take_decisions``); each control step's reward, departures and time counted (``tally_control_step``)."""
+one field numpy's per-call overhead, not the arithmetic, is the cost of the equivalent array operations):
+the sub-goals taken, the decisions counted, the CPAD grown and the action values clipped
+(``take_decisions``); each control step's reward, departures and time counted into a ``Period``
+(``tally_control_step``)."""
 
 from __future__ import annotations
 
@@ -78,4 +79,34 @@ def tally_control_step(
     return remaining
 
 
-__all__ = ["take_decisions", "tally_control_step"]
+class Period:
+    """The running per-robot values (N, M) of one decision period, or of one control step: the robots
+    ``start`` live and those still ``live``, their ``reward``, whether they left with ``success`` or
+    ``collision`` or ran out of time (``timeout``), and the control steps ``elapsed`` while live. New
+    arrays every period: the core's result hands them out."""
+
+    __slots__ = ("_running", "collision", "elapsed", "live", "reward", "start", "success", "timeout")
+
+    def __init__(self, start: np.ndarray) -> None:
+        """A period in which the robots of ``start`` (N, M) bool are live and nothing has happened yet."""
+        shape = start.shape
+        self.start, self.live, self.reward = start, start.copy(), np.zeros(shape)
+        self.success, self.collision = np.zeros(shape, bool), np.zeros(shape, bool)
+        self.timeout, self.elapsed = np.zeros(shape, bool), start.astype(np.int64)
+        # What ``tally_control_step`` updates, in its order.
+        self._running = (self.live, self.reward, self.success, self.collision, self.elapsed, self.timeout)
+
+    def tally(
+        self,
+        outcome: tuple[np.ndarray, np.ndarray, np.ndarray],
+        steps: np.ndarray,
+        max_steps: int,
+        add: bool,
+        count: bool,
+    ) -> int:
+        """One control step's ``outcome`` (reward, success, collision, as ``control_step`` returns them)
+        into the period, as ``tally_control_step`` says; how many robots are still live."""
+        return tally_control_step(*outcome, steps, max_steps, add, count, self.start, *self._running)
+
+
+__all__ = ["Period", "take_decisions", "tally_control_step"]

@@ -23,7 +23,7 @@ from hier_ssl.envs.core import HierarchicalCore, StepResult
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
 from hier_ssl.envs.rules import check_action
-from hier_ssl.envs.scenario import Layout, Scenario
+from hier_ssl.envs.scenario import Placement, Scenario
 from hier_ssl.envs.vector import TorchView
 from hier_ssl.manager import baseline_success, min_time_to_pose, pose_errors, summarize
 from hier_ssl.worker import Worker, make_worker
@@ -49,34 +49,34 @@ class GoToPoint(Scenario):
     reward_task = "baseline"
 
     def __init__(self, config: EnvConfig, task: GoToPointConfig) -> None:
-        # The direct manager reads the paper's layout and writes field-frame pose4 actions, once an episode.
+        # The direct manager reads the paper's observation layout and writes field-frame pose4 actions, once
+        # an episode.
         update = {"observation": "paper", "action_form": "pose4", "action_frame": "field"}
         super().__init__(config.model_copy(update={**update, "frame_skip": config.max_steps}), 1, [])
         self.task = task
 
-    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
+    def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> Placement:
         """Starts (uniform, at rest or ``moving_fraction`` of them moving) and sub-goals (uniform or
-        ``near_fraction`` of them within ``near_radius`` of the start) of ``m`` episodes."""
+        ``near_fraction`` of them within ``near_radius`` of the start) of ``num_fields`` episodes."""
         task, half, robot = self.task, self.half, self.robot
-        robot_xy = rng.uniform(-half, half, (m, 2))
-        angle = rng.uniform(-np.pi, np.pi, m)
-        radius = task.near_radius * np.sqrt(rng.uniform(0.0, 1.0, m))
-        bearing = rng.uniform(-np.pi, np.pi, m)
+        robot_xy = rng.uniform(-half, half, (num_fields, 2))
+        angle = rng.uniform(-np.pi, np.pi, num_fields)
+        radius = task.near_radius * np.sqrt(rng.uniform(0.0, 1.0, num_fields))
+        bearing = rng.uniform(-np.pi, np.pi, num_fields)
         near_xy = np.clip(
             robot_xy + radius[:, None] * np.stack([np.cos(bearing), np.sin(bearing)], 1), -half, half
         )
-        goal_xy = np.where(
-            (rng.uniform(size=m) < task.near_fraction)[:, None], near_xy, rng.uniform(-half, half, (m, 2))
-        )
-        moving = rng.uniform(size=m) < task.moving_fraction
-        speed = np.where(moving, rng.uniform(0.0, robot.max_speed, m), 0.0)
-        heading = rng.uniform(-np.pi, np.pi, m)
+        near = rng.uniform(size=num_fields) < task.near_fraction
+        goal_xy = np.where(near[:, None], near_xy, rng.uniform(-half, half, (num_fields, 2)))
+        moving = rng.uniform(size=num_fields) < task.moving_fraction
+        speed = np.where(moving, rng.uniform(0.0, robot.max_speed, num_fields), 0.0)
+        heading = rng.uniform(-np.pi, np.pi, num_fields)
         vel = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
-        spin = np.where(moving, rng.uniform(-0.5, 0.5, m) * robot.max_ang_speed, 0.0)
-        target = np.zeros((m, 1, 5))
+        spin = np.where(moving, rng.uniform(-0.5, 0.5, num_fields) * robot.max_ang_speed, 0.0)
+        target = np.zeros((num_fields, 1, 5))
         target[:, 0, 0:2] = goal_xy
-        target[:, 0, 2] = rng.uniform(-np.pi, np.pi, m)
-        return Layout(robot_xy[:, None], angle[:, None], target, vel[:, None], spin[:, None])
+        target[:, 0, 2] = rng.uniform(-np.pi, np.pi, num_fields)
+        return Placement(robot_xy[:, None], angle[:, None], target, vel[:, None], spin[:, None])
 
 
 class GoToPointCore:
@@ -123,10 +123,10 @@ class GoToPointCore:
         """Starts, start velocities and sub-goals for ``fields`` (M,) ints (``GoToPoint.reset_world_at``)."""
         if len(fields) == 0:
             return
-        layout = self.episodes.reset_world_at(len(fields), self.rng)
-        self.world.set_state(fields, layout.pos, layout.angle, layout.vel, layout.ang_vel)
-        self.subgoal[fields] = layout.target[:, 0]
-        angle, vel, spin = layout.angle[:, 0], layout.vel[:, 0], layout.ang_vel[:, 0]
+        placement = self.episodes.reset_world_at(len(fields), self.rng)
+        self.world.set_state(fields, placement.pos, placement.angle, placement.vel, placement.ang_vel)
+        self.subgoal[fields] = placement.target[:, 0]
+        angle, vel, spin = placement.angle[:, 0], placement.vel[:, 0], placement.ang_vel[:, 0]
         s = self.world.state
         d, delta = pose_errors(np.column_stack([s.pos[fields, 0], s.angle[fields, 0]]), self.subgoal[fields])
         self.start_distance[fields] = d

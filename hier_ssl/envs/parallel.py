@@ -1,12 +1,32 @@
 """The PettingZoo ``ParallelEnv`` view of one field of the core, and a single-agent Gymnasium view.
 
-Agents: ``manager_i`` for each controlled robot; ``worker_i`` with ``expose_worker``; ``obstacle_j`` with
-``expose_obstacles``. With only the managers exposed, one ``step`` is one manager decision
-(``frame_skip`` control steps, reward summed or last). With workers or obstacles exposed, one ``step`` is
-one 25 ms control step, and the managers' actions are used on decision steps only
-(``infos["manager_i"]["decision"]`` says whether they were); their rewards are then per control step.
-``manager_i`` and ``worker_i`` leave when robot i reaches its target or collides; obstacles leave with
-the last of them, when the episode is over. Actions are checked here, once, naming the agent.
+| Import             | ``from hier_ssl.envs import parallel_env``; ``parallel_env(config)``                |
+|--------------------|-------------------------------------------------------------------------------------|
+| Actions            | Continuous                                                                          |
+| Parallel API       | Yes                                                                                 |
+| Manual control     | No                                                                                  |
+| Agents             | ``["manager_0", ..., "manager_{M-1}"]``, + ``worker_i`` and ``obstacle_j`` exposed  |
+| Agents count       | M; + M with ``expose_worker``; + K with ``expose_obstacles``                        |
+| Action shape       | manager (4,) ``pose4`` or (6,) ``pose6``; worker and obstacle (3,)                  |
+| Action values      | [-1, 1]; a manager's values beyond are clipped and counted (``action_clipped``)     |
+| Observation shape  | manager (O,), the scenario's observation; worker (9,); obstacle (7,)                |
+| Observation values | [-1.2, 1.2]                                                                         |
+| State shape        | (7 R + 13 M,): ``hier_ssl.envs.state``                                              |
+| State values       | [-1.2, 1.2]                                                                         |
+
+Arguments: ``parallel_env(config=None, render_mode=None, worker=None, **settings)``: ``config`` a task or
+scenario name, a YAML file or a config (``hier_ssl.envs.task_config``); ``render_mode`` "human" or
+"rgb_array"; ``worker`` a worker spec or object (``hier_ssl.worker.resolve_worker``); ``settings`` override
+config keys (``frame_skip=16``, ``expose_worker=True``, ...).
+
+With only the managers exposed, one ``step`` is one manager decision (``frame_skip`` control steps, reward
+summed or last: the core's ``step``). With workers or obstacles exposed, one ``step`` is one 25 ms control
+step (the core's ``step_control``): the managers' actions are used on decision steps only
+(``infos["manager_i"]["decision"]`` says whether they were), their rewards are per control step, and a
+worker's reward is R_d + R_theta of its robot against its sub-goal. ``manager_i`` and ``worker_i`` leave
+when robot i reaches its target or collides; obstacles leave with the last of them, when the episode is
+over. The view converts dicts by agent to the core's arrays and back, and checks each action once, as it
+enters, naming the agent.
 """
 
 from __future__ import annotations
@@ -23,8 +43,6 @@ from hier_ssl.config import EnvConfig, TaskConfig
 from hier_ssl.envs.core import HierarchicalCore, StepResult
 from hier_ssl.envs.rules import check_action
 from hier_ssl.envs.state import CLIP, global_state, state_dim
-from hier_ssl.envs.step_guard import abandon, hold
-from hier_ssl.manager import angle_reward, distance_reward, pose_errors
 from hier_ssl.worker.observation import WORKER_OBS_DIM
 from hier_ssl.world.obstacles import OBSTACLE_AGENT_OBS_DIM, obstacle_observation
 
@@ -131,7 +149,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         for agent in self.managers:
             if agent in checked:
                 batch[0, self._robot[agent]] = checked[agent]
-        result = self._control_step(checked, batch) if self.per_control_step else self.core.step(batch)
+        result = self._step_control(checked, batch) if self.per_control_step else self.core.step(batch)
         if self.render_mode is not None:  # without a render mode there is nothing to draw the trail on
             self._trail.append(self.core.state.pos[0, : self.core.num_agents])
         out = self._outputs(result)
@@ -149,6 +167,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         ended = {i: row for row, i in enumerate(stats["agent"].tolist())} if len(stats["agent"]) else {}
         obs = self._observations(result.obs[0])
         rewards, terms, truncs, infos = {}, {}, {}, {}
+        decision = info["decision"].item(0) if "decision" in info else True
         for agent in self.agents:
             if agent in self.obstacle_agents:
                 over = not self.core.active[0].any()
@@ -169,41 +188,22 @@ class HierarchicalSSLEnv(ParallelEnv):
                 "subgoal": info["subgoal"][0, i],
                 "success": info["success"].item(0, i),
                 "collision": info["collision"].item(0, i),
-                "decision": info.get("decision", True),
+                "decision": decision,
             }
             if i in ended:
                 skip = ("field", "agent")
                 infos[agent]["task"] = {k: v[ended[i]] for k, v in stats.items() if k not in skip}
         return obs, rewards, terms, truncs, infos
 
-    def _control_step(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:
-        """One control step with exposed agents; the managers act on decision steps only."""
-        core, m = self.core, self.core.num_agents
-        held = hold(core)
-        live = core.active.copy()
-        decision = core.steps[0] % self.config.frame_skip == 0
-        clipped = core.set_subgoal(manager_action, live) if decision else np.zeros((1, m), dtype=np.int64)
+    def _step_control(self, actions: dict[str, np.ndarray], manager_action: np.ndarray) -> StepResult:
+        """The core's ``step_control`` with the exposed workers' and obstacles' actions as arrays."""
         worker = None
         if self.workers:
             worker = np.stack([actions.get(a, np.zeros(3)) for a in self.workers])[None]
         obstacles = None
         if self.obstacle_agents:
             obstacles = np.stack([actions[a] for a in self.obstacle_agents])[None]
-        try:
-            reward, success, hit = core.control_step(live, worker, obstacles)
-        except Exception:  # the scripted worker's: the sub-goal set above goes back (step_guard)
-            abandon(core, held)
-            raise
-        timeout = live & ~success & ~hit & (core.steps >= self.config.max_steps)[:, None]
-        s = core.state
-        pose = np.column_stack([s.pos[0, :m], s.angle[0, :m]])
-        d, delta = pose_errors(pose, core.subgoal[0])
-        reward = np.where(live, reward, 0.0)
-        result = core.finish(live, reward, success, hit, timeout, live.astype(np.int64), clipped)
-        result.info["decision"] = bool(decision)
-        worker_reward = distance_reward(d, self.config.d_th) + angle_reward(delta, core.theta_th)
-        result.info["worker_reward"] = worker_reward[None]
-        return result
+        return self.core.step_control(manager_action, worker, obstacles)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -221,6 +221,7 @@ class HierarchicalSSLEnv(ParallelEnv):
             subgoals=self.core.subgoal,
             trails=[trail[:, i] for i in range(m)],
             team=[0] * m + [1] * k,
+            extra=functools.partial(self.core.scenario.extra_render, field_index=0),
         )
         if self.render_mode == "human":
             self._show(frame)

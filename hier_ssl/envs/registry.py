@@ -27,11 +27,21 @@ from hier_ssl.config import (
 )
 from hier_ssl.config.files import apply_overrides, find_config, load_yaml
 from hier_ssl.envs.scenario import Scenario
-from hier_ssl.envs.scenarios import SCENARIOS
+from hier_ssl.envs.scenarios import SCENARIOS, FieldScenario
 from hier_ssl.envs.tasks import TASKS
 from hier_ssl.worker import check_worker_spec
 from hier_ssl.world.field import FIELDS
 from hier_ssl.world.obstacles import OBSTACLES, make_obstacle
+
+
+def register_scenario(cls: type[FieldScenario]) -> type[FieldScenario]:
+    """Make the multi-robot scenario class ``cls`` known by its ``name`` to configs (``scenario: name``),
+    as the shipped ones are; usable as a class decorator. A name already taken is a ValueError."""
+    if cls.name in SCENARIOS:
+        taken = SCENARIOS[cls.name].__qualname__
+        raise ValueError(f"scenario {cls.name!r} is already registered (by {taken})")
+    SCENARIOS[cls.name] = cls
+    return cls
 
 
 def make_scenario(config: TaskConfig) -> Scenario:
@@ -72,7 +82,7 @@ def _check_obstacle(behaviour: str, options: dict[str, Any], key: str) -> None:
 
 def check_task(config: TaskConfig) -> None:
     """What the models cannot check alone: the field, worker and obstacle behaviours are known, and the
-    task or scenario class accepts the config (its options, and that its layout fits the field). A
+    task or scenario class accepts the config (its options, and that its placement fits the field). A
     ValueError's message starts with the key, relative to the section ("field: unknown preset ...")."""
     if config.field not in FIELDS:
         raise ValueError(f"field: unknown preset {config.field!r}; known: {sorted(FIELDS)}")
@@ -232,6 +242,7 @@ __all__ = [
     "load_config",
     "make_scenario",
     "parse_config",
+    "register_scenario",
     "scenario_config",
     "task_config",
     "with_defaults",

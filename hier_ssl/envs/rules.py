@@ -23,20 +23,20 @@ from hier_ssl.manager.rewards import (
     distance_reward,
     measured_errors,
     nearest_distance,
-    obstacle_term,
     pose_error,
+    reward_terms,
     shaping_term,
 )
-from hier_ssl.manager.success import pose_reached
+from hier_ssl.manager.success import pose_reached, settled
 from hier_ssl.world.frames import all_finite
 
-# What a decision fixes for its control steps: whether each measured pose names its target (...) bool, and
-# R_d + R_theta (...).
-Held = tuple[np.ndarray, np.ndarray]
+# The decision terms: what a decision fixes for its control steps, whether each measured pose names its
+# target (...) bool, and R_d + R_theta (...).
+DecisionTerms = tuple[np.ndarray, np.ndarray]
 
 
 @numba.njit(cache=True)
-def _held(
+def _decision_terms(
     subgoal: np.ndarray,
     target: np.ndarray,
     d_th: float,
@@ -44,13 +44,13 @@ def _held(
     reached: np.ndarray,
     shaping: np.ndarray,
 ) -> None:
-    """``Rules.hold`` of the action-centric tasks as one compiled loop over the sub-goals and targets
-    (N, M, 5): whether each sub-goal is on its target (d < d_th, delta < theta_th, as ``pose_reached``)
-    and R_d + R_theta, written into ``reached`` and ``shaping`` (N, M)."""
+    """``Rules.decision_terms`` of the action-centric tasks as one compiled loop over the sub-goals and
+    targets (N, M, 5): whether each sub-goal is on its target (``pose_reached``) and R_d + R_theta, written
+    into ``reached`` and ``shaping`` (N, M)."""
     for f in range(reached.shape[0]):
         for i in range(reached.shape[1]):
             d, delta = pose_error(subgoal[f, i], target[f, i])
-            reached[f, i] = d < d_th and delta < theta_th
+            reached[f, i] = pose_reached(d, delta, d_th, theta_th)
             shaping[f, i] = shaping_term(d, delta, d_th, theta_th)
 
 
@@ -78,9 +78,10 @@ class Rules:
     "obstacle": the rules of ``hier_ssl.manager`` that score a robot) with ``config``'s settings.
 
     The settings are checked here (``RewardOptions``) and held in the form the compiled loops below take:
-    on the few rows of one field numpy's per-call overhead, not the arithmetic, was the cost, so each of
-    ``hold`` and ``__call__`` is one loop over the robots. The action-centric tasks measure the sub-goal,
-    which a decision fixes for its control steps: ``hold`` computes that part once a decision.
+    on the few rows of one field numpy's per-call overhead, not the arithmetic, is the cost, so each of
+    ``decision_terms`` and ``__call__`` is one loop over the robots. The action-centric tasks measure the
+    sub-goal, which a decision fixes for its control steps: ``decision_terms`` computes that part once a
+    decision.
     """
 
     def __init__(self, task: str, config: TaskSettings) -> None:
@@ -96,11 +97,11 @@ class Rules:
         task_flags = (task != "baseline", replace[0], task == "obstacle", config.obstacle_from == "robot")
         self._flags = (*task_flags, replace[1])
 
-    def _pose(self, d: np.ndarray, delta: np.ndarray) -> Held:
+    def _pose(self, d: np.ndarray, delta: np.ndarray) -> DecisionTerms:
         reached = pose_reached(d, delta, self.d_th, self.theta_th)
         return reached, distance_reward(d, self.d_th) + angle_reward(delta, self.theta_th)
 
-    def hold(self, target: np.ndarray, subgoal: np.ndarray) -> Held | None:
+    def decision_terms(self, target: np.ndarray, subgoal: np.ndarray) -> DecisionTerms | None:
         """The part of the rules that the sub-goals (..., 5) fix until the next decision, for targets
         (..., 5); None for the Baseline task, which measures the robot every step."""
         if self.task == "baseline":
@@ -108,12 +109,12 @@ class Rules:
         lead = target.shape[:-1]
         reached, shaping = np.empty(lead, dtype=bool), np.empty(lead)
         subgoal, target, *out = _as_pairs(lead, (subgoal, target, reached, shaping))
-        _held(subgoal, target, *self._thresholds, *out)
+        _decision_terms(subgoal, target, *self._thresholds, *out)
         return reached, shaping
 
     def __call__(
         self,
-        held: Held | None,
+        terms: DecisionTerms | None,
         target: np.ndarray,
         subgoal: np.ndarray,
         pos: np.ndarray,
@@ -122,17 +123,17 @@ class Rules:
         others: np.ndarray,
         touching: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Reward, success and hit (...) of the controlled robots, given ``hold``'s result for these
+        """Reward, success and hit (...) of the controlled robots, given ``decision_terms``' result for these
         sub-goals and targets (None: computed here). The leading axes (...) are the core's (N, M).
 
         Shapes: target, subgoal (..., 5); pos, vel (..., 2); angle (...); others (..., J, 2), the robots
         each one can hit; touching (...) bool, a contact the physics reported.
         """
-        if held is None:
-            held = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
+        if terms is None:
+            terms = self._pose(*measured_errors(self.task, target, subgoal, pos, angle))
         lead = target.shape[:-1]
         reward, success, hit = np.empty(lead), np.empty(lead, dtype=bool), np.empty(lead, dtype=bool)
-        rows = _as_pairs(lead, (*held, target, subgoal, pos, vel, others, touching, reward, success, hit))
+        rows = _as_pairs(lead, (*terms, target, subgoal, pos, vel, others, touching, reward, success, hit))
         _score(*rows[:8], self._settings, self._flags, *rows[8:])
         return reward, success, hit
 
@@ -153,9 +154,8 @@ def _score(
     success: np.ndarray,
     hit: np.ndarray,
 ) -> None:
-    """``Rules.__call__`` as one compiled loop over the robots (N, M): the rules of ``robot_settled``,
-    ``collided``, ``obstacle_distance`` and ``combine_rewards``, their operations in their order
-    (tests/envs/test_rules.py holds the results equal to theirs, bit for bit).
+    """``Rules.__call__`` as one compiled loop over the robots (N, M), calling the rules of
+    ``hier_ssl.manager`` on each: ``settled``, ``nearest_distance`` and ``reward_terms``.
 
     Shapes: reached, shaping, touching (N, M); target, subgoal (N, M, 5); pos, vel (N, M, 2); others
     (N, M, J, 2).
@@ -165,30 +165,23 @@ def _score(
     """
     d_th, speed_th, collision_distance, success_paid, hit_paid = settings
     near_target, replace_success, obstacle_task, from_robot, replace_hit = flags
+    paid_modes = (success_paid, hit_paid, replace_success, replace_hit, obstacle_task)
     for f in range(reward.shape[0]):
         for i in range(reward.shape[1]):
-            x, y, vx, vy = pos[f, i, 0], pos[f, i, 1], vel[f, i, 0], vel[f, i, 1]
+            x, y = pos[f, i, 0], pos[f, i, 1]
             nearest = nearest_distance(x, y, others[f, i])  # +inf without another robot
             hit[f, i] = nearest < collision_distance or touching[f, i]
             # Success needs the measured pose on the target and the robot settled; a hit fails it.
             done = reached[f, i] and not hit[f, i]
             if done:
-                done = math.sqrt(vx * vx + vy * vy) < speed_th
-            if done and near_target:
-                dx, dy = x - target[f, i, 0], y - target[f, i, 1]
-                done = math.sqrt(dx * dx + dy * dy) < d_th
+                tx, ty = target[f, i, 0], target[f, i, 1]
+                done = settled(x, y, vel[f, i, 0], vel[f, i, 1], tx, ty, d_th, speed_th, near_target)
             success[f, i] = done
-            pose = 0.0 if replace_success and done else shaping[f, i]
-            paid = success_paid if done else 0.0
-            if not obstacle_task:
-                reward[f, i] = pose + paid
-                continue
-            if not from_robot:
+            if obstacle_task and not from_robot:
                 nearest = nearest_distance(subgoal[f, i, 0], subgoal[f, i, 1], others[f, i])
-            obstacle = obstacle_term(nearest)
-            if replace_hit and hit[f, i]:
-                pose, paid, obstacle = 0.0, 0.0, 0.0
-            reward[f, i] = pose + paid + obstacle + (hit_paid if hit[f, i] else 0.0)
+            keep, paid, obstacle, hit_term = reward_terms(done, hit[f, i], nearest, *paid_modes)
+            pose = shaping[f, i] if keep else 0.0
+            reward[f, i] = pose + paid + obstacle + hit_term if obstacle_task else pose + paid
 
 
-__all__ = ["Held", "Rules", "check_action"]
+__all__ = ["DecisionTerms", "Rules", "check_action"]

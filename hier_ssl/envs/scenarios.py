@@ -3,8 +3,8 @@
 
 Each is a small class over ``hier_ssl.envs.scenario.Scenario`` built from a ``ScenarioConfig``; its
 ``defaults`` change that config's defaults and its ``Options`` are its own ``options``. Observation (the
-"neighbours" layout), sub-goal decoding, rewards (the Obstacle task's, or the Proposed task's for a robot
-alone in its field), success and collision rules are shared by all of them and run per robot by the core.
+"neighbours" observation layout), sub-goal decoding, rewards (the Obstacle task's, or the Proposed task's
+for a robot alone in its field), success and collision rules are shared by all of them.
 
 - ``crossing``: M robots on a circle swap to the antipodal points, all through the centre (Division B).
 - ``crowd``: robots cross the field, either way, through a band of random-walking obstacles.
@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import Field
 
 from hier_ssl.config import ScenarioConfig, Strict
-from hier_ssl.envs.scenario import Layout, ObstacleGroup, Scenario
+from hier_ssl.envs.scenario import ObstacleGroup, Placement, Scenario
 
 
 class FieldScenario(Scenario):
@@ -31,17 +31,17 @@ class FieldScenario(Scenario):
         # A robot alone in its field has nothing to avoid: the obstacle terms would have no obstacle.
         self.reward_task = "obstacle" if config.num_agents + k > 1 else "proposed"
 
-    def _layout(
+    def _placement(
         self, rng: np.random.Generator, start: np.ndarray, target_xy: np.ndarray, obstacles: np.ndarray
-    ) -> Layout:
-        """Random headings for every robot and target; start (m, M, 2), target_xy (m, M, 2), obstacles
-        (m, K, 2)."""
-        m = len(start)
-        target = np.zeros((m, self.num_agents, 5))
+    ) -> Placement:
+        """Random headings for every robot and target; start (F, M, 2), target_xy (F, M, 2), obstacles
+        (F, K, 2)."""
+        num_fields = len(start)
+        target = np.zeros((num_fields, self.num_agents, 5))
         target[..., 0:2] = target_xy
-        target[..., 2] = rng.uniform(-np.pi, np.pi, (m, self.num_agents))
+        target[..., 2] = rng.uniform(-np.pi, np.pi, (num_fields, self.num_agents))
         pos = np.concatenate([start, obstacles], axis=1)
-        return Layout(pos, rng.uniform(-np.pi, np.pi, pos.shape[:2]), target)
+        return Placement(pos, rng.uniform(-np.pi, np.pi, pos.shape[:2]), target)
 
 
 class CrossingOptions(Strict):
@@ -66,15 +66,15 @@ class Crossing(FieldScenario):
                 f"(at most {self.half.min():.2f} m)"
             )
 
-    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
+    def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> Placement:
         count, opt = self.num_agents, self.options
         spacing = 2 * np.pi / count
-        turn = rng.uniform(-np.pi, np.pi, (m, 1)) + spacing * np.arange(count)
-        turn = turn + spacing * rng.uniform(-opt.jitter, opt.jitter, (m, count))
+        turn = rng.uniform(-np.pi, np.pi, (num_fields, 1)) + spacing * np.arange(count)
+        turn = turn + spacing * rng.uniform(-opt.jitter, opt.jitter, (num_fields, count))
         start = opt.radius * np.stack([np.cos(turn), np.sin(turn)], axis=-1)
         placed = np.concatenate([start, -start], axis=1)
-        obstacles = self.scatter(rng, m, self.num_obstacles, -self.half, self.half, placed)
-        return self._layout(rng, start, -start, obstacles)
+        obstacles = self.scatter(rng, num_fields, self.num_obstacles, -self.half, self.half, placed)
+        return self._placement(rng, start, -start, obstacles)
 
 
 class CrowdOptions(Strict):
@@ -98,20 +98,20 @@ class Crowd(FieldScenario):
                 f"{config.field!r} (band + {self.gap} m must be below {self.half[0]:.2f} m)"
             )
 
-    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
+    def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> Placement:
         count, half = self.num_agents, self.half
         zone_low, zone_high = np.array([-half[0], -half[1]]), np.array([-self.inner, half[1]])
-        start = self.scatter(rng, m, count, zone_low, zone_high)
-        target = -self.scatter(rng, m, count, zone_low, zone_high)
+        start = self.scatter(rng, num_fields, count, zone_low, zone_high)
+        target = -self.scatter(rng, num_fields, count, zone_low, zone_high)
         # Every robot crosses left to right or, mirrored through the centre, right to left: robots of one
         # field meet head-on in the band. Robots of one direction keep their gaps; those of the other
         # start and end in the other zone.
-        flip = np.where(rng.random((m, count, 1)) < 0.5, -1.0, 1.0)
+        flip = np.where(rng.random((num_fields, count, 1)) < 0.5, -1.0, 1.0)
         start, target = start * flip, target * flip
         band = np.array([self.options.band, half[1]])
         placed = np.concatenate([start, target], axis=1)
-        obstacles = self.scatter(rng, m, self.num_obstacles, -band, band, placed)
-        return self._layout(rng, start, target, obstacles)
+        obstacles = self.scatter(rng, num_fields, self.num_obstacles, -band, band, placed)
+        return self._placement(rng, start, target, obstacles)
 
 
 class FormationOptions(Strict):
@@ -148,12 +148,13 @@ class Formation(FieldScenario):
         if opt.spacing < self.gap:
             raise ValueError(f"options.spacing: {opt.spacing} m puts slots closer than {self.gap} m")
 
-    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
-        heading = rng.uniform(-np.pi, np.pi, (m, 1))
-        centre = rng.uniform(-(self.half - self.reach), self.half - self.reach, (m, 2)) @ np.array([1.0, 1j])
+    def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> Placement:
+        heading = rng.uniform(-np.pi, np.pi, (num_fields, 1))
+        reach = self.half - self.reach
+        centre = rng.uniform(-reach, reach, (num_fields, 2)) @ np.array([1.0, 1j])
         slots = centre[:, None] + self.slots * np.exp(1j * heading)
         slot_xy = np.stack([slots.real, slots.imag], axis=-1)
-        start = self.scatter(rng, m, self.num_agents, -self.half, self.half, slot_xy)
+        start = self.scatter(rng, num_fields, self.num_agents, -self.half, self.half, slot_xy)
         # Robots and slots both ranked by their coordinate across the formation; rank i takes rank i.
         across = np.stack([-np.sin(heading), np.cos(heading)], axis=-1)
         rank = np.argsort(np.argsort((start * across).sum(-1), axis=1), axis=1)
@@ -161,10 +162,10 @@ class Formation(FieldScenario):
         target_xy = np.take_along_axis(slot_xy, by_slot[..., None], axis=1)
         target_xy = np.take_along_axis(target_xy, rank[..., None], axis=1)
         placed = np.concatenate([start, slot_xy], axis=1)
-        obstacles = self.scatter(rng, m, self.num_obstacles, -self.half, self.half, placed)
-        layout = self._layout(rng, start, target_xy, obstacles)
-        layout.target[..., 2] = heading
-        return layout
+        obstacles = self.scatter(rng, num_fields, self.num_obstacles, -self.half, self.half, placed)
+        placement = self._placement(rng, start, target_xy, obstacles)
+        placement.target[..., 2] = heading
+        return placement
 
 
 SCENARIOS: dict[str, type[FieldScenario]] = {cls.name: cls for cls in (Crossing, Crowd, Formation)}

@@ -14,7 +14,8 @@ from typing import Protocol
 
 import numpy as np
 
-Held = tuple[np.ndarray, np.ndarray, np.ndarray, int]
+# What a decision changes before its first control step, and the world step count when it began.
+Snapshot = tuple[np.ndarray, np.ndarray, np.ndarray, int]
 
 
 class Guarded(Protocol):
@@ -28,7 +29,7 @@ class Guarded(Protocol):
     control_steps: int
 
 
-def hold(core: Guarded) -> Held:
+def snapshot(core: Guarded) -> Snapshot:
     """What a decision changes before its first control step (sub-goals, decisions, CPAD) and the world
     step count; a RuntimeError if an earlier step stopped part-way."""
     if core.interrupted:
@@ -38,14 +39,14 @@ def hold(core: Guarded) -> Held:
     return core.subgoal.copy(), core.decisions.copy(), core.ep_cpad.copy(), core.control_steps
 
 
-def abandon(core: Guarded, held: Held) -> None:
-    """After an exception inside a step: put back what ``hold`` kept if no control step ran since, else
-    mark ``core`` interrupted."""
-    subgoal, decisions, cpad, control_steps = held
+def abandon(core: Guarded, kept: Snapshot) -> None:
+    """After an exception inside a step: put back the ``snapshot`` ``kept`` if no control step ran since,
+    else mark ``core`` interrupted."""
+    subgoal, decisions, cpad, control_steps = kept
     if core.control_steps != control_steps:
         core.interrupted = True
         return
     core.subgoal[...], core.decisions[...], core.ep_cpad[...] = subgoal, decisions, cpad
 
 
-__all__ = ["Guarded", "Held", "abandon", "hold"]
+__all__ = ["Guarded", "Snapshot", "abandon", "snapshot"]

@@ -18,12 +18,12 @@ from __future__ import annotations
 import numpy as np
 
 from hier_ssl.config import EnvConfig
-from hier_ssl.envs.scenario import Layout, ObstacleGroup, Scenario
+from hier_ssl.envs.scenario import ObstacleGroup, Placement, Scenario
 
 
 class PaperTask(Scenario):
     """One controlled robot (robot 0) and the obstacles of ``config.obstacles`` (robots 1..K), each moved
-    by its own behaviour object, in ``config.observation``'s layout."""
+    by its own behaviour object, in the observation layout ``config.observation`` names."""
 
     def __init__(self, config: EnvConfig) -> None:
         groups = [ObstacleGroup(o.behaviour, o.options) for o in config.obstacles]
@@ -36,16 +36,16 @@ class PaperTask(Scenario):
                     "play and count such episodes"
                 )
 
-    def _uniform_xy(self, rng: np.random.Generator, m: int) -> np.ndarray:
-        return rng.uniform(-self.half, self.half, (m, 2))
+    def _uniform_xy(self, rng: np.random.Generator, num_fields: int) -> np.ndarray:
+        return rng.uniform(-self.half, self.half, (num_fields, 2))
 
     def _too_close(self, xy: np.ndarray, placed: list[np.ndarray]) -> np.ndarray:
         return np.any([np.linalg.norm(xy - other, axis=1) < self.gap for other in placed], axis=0)
 
-    def reset_world_at(self, m: int, rng: np.random.Generator) -> Layout:
+    def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> Placement:
         config = self.config
-        target_xy = self._uniform_xy(rng, m)
-        robot_xy = self._uniform_xy(rng, m)
+        target_xy = self._uniform_xy(rng, num_fields)
+        robot_xy = self._uniform_xy(rng, num_fields)
         while (bad := np.linalg.norm(robot_xy - target_xy, axis=1) < config.min_start_distance).any():
             robot_xy[bad] = self._uniform_xy(rng, int(bad.sum()))
         placed = [robot_xy, target_xy]
@@ -53,16 +53,16 @@ class PaperTask(Scenario):
             if obstacle.placement == "midpoint":
                 xy = (robot_xy + target_xy) / 2
             else:
-                xy = self._uniform_xy(rng, m)
+                xy = self._uniform_xy(rng, num_fields)
                 while (bad := self._too_close(xy, placed)).any():
                     xy[bad] = self._uniform_xy(rng, int(bad.sum()))
             placed.append(xy)
         pos = np.stack([robot_xy, *placed[2:]], axis=1)
-        angle = rng.uniform(-np.pi, np.pi, (m, 1 + self.num_obstacles))
-        target = np.zeros((m, 1, 5))
+        angle = rng.uniform(-np.pi, np.pi, (num_fields, 1 + self.num_obstacles))
+        target = np.zeros((num_fields, 1, 5))
         target[:, 0, 0:2] = target_xy
-        target[:, 0, 2] = rng.uniform(-np.pi, np.pi, m)
-        return Layout(pos, angle, target)
+        target[:, 0, 2] = rng.uniform(-np.pi, np.pi, num_fields)
+        return Placement(pos, angle, target)
 
 
 class Baseline(PaperTask):

@@ -133,7 +133,7 @@ def _decode_rows(
     out: np.ndarray,
 ) -> None:
     """``SubgoalDecoder``'s sub-goals (N, 5) of actions (N, A) written into zeros ``out``, one compiled loop
-    (at one field numpy's per-call overhead, not the arithmetic, was the cost). ``target`` (N, 5) is read
+    (at one field numpy's per-call overhead, not the arithmetic, is the cost). ``target`` (N, 5) is read
     in the target frame only."""
     for b in range(action.shape[0]):
         a = action[b]

@@ -129,7 +129,7 @@ def first_robot_observation(
 ) -> np.ndarray:
     """``manager_observation`` of robot 0 of every field, the field's other robots its obstacles, from the
     arrays of ``state`` (N, R) as they are: no slices, no conversions (the paper tasks' core observes this
-    way, once a step; at one field those were most of the cost).
+    way, once a step; at one field those are most of the cost).
 
     Shapes: target (N, M, 5), robot 0's in column 0; ``state``'s arrays float64, as a ``World`` and the
     deploy view make them (trusted, not converted). ``scales``: ``observation_scales(R - 1, ...)``.
@@ -156,7 +156,7 @@ def _observation_rows(
     out: np.ndarray,
 ) -> None:
     """``manager_observation``'s rows written into ``out`` (N, 13 + 5K) float32, in one compiled loop (one
-    call whatever N: at one field numpy's per-call overhead, not the arithmetic, was the cost)."""
+    call whatever N: at one field numpy's per-call overhead, not the arithmetic, is the cost)."""
     raw = np.empty(out.shape[1])  # one row before scaling, in layout order
     for b in range(out.shape[0]):
         own = (target[b], pos[b], angle[b], vel[b], ang_vel[b])

@@ -333,8 +333,8 @@ def build_planner(
         rest = {k: v for k, v in options.items() if k not in fields}
         # The robot's acceleration, less the worker's reserve where it keeps one: the paper worker
         # accelerates at the robot's limit and brakes earlier, which a symmetric bang-bang cannot model;
-        # its first second, where the moving obstacles are, is the acceleration (obstacle task, 60 episodes,
-        # frame skip 1: 100 % at 3 m/s^2, 95 % at the paper worker's 1 m/s^2 braking, the rest timeouts).
+        # its first second, where the moving obstacles are, is the acceleration (docs/research-notes.md,
+        # "The trajectory planner's settings").
         accel = robot.max_accel * getattr(worker, "margin", 1.0)
         settings = {**limits, "max_accel": accel, "brake_accel": brake, **layout, **rest}
         return TrajectoryPlanner(fld, robot, config.action_form, params=params, **settings)

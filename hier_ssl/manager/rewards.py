@@ -7,8 +7,11 @@ manager's sub-goal (Proposed, Obstacle: "action-centric").
 The paper prints R_t = 1000 "if dist > D_th and delta > theta_th", an evident sign slip:
 R_t is paid on the success step, whose predicate lives in `hier_ssl.manager.success`.
 
-These run every control step for every robot; on the few rows of one field their cost is numpy's per-call
-overhead, so they keep to few calls and 0-d constants (a Python float operand is converted on every call).
+Each term is written once, as a numba ufunc (``distance_term``, ``angle_term``, ``obstacle_reward``) or a
+compiled function of one robot (``reward_terms``, how the terms combine): numpy calls them on arrays, and the
+core's compiled scoring (``hier_ssl.envs.rules``) calls the same definitions on one value, so the two paths
+cannot drift apart. On the few rows of one field a step's cost is per-call overhead, not arithmetic: one
+ufunc call replaces the several numpy calls of a masked expression.
 """
 
 from __future__ import annotations
@@ -36,9 +39,6 @@ HIT_MODES = ("add", "replace")
 # code the robot.
 OBSTACLE_FROM = ("subgoal", "robot")
 REWARD_TERMS = ("distance", "angle", "success", "obstacle", "hit")
-
-_DIST_BONUS, _ANGLE_BONUS = np.array(DIST_BONUS), np.array(ANGLE_BONUS)
-_MINUS_PI, _ZERO, _INF = np.array(-np.pi), np.array(0.0), np.array(np.inf)
 
 
 def vector_length(xy: np.ndarray) -> np.ndarray:
@@ -88,32 +88,41 @@ def measured_errors(
     return pose_errors(subgoal, target)
 
 
-def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndarray:
-    """Centre distance from each field's point to its nearest obstacle.
-
-    Args:
-        point: (N, 2) m. obs_pos: (N, K, 2) m, K >= 0.
-
-    Returns:
-        (N,) m; +inf where K = 0, so thresholds and Gaussians of it read "no obstacle".
-    """
-    # The root of the least square: sqrt is correctly rounded and monotonic, so this is the least of the
-    # roots bit for bit, at one root per field instead of one per obstacle.
-    diff = obs_pos - point[..., None, :]
-    square = diff * diff
-    return np.sqrt(np.minimum.reduce(square[..., 0] + square[..., 1], axis=-1, initial=_INF))
-
-
 @numba.njit(cache=True)
 def nearest_distance(x: float, y: float, obs_pos: np.ndarray) -> float:
-    """``nearest_obstacle_distance`` of one point (x, y) to obstacles ``obs_pos`` (K, 2), for the compiled
-    loops: the root of the least square, +inf where K = 0 (tests/manager/test_rewards.py holds the two
-    equal)."""
+    """Centre distance from the point (x, y) to its nearest obstacle of ``obs_pos`` (K, 2): the root of the
+    least square (sqrt is correctly rounded and monotonic, so this is the least of the roots bit for bit,
+    at one root instead of one per obstacle); +inf where K = 0, so thresholds and Gaussians of it read "no
+    obstacle"."""
     least = math.inf
     for j in range(obs_pos.shape[0]):
         dx, dy = obs_pos[j, 0] - x, obs_pos[j, 1] - y
         least = min(least, dx * dx + dy * dy)
     return math.sqrt(least)
+
+
+@numba.njit(cache=True)
+def _nearest_rows(point: np.ndarray, obs_pos: np.ndarray, out: np.ndarray) -> None:
+    for b in range(out.shape[0]):
+        out[b] = nearest_distance(point[b, 0], point[b, 1], obs_pos[b])
+
+
+def nearest_obstacle_distance(point: np.ndarray, obs_pos: np.ndarray) -> np.ndarray:
+    """``nearest_distance`` of each field's point to its obstacles.
+
+    Args:
+        point: (N, 2) m. obs_pos: (N, K, 2) m, K >= 0; any leading axes may stand for N.
+
+    Returns:
+        (N,) m; +inf where K = 0.
+    """
+    lead = obs_pos.shape[:-2]
+    out = np.empty(lead)
+    rows = int(np.prod(lead))
+    points = np.ascontiguousarray(np.broadcast_to(as_float(point), (*lead, 2))).reshape(rows, 2)
+    obstacles = np.ascontiguousarray(as_float(obs_pos)).reshape(rows, *obs_pos.shape[-2:])
+    _nearest_rows(points, obstacles, out.reshape(rows))
+    return out
 
 
 def obstacle_distance(
@@ -125,51 +134,87 @@ def obstacle_distance(
     return nearest_obstacle_distance(point, obs_pos)
 
 
+@numba.vectorize(["float64(float64, float64)"], cache=True)
+def distance_term(d: float, d_th: float) -> float:
+    """R_d: -d where d > d_th, else +10; d in m. A ufunc over arrays of any shape and, inside compiled
+    code, a function of one value."""
+    return DIST_BONUS if d <= d_th else -d
+
+
+@numba.vectorize(["float64(float64, float64)"], cache=True)
+def angle_term(delta: float, theta_th: float) -> float:
+    """R_theta: -delta / pi where delta > theta_th, else +1; delta in rad, in [0, pi]. A ufunc, as
+    ``distance_term``."""
+    return ANGLE_BONUS if delta <= theta_th else delta / -math.pi
+
+
 def distance_reward(d: ArrayLike, d_th: float = DIST_THRESHOLD) -> np.ndarray:
-    """R_d: -d where d > d_th, else +10. d: any shape, m."""
-    d = as_float(d)
-    # -d, then the bonus copied in: cheaper than np.where on a few rows. (An out array keeps a 0-d d an
-    # array, which copyto needs.)
-    reward = np.negative(d, out=np.empty_like(d))
-    np.copyto(reward, _DIST_BONUS, where=d <= d_th)
-    return reward
+    """R_d (``distance_term``) of distances d (any shape, m), the paper's D_th by default."""
+    return distance_term(d, d_th)
 
 
 def angle_reward(delta: ArrayLike, theta_th: float = ANGLE_THRESHOLD) -> np.ndarray:
-    """R_theta: -delta / pi where delta > theta_th, else +1. delta: any shape, rad in [0, pi]."""
-    delta = as_float(delta)
-    reward = np.divide(delta, _MINUS_PI, out=np.empty_like(delta))
-    np.copyto(reward, _ANGLE_BONUS, where=delta <= theta_th)
-    return reward
+    """R_theta (``angle_term``) of angle differences delta (any shape, rad), the paper's theta_th by
+    default."""
+    return angle_term(delta, theta_th)
 
 
 @numba.njit(cache=True)
 def shaping_term(d: float, delta: float, d_th: float, theta_th: float) -> float:
-    """R_d + R_theta of one distance d (m) and angle difference delta (rad): ``distance_reward`` plus
-    ``angle_reward`` on one value each, for the compiled per-robot loops (tests/manager/test_rewards.py
-    holds them equal)."""
-    r_d = DIST_BONUS if d <= d_th else -d
-    return r_d + (ANGLE_BONUS if delta <= theta_th else delta / -math.pi)
+    """R_d + R_theta of one distance d (m) and angle difference delta (rad), for the compiled loops."""
+    return distance_term(d, d_th) + angle_term(delta, theta_th)
 
 
-@numba.njit(cache=True)
-def obstacle_term(o: float) -> float:
-    """R_obst of one distance o (m, may be +inf), for ``obstacle_reward`` and the compiled loops."""
+@numba.vectorize(["float64(float64)"], cache=True)
+def obstacle_reward(o: float) -> float:
+    """R_obst = -N(o; 0, 1) = -exp(-o^2 / 2) / sqrt(2 pi). o: any shape, m (may be +inf). A ufunc, as
+    ``distance_reward``."""
     return math.exp(o * o * -0.5) / -math.sqrt(2.0 * math.pi)
 
 
 @numba.njit(cache=True)
-def _obstacle_terms(o: np.ndarray, out: np.ndarray) -> None:
-    for b in range(o.shape[0]):
-        out[b] = obstacle_term(o[b])
+def reward_terms(
+    success: bool,
+    hit: bool,
+    nearest: float,
+    success_paid: float,
+    hit_paid: float,
+    replace_success: bool,
+    replace_hit: bool,
+    obstacle_task: bool,
+) -> tuple[bool, float, float, float]:
+    """How one robot's control step pays beyond R_d + R_theta: (whether the shaping terms count, R_t,
+    R_obst, R_hit); the step's reward is their sum in that order. A hit fails the episode, so R_t is not
+    paid on the step of a hit even where ``success`` holds; "replace" modes pay R_t instead of the
+    shaping terms and R_hit alone. ``nearest``: the distance R_obst reads (m, may be +inf);
+    ``success_paid`` and ``hit_paid``: R_t and R_hit as weighted; R_obst and R_hit only in the Obstacle
+    task (``obstacle_task``)."""
+    success = success and not hit
+    shaping = not (replace_success and success)
+    paid = success_paid if success else 0.0
+    if not obstacle_task:
+        return shaping, paid, 0.0, 0.0
+    if replace_hit and hit:
+        return False, 0.0, 0.0, hit_paid
+    return shaping, paid, obstacle_reward(nearest), hit_paid if hit else 0.0
 
 
-def obstacle_reward(o: ArrayLike) -> np.ndarray:
-    """R_obst = -N(o; 0, 1) = -exp(-o^2 / 2) / sqrt(2 pi). o: any shape, m (may be +inf)."""
-    o = np.asarray(o, dtype=np.float64)
-    out = np.empty(o.shape)
-    _obstacle_terms(o.reshape(-1), out.reshape(-1))
-    return out
+@numba.njit(cache=True)
+def _reward_rows(
+    success: np.ndarray,
+    hit: np.ndarray,
+    nearest: np.ndarray,
+    paid: np.ndarray,
+    modes: tuple[bool, bool, bool],
+    shaping: np.ndarray,
+    terms: np.ndarray,
+) -> None:
+    """``reward_terms`` of rows (B,): whether the shaping counts into ``shaping`` (B,), R_t, R_obst and R_hit
+    into ``terms`` (B, 3)."""
+    for b in range(success.shape[0]):
+        shaping[b], terms[b, 0], terms[b, 1], terms[b, 2] = reward_terms(
+            success[b], hit[b], nearest[b], paid[0], paid[1], *modes
+        )
 
 
 @dataclass(frozen=True)
@@ -199,13 +244,6 @@ def check_task(task: str) -> None:
         raise ValueError(f"unknown task {task!r}; expected one of {TASKS}")
 
 
-def _paid(flag: np.ndarray, amount: float) -> np.ndarray:
-    """``amount`` where ``flag`` (bool), else 0: a copy into zeros, a third of a bool-float product's cost."""
-    term = np.zeros(np.shape(flag))
-    np.copyto(term, amount, where=flag)
-    return term
-
-
 def combine_rewards(
     shaping: dict[str, np.ndarray],
     success: np.ndarray,
@@ -221,17 +259,21 @@ def combine_rewards(
     shaping terms made beforehand gives the same bits. A hit fails the episode: R_t is not paid on the step
     of a hit, even where ``success`` holds.
     """
-    if hit is not None:
-        success = success > hit
-    terms = dict(shaping)
-    if options.success_mode == "replace":
-        terms = {name: np.where(success, _ZERO, term) for name, term in terms.items()}
-    terms["success"] = _paid(success, options.success_weight * SUCCESS_REWARD)
-    if nearest is not None:
-        terms["obstacle"] = obstacle_reward(nearest)
-        if options.hit_mode == "replace":
-            terms = {name: np.where(hit, _ZERO, term) for name, term in terms.items()}
-        terms["hit"] = _paid(hit, options.hit_weight * HIT_REWARD)
+    success = np.asarray(success, dtype=bool)
+    rows = success.size
+    obstacle_task = nearest is not None
+    hit = np.zeros(success.shape, dtype=bool) if hit is None else np.asarray(hit, dtype=bool)
+    nearest = np.zeros(success.shape) if nearest is None else as_float(nearest)
+    paid = np.array([options.success_weight * SUCCESS_REWARD, options.hit_weight * HIT_REWARD])
+    modes = (options.success_mode == "replace", options.hit_mode == "replace", obstacle_task)
+    keep, paid_terms = np.empty(rows, dtype=bool), np.empty((rows, 3))
+    flat = (a.reshape(rows) for a in np.broadcast_arrays(success, hit, nearest))
+    _reward_rows(*flat, paid, modes, keep, paid_terms)
+    keep, paid_terms = keep.reshape(success.shape), paid_terms.reshape(*success.shape, 3)
+    terms = {name: np.where(keep, term, 0.0) for name, term in shaping.items()}
+    terms["success"] = paid_terms[..., 0]
+    if obstacle_task:
+        terms["obstacle"], terms["hit"] = paid_terms[..., 1], paid_terms[..., 2]
     total, *rest = terms.values()
     for term in rest:
         total = total + term

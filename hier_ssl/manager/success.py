@@ -6,6 +6,9 @@ d <= D_th, a difference only on a set of measure zero.
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
 from hier_ssl.manager.rewards import (
@@ -14,29 +17,41 @@ from hier_ssl.manager.rewards import (
     check_task,
     measured_errors,
     nearest_obstacle_distance,
-    vector_length,
 )
 
 SPEED_THRESHOLD = 0.05  # m/s: the robot counts as stopped below this
 COLLISION_DISTANCE = 0.2  # m, centre to centre: two robot radii of 0.09 m plus a margin
 
 
-def pose_reached(d: np.ndarray, delta: np.ndarray, d_th: float, theta_th: float) -> np.ndarray:
-    """The measured pose is within d_th of the target and theta_th of its heading: d, delta (N,) -> (N,)
-    bool."""
-    return (d < d_th) & (delta < theta_th)
+@numba.vectorize(["boolean(float64, float64, float64, float64)"], cache=True)
+def pose_reached(d: float, delta: float, d_th: float, theta_th: float) -> bool:
+    """The measured pose is within d_th of the target and theta_th of its heading: d, delta (any shape) ->
+    bool. A ufunc over arrays and, inside compiled code, a function of one value (the core's scoring)."""
+    return d < d_th and delta < theta_th
+
+
+@numba.vectorize(
+    ["boolean(float64, float64, float64, float64, float64, float64, float64, float64, boolean)"], cache=True
+)
+def settled(
+    x: float, y: float, vx: float, vy: float, tx: float, ty: float, d_th: float, speed_th: float, near: bool
+) -> bool:
+    """The robot at (x, y) moving at (vx, vy) is slower than speed_th and, if ``near``, within d_th of the
+    target point (tx, ty). A ufunc, as ``pose_reached``."""
+    if not math.sqrt(vx * vx + vy * vy) < speed_th:
+        return False
+    dx, dy = x - tx, y - ty
+    return not near or math.sqrt(dx * dx + dy * dy) < d_th
 
 
 def robot_settled(
     task: str, target: np.ndarray, robot_pos: np.ndarray, robot_vel: np.ndarray, d_th: float, speed_th: float
 ) -> np.ndarray:
-    """The robot is slower than speed_th and, in the action-centric tasks, within d_th of the target (its
+    """``settled``: in the action-centric tasks the robot must also be within d_th of the target (its
     heading is not checked: docs/paper.md, public code).
     target (N, 5); robot_pos, robot_vel (N, 2) -> (N,) bool."""
-    settled = vector_length(robot_vel) < speed_th
-    if task == "baseline":
-        return settled
-    return settled & (vector_length(robot_pos - target[..., 0:2]) < d_th)
+    x, y, vx, vy = robot_pos[..., 0], robot_pos[..., 1], robot_vel[..., 0], robot_vel[..., 1]
+    return settled(x, y, vx, vy, target[..., 0], target[..., 1], d_th, speed_th, task != "baseline")
 
 
 def task_success(

@@ -76,8 +76,8 @@ class TrajectoryParams:
     threshold_max_collision_time: float = 4.0  # MotionLessObstacleResultAcceptor (s)
     t_max: float = 1.0  # ConstVelocityObstacle.tMax: constant-velocity prediction (s)
     # hier_ssl's: m beyond the collision distance, for the obstacles' unpredicted motion (checks cover the
-    # motion between them: ``first_collisions``). Frame skip 1, seed 7: formation 99.2 % success / 0 %
-    # collisions at 0.05 against 97.5 / 1.7 at 0.1 (20 episodes); obstacle and crowd 100 / 0 at both.
+    # motion between them: ``first_collisions``); a wider one closes the gaps formation's robots drive
+    # through (docs/research-notes.md, "The trajectory planner's settings").
     obstacle_margin: float = 0.05
     motionless_speed: float = 0.1  # hier_ssl's: m/s under which an obstacle is still
     seed: int = 0

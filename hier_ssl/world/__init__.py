@@ -1,11 +1,14 @@
 """The world: field geometry, robot bodies, obstacle behaviours and contacts, N fields stepped together.
 
-Everything crosses this boundary as arrays with a leading (fields, robots) pair of axes. Drawing
+A world's fields hold entities of the kinds it simulates (``entities.py``: robots now, the ball next),
+added in groups by a scenario. Everything crosses this boundary as arrays with a leading (fields, entities
+of one kind) pair of axes. Drawing
 (``hier_ssl.world.render``, matplotlib) is imported where it is used.
 """
 
 from __future__ import annotations
 
+from hier_ssl.world.entities import KINDS, Entities
 from hier_ssl.world.field import FIELDS, Field, get_field
 from hier_ssl.world.frames import to_field_frame, to_robot_frame, wrap_angle
 from hier_ssl.world.obstacles import (
@@ -21,8 +24,10 @@ from hier_ssl.world.physics import RobotSpec, RobotState, World
 
 __all__ = [
     "FIELDS",
+    "KINDS",
     "OBSTACLE_AGENT_OBS_DIM",
     "OBSTACLES",
+    "Entities",
     "Field",
     "PublicCodeRandom",
     "RandomWalk",

@@ -23,6 +23,7 @@ import numpy as np
 import pymunk
 
 from hier_ssl.world.blocks import ROBOT, FieldBlock, block_bounds
+from hier_ssl.world.entities import Entities, robots
 from hier_ssl.world.exchange import unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.frames import _COMPLEX, all_finite, as_float
@@ -43,12 +44,15 @@ _PREPARED = {
 
 
 class World:
-    """``num_fields`` fields with ``num_robots`` robots each, one ``step`` for all.
+    """``num_fields`` fields holding the same ``entities`` each (``hier_ssl.world.entities``: groups of
+    entities by kind, as a scenario adds them; an int is that many robots), one ``step`` for all.
 
-    Fields are laid out on a grid, far enough apart that nothing crosses from one to another. Robot
-    indices are the caller's: which robots are controlled and which are obstacles is not the world's
-    business. ``state`` is replaced, never modified, by ``step`` and ``set_state``: a state a caller keeps
-    stays as it was. Bodies must not be added to or removed from the ``blocks``' spaces.
+    Fields are laid out on a grid, far enough apart that nothing crosses from one to another. Each kind's
+    state has a leading (fields, entities of the kind) pair of axes: ``states["robot"]``, also ``state``,
+    the robots' (``num_robots`` of them). Which robots are controlled and which are obstacles is the
+    groups' business, not the world's. A state is replaced, never modified, by ``step`` and ``set_state``:
+    a state a caller keeps stays as it was. Bodies must not be added to or removed from the ``blocks``'
+    spaces.
 
     A world pickles and copies: the copy has the same bodies, contacts and joint impulses and steps bit
     for bit as the original while no robot touches two bodies at once. When one does, Chipmunk's broad
@@ -59,7 +63,7 @@ class World:
     def __init__(
         self,
         num_fields: int,
-        num_robots: int,
+        entities: Entities | int,
         field: Field | str = "hardware_challenge",
         robot: RobotSpec | None = None,
         dt: float = 0.025,
@@ -68,15 +72,21 @@ class World:
     ) -> None:
         if not (isinstance(num_fields, int | np.integer) and num_fields >= 1):
             raise ValueError(f"num_fields must be an integer >= 1, got {num_fields!r}")
-        if not (isinstance(num_robots, int | np.integer) and num_robots >= 1):
-            raise ValueError(f"num_robots must be an integer >= 1, got {num_robots!r}")
+        if isinstance(entities, int | np.integer) and entities >= 1:
+            entities = robots(int(entities))
+        elif not isinstance(entities, Entities):
+            raise ValueError(f"num_robots must be an integer >= 1, got {entities!r}")
+        num_robots = entities.count("robot")
+        if num_robots < 1:
+            raise ValueError("a world needs at least one robot in every field")
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt!r}")
         if not (isinstance(substeps, int) and substeps >= 1):
             raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
         self.field = get_field(field) if isinstance(field, str) else field
         self.robot = robot or RobotSpec()
-        self.num_fields, self.num_robots = int(num_fields), int(num_robots)
+        self.entities = entities
+        self.num_fields, self.num_robots = int(num_fields), num_robots
         self.dt, self.substeps = float(dt), substeps
         self._sub_dt = self.dt / substeps
 
@@ -187,6 +197,11 @@ class World:
         self._contacts_set = True
 
     # -- state --------------------------------------------------------------------------------------------
+
+    @property
+    def states(self) -> dict[str, RobotState]:
+        """Every kind's state, by kind."""
+        return {"robot": self.state}
 
     def _read_state(self) -> RobotState:
         for block in self.blocks:

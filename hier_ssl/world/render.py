@@ -3,9 +3,10 @@ and trails, drawn with matplotlib's Agg canvas (headless, no pyplot state)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.figure import Figure
@@ -44,6 +45,7 @@ def render_fields(
     robot: RobotSpec | None = None,
     collisions: np.ndarray | None = None,
     collision_robot: Sequence[int] | None = None,
+    extra: Callable[[Axes], None] | None = None,
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
@@ -58,6 +60,8 @@ def render_fields(
     ``ROBOT_COLORS``. ``robot`` gives the disc radius (default: ``RobotSpec()``). ``collisions`` (C, 2) are
     points of this field where controlled robots hit another robot, marked with a cross above everything
     else in the colour of the robot ``collision_robot[c]`` (an index among the controlled ones; default 0).
+    ``extra`` draws on the axes (field frame, m) what a scenario adds, above the field's lines and under
+    everything else.
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -72,6 +76,8 @@ def render_fields(
     colors, controlled = _robot_colors(teams)
     canvas, ax, line_pt = _canvas(field, width, height)
     _draw_field(ax, field, line_pt)
+    if extra is not None:
+        extra(ax)
     if trails is not None:
         _draw_trails(ax, trails, trail_robot, colors, line_pt)
     if subgoals is not None:
@@ -94,21 +100,24 @@ def render_fields(
     ax.add_collection(discs)
     ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
     if collisions is not None:
-        points = np.asarray(collisions, dtype=float).reshape(-1, 2)
-        owner = [0] * len(points) if collision_robot is None else collision_robot
-        marks = {
-            "marker": COLLISION_MARKER,
-            "edgecolors": "#101010",
-            "linewidths": 0.8 * line_pt,
-            "zorder": 8,
-        }
-        cross = [colors[controlled[j]] for j in _owner_indices(owner, len(points), len(controlled))]
-        ax.scatter(points[:, 0], points[:, 1], s=(12 * line_pt) ** 2, c=cross, **marks)
+        _draw_collisions(ax, collisions, collision_robot, [colors[i] for i in controlled], line_pt)
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba())[..., :3].copy()
     if image.shape != (height, width, 3):
         raise RuntimeError(f"matplotlib drew {image.shape}, expected {(height, width, 3)}")
     return image
+
+
+def _draw_collisions(
+    ax: Axes, collisions: np.ndarray, owner: Sequence[int] | None, colors: list[str], line_pt: float
+) -> None:
+    """Crosses at the points ``collisions`` (C, 2), each in the colour of its controlled robot ``owner[c]``
+    (an index into ``colors``, the controlled robots' colours; default 0), above everything else."""
+    points = np.asarray(collisions, dtype=float).reshape(-1, 2)
+    owner = [0] * len(points) if owner is None else owner
+    marks = {"marker": COLLISION_MARKER, "edgecolors": "#101010", "linewidths": 0.8 * line_pt, "zorder": 8}
+    cross = [colors[j] for j in _owner_indices(owner, len(points), len(colors))]
+    ax.scatter(points[:, 0], points[:, 1], s=(12 * line_pt) ** 2, c=cross, **marks)
 
 
 def _robot_colors(teams: np.ndarray) -> tuple[list[str], np.ndarray]:

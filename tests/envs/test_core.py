@@ -5,7 +5,7 @@ import pytest
 
 from hier_ssl.config import EnvConfig, ObstacleConfig
 from hier_ssl.envs.core import HierarchicalCore
-from hier_ssl.envs.scenario import Layout
+from hier_ssl.envs.scenario import Placement
 from hier_ssl.manager import encode_subgoal, task_reward
 
 
@@ -107,12 +107,12 @@ def test_collision_ends_obstacle_episode_as_failure() -> None:
     assert collisions >= 8
 
 
-def _settled_beside_an_obstacle(m: int, rng: np.random.Generator) -> Layout:
+def _settled_beside_an_obstacle(num_fields: int, rng: np.random.Generator) -> Placement:
     """Each robot at rest on its target (heading 0.3 rad), a still obstacle 0.15 m from it: inside the
     collision distance (0.2 m), so its first control step both reaches the target and hits."""
-    pos = np.tile([[0.5, 0.2], [0.65, 0.2]], (m, 1, 1))
-    target = np.tile([0.5, 0.2, 0.3, 0.0, 0.0], (m, 1, 1))
-    return Layout(pos, np.tile([0.3, 0.0], (m, 1)), target)
+    pos = np.tile([[0.5, 0.2], [0.65, 0.2]], (num_fields, 1, 1))
+    target = np.tile([0.5, 0.2, 0.3, 0.0, 0.0], (num_fields, 1, 1))
+    return Placement(pos, np.tile([0.3, 0.0], (num_fields, 1)), target)
 
 
 def test_a_hit_on_the_step_of_a_success_is_a_collision_in_the_core_and_the_pettingzoo_view() -> None:
@@ -204,7 +204,7 @@ def test_starts_in_contact_are_refused_unless_allowed_and_then_end_as_collisions
     assert result.terminated[inside, 0].all()
 
 
-def test_a_scenario_layout_of_the_wrong_shape_is_named_at_reset() -> None:
+def test_a_scenario_placement_of_the_wrong_shape_is_named_at_reset() -> None:
     """A scenario is a user's class: what its ``reset_world_at`` returns is checked where it enters (the
     core's reset, and ``World.set_state`` for the robots), naming the array; nothing is reset."""
     from hier_ssl.envs import make_scenario
@@ -215,8 +215,8 @@ def test_a_scenario_layout_of_the_wrong_shape_is_named_at_reset() -> None:
     before = core.state.pos.copy()
     good = scenario.reset_world_at
     bad = {
-        "target": lambda m, rng: Layout(good(m, rng).pos, good(m, rng).angle, np.zeros((m, 5))),
-        "pos": lambda m, rng: Layout(np.zeros((m, 1, 2)), np.zeros((m, 2)), np.zeros((m, 1, 5))),
+        "target": lambda f, rng: Placement(good(f, rng).pos, good(f, rng).angle, np.zeros((f, 5))),
+        "pos": lambda f, rng: Placement(np.zeros((f, 1, 2)), np.zeros((f, 2)), np.zeros((f, 1, 5))),
     }
     for name, reset in bad.items():
         scenario.reset_world_at = reset

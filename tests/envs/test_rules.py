@@ -1,5 +1,6 @@
 """The core's bound rules (``hier_ssl.envs.rules.Rules``) give, bit for bit, what the pure functions of
-``hier_ssl.manager`` give for the same rows, whether a decision's part is held or computed per step."""
+``hier_ssl.manager`` give for the same rows, whether the decision terms are computed once a decision or
+per step."""
 
 from __future__ import annotations
 
@@ -64,8 +65,8 @@ def test_rules_are_the_pure_functions_bit_for_bit(task: str, modes: tuple[str, s
     )
     assert success.any() and not success.all() and hit.any()
     rows = (r["target"], r["subgoal"], r["pos"], r["angle"], r["vel"], r["others"], touching)
-    for held in (rules.hold(r["target"], r["subgoal"]), None):
-        got_reward, got_success, got_hit = rules(held, *rows)
+    for terms in (rules.decision_terms(r["target"], r["subgoal"]), None):
+        got_reward, got_success, got_hit = rules(terms, *rows)
         np.testing.assert_array_equal(got_success, success)
         np.testing.assert_array_equal(got_hit, hit)
         np.testing.assert_array_equal(got_reward, reward)

@@ -226,22 +226,22 @@ def test_rsl_rl_adapter_accepts_the_vector_view() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
-def test_layouts_keep_robots_apart_on_the_field(name: str) -> None:
+def test_placements_keep_robots_apart_on_the_field(name: str) -> None:
     config = scenario_config(name, num_agents=4, num_obstacles=3)
-    layout = make_scenario(config).reset_world_at(50, np.random.default_rng(0))
+    placement = make_scenario(config).reset_world_at(50, np.random.default_rng(0))
     gap = 2 * config.collision_distance
-    for points in (layout.pos, layout.target[..., 0:2]):
+    for points in (placement.pos, placement.target[..., 0:2]):
         d = np.linalg.norm(points[:, :, None] - points[:, None], axis=-1)
         d[:, np.arange(d.shape[1]), np.arange(d.shape[1])] = np.inf
         assert d.min() >= gap
     half = np.array([4.5, 3.0])
-    assert (np.abs(layout.pos) <= half).all() and (np.abs(layout.target[..., 0:2]) <= half).all()
+    assert (np.abs(placement.pos) <= half).all() and (np.abs(placement.target[..., 0:2]) <= half).all()
 
 
 def test_crossing_targets_are_antipodal() -> None:
-    layout = make_scenario(scenario_config("crossing")).reset_world_at(5, np.random.default_rng(0))
-    np.testing.assert_allclose(layout.target[..., 0:2], -layout.pos[:, :6])
-    np.testing.assert_allclose(np.linalg.norm(layout.pos, axis=-1), 2.5)
+    placement = make_scenario(scenario_config("crossing")).reset_world_at(5, np.random.default_rng(0))
+    np.testing.assert_allclose(placement.target[..., 0:2], -placement.pos[:, :6])
+    np.testing.assert_allclose(np.linalg.norm(placement.pos, axis=-1), 2.5)
 
 
 def test_config_errors_name_the_key() -> None:

@@ -245,7 +245,7 @@ class SAC:
                 self.generator,
             )
         actor_loss = actor_loss + caps_temporal + caps_spatial
-        if terms:  # added last, as the runs of docs/results.md were trained
+        if terms:  # added last: float addition is not associative, and a seeded run repeats only in one order
             actor_loss = actor_loss + terms["imitation"]
         return actor_loss, log_pi, {"caps_temporal": caps_temporal, "caps_spatial": caps_spatial, **terms}
 

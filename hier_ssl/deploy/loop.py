@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from math import inf
 
 from hier_ssl.deploy.controller import Controller
+from hier_ssl.deploy.guard import ClockGuard, frame_times_valid
 from hier_ssl.deploy.net import CommandSender, ControlServer, receive
 from hier_ssl.deploy.wire import DetectionFrame, FieldSize, PacketError, parse_response, parse_vision
 
@@ -135,6 +136,7 @@ class DeployLoop:
         self.sender, self.control, self.clock = sender, control, clock
         self.stats = LoopStats()
         self.world = WorldTime() if lockstep else None
+        self.vision_clock = ClockGuard()  # frames stamped at times no camera could send are dropped ("time")
         self.selector = selectors.DefaultSelector()
         self.selector.register(vision, selectors.EVENT_READ, "vision")
         self.selector.register(sender.sock, selectors.EVENT_READ, "response")
@@ -212,6 +214,12 @@ class DeployLoop:
                 self.stats.dropped[err.reason] += 1
                 continue
             if isinstance(parsed, DetectionFrame):
+                if not (
+                    frame_times_valid(parsed.t_capture, parsed.t_sent)
+                    and self.vision_clock.accept(parsed.t_sent, arrival, time.time())
+                ):
+                    self.stats.dropped["time"] += 1
+                    continue
                 self.controller.on_frame(parsed, arrival)
                 if self.world is not None:
                     self.world.add(parsed, arrival)

@@ -12,14 +12,21 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hier_ssl.deploy.game import game_rules
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
+from hier_ssl.game.legal import RowRules, cap_speed
+from hier_ssl.game.referee import RefereeState
 from hier_ssl.world.physics import RobotState
 
 MAX_AGE = 0.05  # s: a robot unseen for longer is stopped (the loop ticks at most 35 ms apart: < 100 ms)
 OTHERS_AGE = 0.5  # s: an other robot unseen for longer is no longer an obstacle
 FEEDBACK = ("command", "tracked", "model")
+# The share of a speed limit the commands are capped at: the robots reach their commands within the
+# acceleration limits and vision measures their speed with noise; a robot at the limit itself would be
+# called for the smallest overshoot.
+LIMIT_SHARE = 0.9
 
 
 def check_target(robot: object, target: object, robots: Sequence[int], reach: np.ndarray) -> np.ndarray:
@@ -84,6 +91,10 @@ class Controller:
         self.was_live = np.zeros(len(robots), dtype=bool)
         self.since_decision = 0
         self.decide_now = True
+        # The referee's state in force (None: no referee, no rules), set by the loop before each tick, and
+        # the rules made of it (``game_rules``), kept while the state is the same object.
+        self.referee: RefereeState | None = None
+        self._rules: tuple[RefereeState | None, RowRules | None] = (None, None)
 
     def set_target(self, robot: object, target: object) -> None:
         """Give controlled ``robot`` a new target (``check_target``); it decides at the next period."""
@@ -107,7 +118,10 @@ class Controller:
         """Commands of one control period at monotonic time ``now``: a zero command for every robot that is
         not live, the worker's command toward the held sub-goal for the others."""
         live, t = self.live(now), self.tracker.vision_time(now)
-        if not live.any():
+        rules = self.rules()
+        halted = rules is not None and not (rules.speed > 0).any()  # HALT: no robot may move
+        if not live.any() or halted:
+            self.decide_now = self.decide_now or halted  # out of a HALT, the robots decide afresh
             self.was_live, self.sent = live, np.zeros_like(self.sent)
             # Stopping: the modelled robots brake too (a zero command needs no heading).
             self.model_vel, self.model_spin = self.view.respond(
@@ -123,16 +137,28 @@ class Controller:
         state = view.state(rows, view.fields(rows))
         grid = live.reshape(view.n, view.m)
         if self.decide_now or self.since_decision >= view.frame_skip or (live & ~self.was_live).any():
-            view.decide(state, grid)
+            view.decide(state, grid, rules)
             self.since_decision, self.decide_now = 0, False
         self.since_decision += 1
         self.was_live = live
         self.sent = np.where(grid[..., None], view.commands(self._feedback(state)), 0.0)
+        if rules is not None:
+            limit = LIMIT_SHARE * rules.speed.reshape(view.n, view.m)
+            self.sent[..., 0:2] = cap_speed(self.sent[..., 0:2], limit)
         self.model_vel, self.model_spin = view.respond(
             self.model_vel, self.model_spin, self.sent, state.angle[:, : view.m]
         )
         command = self.sent.reshape(-1, 3)
         return self._told([(robot, *map(float, command[i])) for i, robot in enumerate(self.robots)], t)
+
+    def rules(self) -> RowRules | None:
+        """The rules of the controlled robots under ``referee`` (None without a referee)."""
+        if self.referee is None:
+            return None
+        if self._rules[0] is not self.referee:
+            rules = game_rules(self.referee, self.view.field, self.team, self.robots)
+            self._rules, self.decide_now = (self.referee, rules), True  # new rules: decide under them now
+        return self._rules[1]
 
     def _told(self, commands: list[Command], t: float) -> list[Command]:
         """``commands``, told to the tracker as sent at vision time ``t``: its filters' control input."""
@@ -159,4 +185,4 @@ class Controller:
         return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
 
 
-__all__ = ["FEEDBACK", "MAX_AGE", "Controller", "check_target"]
+__all__ = ["FEEDBACK", "LIMIT_SHARE", "MAX_AGE", "Controller", "check_target"]

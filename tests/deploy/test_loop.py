@@ -100,7 +100,8 @@ class Running:
 
 def _frame(t: float, team: str = "blue", robot: int = 0) -> bytes:
     seen = (wire.Detection(team, robot, 0.0, 0.0, 0.0),)
-    return wire.encode_detection(int(t * 60), wire.DetectionFrame(t, t, 0, seen))
+    # frame_number is a uint32: a UNIX time counted in 60 Hz frames overflows it
+    return wire.encode_detection(int(t * 60) % 2**32, wire.DetectionFrame(t, t, 0, seen))
 
 
 def _fuzz(rng: np.random.Generator) -> Iterator[bytes]:

@@ -27,6 +27,7 @@ FEEDBACK = ("command", "tracked", "model")
 # acceleration limits and vision measures their speed with noise; a robot at the limit itself would be
 # called for the smallest overshoot.
 LIMIT_SHARE = 0.9
+BALL_AGE = 1.0  # s: a ball unseen for longer is not known (out of sight, or picked up)
 
 
 def check_target(robot: object, target: object, robots: Sequence[int], reach: np.ndarray) -> np.ndarray:
@@ -92,9 +93,13 @@ class Controller:
         self.since_decision = 0
         self.decide_now = True
         # The referee's state in force (None: no referee, no rules), set by the loop before each tick, and
-        # the rules made of it (``game_rules``), kept while the state is the same object.
+        # the rules made of it and the ball (``game_rules``), kept while both are the same.
         self.referee: RefereeState | None = None
-        self._rules: tuple[RefereeState | None, RowRules | None] = (None, None)
+        self._rules: tuple[RefereeState | None, tuple[float, float] | None, RowRules | None] = (
+            None,
+            None,
+            None,
+        )
 
     def set_target(self, robot: object, target: object) -> None:
         """Give controlled ``robot`` a new target (``check_target``); it decides at the next period."""
@@ -118,7 +123,7 @@ class Controller:
         """Commands of one control period at monotonic time ``now``: a zero command for every robot that is
         not live, the worker's command toward the held sub-goal for the others."""
         live, t = self.live(now), self.tracker.vision_time(now)
-        rules = self.rules()
+        rules = self.rules(now)
         halted = rules is not None and not (rules.speed > 0).any()  # HALT: no robot may move
         if not live.any() or halted:
             self.decide_now = self.decide_now or halted  # out of a HALT, the robots decide afresh
@@ -151,14 +156,20 @@ class Controller:
         command = self.sent.reshape(-1, 3)
         return self._told([(robot, *map(float, command[i])) for i, robot in enumerate(self.robots)], t)
 
-    def rules(self) -> RowRules | None:
-        """The rules of the controlled robots under ``referee`` (None without a referee)."""
+    def rules(self, now: float) -> RowRules | None:
+        """The rules of the controlled robots under ``referee`` at monotonic ``now`` (None without a
+        referee), the ball where vision saw it within ``BALL_AGE``."""
         if self.referee is None:
             return None
-        if self._rules[0] is not self.referee:
-            rules = game_rules(self.referee, self.view.field, self.team, self.robots)
-            self._rules, self.decide_now = (self.referee, rules), True  # new rules: decide under them now
-        return self._rules[1]
+        fresh = now - self.tracker.ball_seen <= BALL_AGE
+        ball = self.tracker.ball if fresh else None
+        referee, held_ball, _ = self._rules
+        if referee is not self.referee or held_ball != ball:
+            rules = game_rules(self.referee, self.view.field, self.team, self.robots, ball)
+            # A new command: decide under it now; a ball that moved: the next decision plans round it.
+            self.decide_now = self.decide_now or referee is not self.referee
+            self._rules = (self.referee, ball, rules)
+        return self._rules[2]
 
     def _told(self, commands: list[Command], t: float) -> list[Command]:
         """``commands``, told to the tracker as sent at vision time ``t``: its filters' control input."""
@@ -185,4 +196,4 @@ class Controller:
         return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
 
 
-__all__ = ["FEEDBACK", "LIMIT_SHARE", "MAX_AGE", "Controller", "check_target"]
+__all__ = ["BALL_AGE", "FEEDBACK", "LIMIT_SHARE", "MAX_AGE", "Controller", "check_target"]

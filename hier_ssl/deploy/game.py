@@ -14,10 +14,10 @@ or none yet, the controller holds at STOP's limits: the last command may be over
 strictest state in which robots still may move out of the way.
 
 ``game_rules`` turns the state into what the controller plans with: each controlled robot's zones
-(``forbidden_zones``; the keeper from the message's team info) and the speed limit (0 in HALT, 1.5 m/s in
-STOP). The tracker does not track the ball: a ball placement's zone is built around the designated
-position (both ends of its stadium there), and STOP's and the free kicks' zones around the ball are left
-out until the ball is tracked.
+(``forbidden_zones``; the keeper from the message's team info; the ball where a camera saw it last,
+``Tracker.ball``) and the speed limit (0 in HALT, 1.5 m/s in STOP). With no ball seen lately, a ball
+placement's zone is a circle around the designated position and STOP's and the free kicks' zones around
+the ball are left out.
 """
 
 from __future__ import annotations
@@ -113,17 +113,25 @@ class RefereeInput:
         self.sock.close()
 
 
-def game_rules(referee: RefereeState, field: Field, team: str, robots: Sequence[int]) -> RowRules:
+def game_rules(
+    referee: RefereeState,
+    field: Field,
+    team: str,
+    robots: Sequence[int],
+    ball: tuple[float, float] | None = None,
+) -> RowRules:
     """The rules of the controlled ``robots`` (ids of ``team``), one planner row each in their order, under
-    ``referee`` (one field): zones and speed limit (module docstring for the ball)."""
+    ``referee`` (one field) with the ``ball`` where vision saw it (m; None: not known): zones and speed
+    limit. Without a ball, a ball placement's zone is a circle around the designated position and the
+    other commands' zones around the ball are left out: there is no position to put them at."""
     own = BLUE if team == "blue" else YELLOW
     ids = np.asarray(robots, dtype=np.int64)
     players = lineup(np.full(len(ids), own), ids)
-    ball = referee.placement  # the designated position: the one ball position known without tracking it
-    zones = forbidden_zones(referee, ball, field, players)
-    if not is_placement(referee.command).all():
+    at = referee.placement if ball is None else np.asarray(ball, dtype=float)[None]
+    zones = forbidden_zones(referee, at, field, players)
+    if ball is None and not is_placement(referee.command).all():
         kind = zones.kind.copy()
-        kind[..., BALL] = NONE  # the ball is not tracked: no zone around a position it may not be at
+        kind[..., BALL] = NONE
         zones = replace(zones, kind=kind)
     return row_rules(zones, speed_limit(referee))
 

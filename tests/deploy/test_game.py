@@ -312,3 +312,34 @@ def test_garbage_on_the_referee_port_crashes_nothing_and_moves_no_robot() -> Non
     assert drops["referee malformed"] > 1000 and stats.frames > 0
     assert stats.moving_commands == 0
     assert loop.referee.message.command == "HALT" and drops["referee command without counter"] > 50
+
+
+def test_vision_brings_the_most_confident_ball_and_refuses_one_no_camera_could_see() -> None:
+    frame = wire.DetectionFrame(UNIX, UNIX, 1, (), ball=(1.25, -0.5))
+    assert wire.parse_vision(wire.encode_detection(3, frame)) == frame
+    packet = wire.ssl_vision_pb2.SSL_WrapperPacket()
+    packet.detection.frame_number, packet.detection.camera_id = 1, 0
+    packet.detection.t_capture = packet.detection.t_sent = UNIX
+    for confidence, x in ((0.2, 100.0), (0.9, -300.0), (0.5, 700.0)):
+        ball = packet.detection.balls.add()
+        ball.confidence, ball.x, ball.y, ball.pixel_x, ball.pixel_y = confidence, x, 0.0, 0.0, 0.0
+    assert wire.parse_vision(packet.SerializeToString()).ball == (-0.3, 0.0)
+    packet.detection.balls[0].x = 1e9
+    with pytest.raises(wire.PacketError, match="ball"):
+        wire.parse_vision(packet.SerializeToString())
+
+
+def test_under_stop_a_target_by_the_ball_seen_is_moved_off_it_and_a_ball_unseen_moves_nothing() -> None:
+    config = manager_task("direct", "proposed", frame_skip=4, worker="paper")
+    controller = Controller(DeployView("direct", 1, config), Tracker(), "blue", [0], feedback="command")
+    controller.set_target(0, [0.3, 0.0, 0.0])
+    controller.referee = referee_state(STOP, controller.view.field)
+    seen = (wire.Detection("blue", 0, -1.0, 0.0, 0.0),)
+    controller.on_frame(wire.DetectionFrame(0.0, 0.0, 0, seen), arrival=0.0)
+    controller.tick(0.01)
+    np.testing.assert_allclose(controller.view.subgoal[0, 0, 0:2], [0.3, 0.0])  # no ball seen: no zone
+    controller.on_frame(wire.DetectionFrame(0.02, 0.02, 0, seen, ball=(0.4, 0.0)), arrival=0.02)
+    controller.set_target(0, [0.3, 0.0, 0.0])
+    controller.tick(0.03)
+    gap = np.hypot(*(controller.view.subgoal[0, 0, 0:2] - [0.4, 0.0]))
+    assert gap >= 0.5 + 0.09  # rules 5.1.1: 0.5 m from the ball, measured from the robot's edge

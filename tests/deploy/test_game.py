@@ -4,11 +4,16 @@ the next tick, STOP slows every robot within a second, garbage on the referee po
 
 from __future__ import annotations
 
+import json
+import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections import Counter
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -343,3 +348,48 @@ def test_under_stop_a_target_by_the_ball_seen_is_moved_off_it_and_a_ball_unseen_
     controller.tick(0.03)
     gap = np.hypot(*(controller.view.subgoal[0, 0, 0:2] - [0.4, 0.0]))
     assert gap >= 0.5 + 0.09  # rules 5.1.1: 0.5 m from the ball, measured from the robot's edge
+
+
+def test_the_deploy_command_takes_a_referee_address_and_counts_its_drops() -> None:
+    root = Path(__file__).parents[2]
+    robots = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    robots.bind(("127.0.0.1", 0))
+    command = [
+        sys.executable,
+        "-m",
+        "hier_ssl.cli",
+        "deploy",
+        "direct",
+        "--vision",
+        "127.0.0.1:0",
+        "--commands",
+        f"grsim:127.0.0.1:{robots.getsockname()[1]}",
+        "--team",
+        "blue",
+        "--robots",
+        "0",
+        "--task",
+        "proposed",
+        "--referee",
+        "127.0.0.1:0",
+        "--duration",
+        "1.0",
+    ]
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, cwd=root, env=env)
+    gc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    gc.bind(("127.0.0.1", 0))
+    try:
+        ports = json.loads(process.stdout.readline())
+        to = ("127.0.0.1", ports["referee_port"])
+        gc.sendto(_message("HALT", 1, time.time()), to)
+        gc.sendto(_message("HALT", 0, time.time()), to)  # the counter went back
+        gc.sendto(b"not a referee message", to)
+        assert process.wait(timeout=30) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+        gc.close()
+        robots.close()
+    summary = json.loads(process.stdout.readline())
+    assert summary["dropped"] == {"referee counter": 1, "referee malformed": 1}

@@ -354,27 +354,9 @@ def test_the_deploy_command_takes_a_referee_address_and_counts_its_drops() -> No
     root = Path(__file__).parents[2]
     robots = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     robots.bind(("127.0.0.1", 0))
-    command = [
-        sys.executable,
-        "-m",
-        "hier_ssl.cli",
-        "deploy",
-        "direct",
-        "--vision",
-        "127.0.0.1:0",
-        "--commands",
-        f"grsim:127.0.0.1:{robots.getsockname()[1]}",
-        "--team",
-        "blue",
-        "--robots",
-        "0",
-        "--task",
-        "proposed",
-        "--referee",
-        "127.0.0.1:0",
-        "--duration",
-        "1.0",
-    ]
+    options = "deploy direct --vision 127.0.0.1:0 --team blue --robots 0 --task proposed --duration 1.0"
+    command = [sys.executable, "-m", "hier_ssl.cli", *options.split(), "--referee", "127.0.0.1:0"]
+    command += ["--commands", f"grsim:127.0.0.1:{robots.getsockname()[1]}"]
     env = {**os.environ, "PYTHONPATH": str(root)}
     process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, cwd=root, env=env)
     gc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

@@ -375,3 +375,30 @@ def test_the_deploy_command_takes_a_referee_address_and_counts_its_drops() -> No
         robots.close()
     summary = json.loads(process.stdout.readline())
     assert summary["dropped"] == {"referee counter": 1, "referee malformed": 1}
+
+
+@pytest.mark.parametrize("form", ["run", "torchscript"])
+def test_a_learned_managers_sub_goal_is_kept_off_the_ball_and_under_the_stop_speed(
+    tmp_path: Path, form: str
+) -> None:
+    from hier_ssl.deploy.bench import untrained_export
+
+    exported = untrained_export(tmp_path, "obstacle")
+    manager = str(exported.parent if form == "run" else exported)
+    config = manager_task(manager)
+    inside = 0
+    for k, x in enumerate(np.linspace(-1.5, 1.5, 7)):
+        subgoals = []
+        for referee in (None, referee_state(STOP, get_field(config.field))):
+            controller = Controller(DeployView(manager, 1, config), Tracker(), "blue", [0])
+            controller.set_target(0, [-x, 0.8, 0.0])
+            controller.referee = referee
+            seen = (wire.Detection("blue", 0, x, 0.0, 0.3 * k),)
+            controller.on_frame(wire.DetectionFrame(0.0, 0.0, 0, seen, ball=(x + 0.1, 0.0)), arrival=0.0)
+            controller.tick(0.01)
+            subgoals.append(controller.view.subgoal[0, 0].copy())
+        free, ruled = subgoals
+        inside += np.hypot(free[0] - x - 0.1, free[1]) < 0.59
+        assert np.hypot(ruled[0] - x - 0.1, ruled[1]) >= 0.59  # 0.5 m from the ball plus the robot's radius
+        assert np.hypot(*ruled[3:5]) <= STOP_SPEED + 1e-9
+    assert inside  # without the rules, the untrained manager put sub-goals by the ball

@@ -180,6 +180,7 @@ class Game:
             commands = tick(now)
             message = self.loop.referee.message
             self.ticks.append((time.monotonic(), None if message is None else message.command, commands))
+            self.held.append((time.monotonic(), int(self.loop.controller.referee.command[0]), commands))
             return commands
 
         def recorded_step(*args: object, **kwargs: object) -> tuple:
@@ -189,6 +190,8 @@ class Game:
 
         self.loop.controller.tick, self.server.core.control_step = recorded_tick, recorded_step
         self.command, self.counter, self.stop = "FORCE_START", 0, threading.Event()
+        self.silent = threading.Event()  # set: the game controller sends nothing
+        self.held: list[tuple[float, int, list]] = []  # (time, the command the controller plays, commands)
         self.gc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.gc.bind(("127.0.0.1", 0))
         self.to = ("127.0.0.1", self.loop.referee.sock.getsockname()[1])
@@ -200,7 +203,8 @@ class Game:
 
     def _referee(self) -> None:
         while not self.stop.wait(0.05):
-            self.gc.sendto(_message(self.command, self.counter, time.time()), self.to)
+            if not self.silent.is_set():
+                self.gc.sendto(_message(self.command, self.counter, time.time()), self.to)
 
     def say(self, command: str) -> float:
         self.command, self.counter = command, self.counter + 1
@@ -402,3 +406,15 @@ def test_a_learned_managers_sub_goal_is_kept_off_the_ball_and_under_the_stop_spe
         assert np.hypot(ruled[0] - x - 0.1, ruled[1]) >= 0.59  # 0.5 m from the ball plus the robot's radius
         assert np.hypot(*ruled[3:5]) <= STOP_SPEED + 1e-9
     assert inside  # without the rules, the untrained manager put sub-goals by the ball
+
+
+def test_a_referee_silent_for_a_second_holds_the_robots_at_stop_on_loopback() -> None:
+    with Game() as game:
+        _wait(lambda: any(any(c[0][1:]) and m == "FORCE_START" for _, m, c in game.ticks))
+        game.silent.set()
+        muted = time.monotonic()
+        _wait(lambda: time.monotonic() > muted + SILENCE + 0.5)
+    held = [(command, c) for t, command, c in game.held if t > muted + SILENCE + 0.05]
+    assert held and all(command == STOP for command, _ in held)
+    speeds = [np.hypot(*c[0][1:3]) for _, c in held]
+    assert max(speeds) <= 0.9 * STOP_SPEED + 1e-9 and max(speeds) > 0  # slowed, not halted

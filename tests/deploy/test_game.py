@@ -418,3 +418,19 @@ def test_a_referee_silent_for_a_second_holds_the_robots_at_stop_on_loopback() ->
     assert held and all(command == STOP for command, _ in held)
     speeds = [np.hypot(*c[0][1:3]) for _, c in held]
     assert max(speeds) <= 0.9 * STOP_SPEED + 1e-9 and max(speeds) > 0  # slowed, not halted
+
+
+@pytest.mark.parametrize(("command", "kept_off"), [("DIRECT_FREE_YELLOW", True), ("DIRECT_FREE_BLUE", False)])
+def test_a_free_kick_keeps_only_the_other_team_off_the_ball(
+    referee_input: RefereeInput, command: str, kept_off: bool
+) -> None:
+    config = manager_task("direct", "proposed", frame_skip=4, worker="paper")
+    controller = Controller(DeployView("direct", 1, config), Tracker(), "blue", [0], feedback="command")
+    controller.set_target(0, [0.3, 0.0, 0.0])
+    assert referee_input.take(_message(command, 1, UNIX), "127.0.0.1", 0.0, UNIX) is None
+    controller.referee = referee_input.current(0.0)
+    seen = (wire.Detection("blue", 0, -1.0, 0.0, 0.0),)
+    controller.on_frame(wire.DetectionFrame(0.0, 0.0, 0, seen, ball=(0.4, 0.0)), arrival=0.0)
+    controller.tick(0.01)
+    gap = np.hypot(*(controller.view.subgoal[0, 0, 0:2] - [0.4, 0.0]))
+    assert (gap >= 0.59) == kept_off  # rules 5.3.3: the defending team keeps 0.5 m from the ball

@@ -89,6 +89,18 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="tick on each world step's frames, for a field server in lockstep (hier-ssl field --lockstep)",
     )
+    deploy.add_argument(
+        "--referee",
+        default=None,
+        metavar="HOST:PORT",
+        help="receive the game controller's Referee messages there (a multicast group joins on "
+        "--vision-interface) and play by its rules: HALT stops, STOP and free kicks keep the zones and speed",
+    )
+    deploy.add_argument(
+        "--referee-source",
+        default=None,
+        help="the only sender IP whose referee packets are accepted (default: --vision-source)",
+    )
     deploy.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     deploy.set_defaults(func=_deploy)
 
@@ -114,11 +126,14 @@ def _deploy(args: argparse.Namespace) -> int:
         args.worker_feedback,
         args.priority,
         args.lockstep,
+        args.referee,
+        args.referee_source,
     )
     _one_thread()
     loop = build_loop(settings)
     ports = {"vision_port": loop.vision.getsockname()[1], "commands": list(loop.sender.address)}
     ports["control_port"] = loop.control.port if loop.control is not None else None
+    ports["referee_port"] = loop.referee.sock.getsockname()[1] if loop.referee is not None else None
     print(json.dumps(ports), flush=True)
     try:
         stats = loop.run(_stop_on_signals(), args.duration)

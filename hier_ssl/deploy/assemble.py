@@ -9,6 +9,7 @@ from typing import Any
 import yaml
 
 from hier_ssl.deploy.controller import Controller
+from hier_ssl.deploy.game import RefereeInput
 from hier_ssl.deploy.loop import PRIORITY, DeployLoop
 from hier_ssl.deploy.net import CommandSender, ControlServer, command_target, open_vision, parse_address
 from hier_ssl.deploy.tracker import Tracker
@@ -67,6 +68,8 @@ class DeploySettings:
     feedback: str = "model"
     priority: int = PRIORITY
     lockstep: bool = False
+    referee: str | None = None
+    referee_source: str | None = None  # None: ``source``
 
 
 def build_loop(settings: DeploySettings) -> DeployLoop:
@@ -83,6 +86,14 @@ def build_loop(settings: DeploySettings) -> DeployLoop:
     control = None
     if settings.control_port is not None:
         control = ControlServer(settings.control_port, controller.set_target)
+    referee = None
+    if settings.referee is not None:
+        ref_host, ref_port = parse_address(settings.referee, any_port=True)
+        referee = RefereeInput(
+            open_vision(ref_host, ref_port, settings.vision_interface),
+            settings.referee_source or settings.source,
+            view.field,
+        )
     return DeployLoop(
         controller,
         vision,
@@ -91,6 +102,7 @@ def build_loop(settings: DeploySettings) -> DeployLoop:
         control,
         priority=settings.priority,
         lockstep=settings.lockstep,
+        referee=referee,
     )
 
 

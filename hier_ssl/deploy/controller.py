@@ -12,14 +12,22 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hier_ssl.deploy.game import game_rules
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
+from hier_ssl.game.legal import RowRules, cap_speed
+from hier_ssl.game.referee import RefereeState
 from hier_ssl.world.physics import RobotState
 
 MAX_AGE = 0.05  # s: a robot unseen for longer is stopped (the loop ticks at most 35 ms apart: < 100 ms)
 OTHERS_AGE = 0.5  # s: an other robot unseen for longer is no longer an obstacle
 FEEDBACK = ("command", "tracked", "model")
+# The share of a speed limit the commands are capped at: the robots reach their commands within the
+# acceleration limits and vision measures their speed with noise; a robot at the limit itself would be
+# called for the smallest overshoot.
+LIMIT_SHARE = 0.9
+BALL_AGE = 1.0  # s: a ball unseen for longer is not known (out of sight, or picked up)
 
 
 def check_target(robot: object, target: object, robots: Sequence[int], reach: np.ndarray) -> np.ndarray:
@@ -84,6 +92,14 @@ class Controller:
         self.was_live = np.zeros(len(robots), dtype=bool)
         self.since_decision = 0
         self.decide_now = True
+        # The referee's state in force (None: no referee, no rules), set by the loop before each tick, and
+        # the rules made of it and the ball (``game_rules``), kept while both are the same.
+        self.referee: RefereeState | None = None
+        self._rules: tuple[RefereeState | None, tuple[float, float] | None, RowRules | None] = (
+            None,
+            None,
+            None,
+        )
 
     def set_target(self, robot: object, target: object) -> None:
         """Give controlled ``robot`` a new target (``check_target``); it decides at the next period."""
@@ -107,7 +123,10 @@ class Controller:
         """Commands of one control period at monotonic time ``now``: a zero command for every robot that is
         not live, the worker's command toward the held sub-goal for the others."""
         live, t = self.live(now), self.tracker.vision_time(now)
-        if not live.any():
+        rules = self.rules(now)
+        halted = rules is not None and not (rules.speed > 0).any()  # HALT: no robot may move
+        if not live.any() or halted:
+            self.decide_now = self.decide_now or halted  # out of a HALT, the robots decide afresh
             self.was_live, self.sent = live, np.zeros_like(self.sent)
             # Stopping: the modelled robots brake too (a zero command needs no heading).
             self.model_vel, self.model_spin = self.view.respond(
@@ -123,16 +142,34 @@ class Controller:
         state = view.state(rows, view.fields(rows))
         grid = live.reshape(view.n, view.m)
         if self.decide_now or self.since_decision >= view.frame_skip or (live & ~self.was_live).any():
-            view.decide(state, grid)
+            view.decide(state, grid, rules)
             self.since_decision, self.decide_now = 0, False
         self.since_decision += 1
         self.was_live = live
         self.sent = np.where(grid[..., None], view.commands(self._feedback(state)), 0.0)
+        if rules is not None:
+            limit = LIMIT_SHARE * rules.speed.reshape(view.n, view.m)
+            self.sent[..., 0:2] = cap_speed(self.sent[..., 0:2], limit)
         self.model_vel, self.model_spin = view.respond(
             self.model_vel, self.model_spin, self.sent, state.angle[:, : view.m]
         )
         command = self.sent.reshape(-1, 3)
         return self._told([(robot, *map(float, command[i])) for i, robot in enumerate(self.robots)], t)
+
+    def rules(self, now: float) -> RowRules | None:
+        """The rules of the controlled robots under ``referee`` at monotonic ``now`` (None without a
+        referee), the ball where vision saw it within ``BALL_AGE``."""
+        if self.referee is None:
+            return None
+        fresh = now - self.tracker.ball_seen <= BALL_AGE
+        ball = self.tracker.ball if fresh else None
+        referee, held_ball, _ = self._rules
+        if referee is not self.referee or held_ball != ball:
+            rules = game_rules(self.referee, self.view.field, self.team, self.robots, ball)
+            # A new command: decide under it now; a ball that moved: the next decision plans round it.
+            self.decide_now = self.decide_now or referee is not self.referee
+            self._rules = (self.referee, ball, rules)
+        return self._rules[2]
 
     def _told(self, commands: list[Command], t: float) -> list[Command]:
         """``commands``, told to the tracker as sent at vision time ``t``: its filters' control input."""
@@ -159,4 +196,4 @@ class Controller:
         return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
 
 
-__all__ = ["FEEDBACK", "MAX_AGE", "Controller", "check_target"]
+__all__ = ["BALL_AGE", "FEEDBACK", "LIMIT_SHARE", "MAX_AGE", "Controller", "check_target"]

@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 from math import inf
 
 from hier_ssl.deploy.controller import Controller
+from hier_ssl.deploy.game import RefereeInput
+from hier_ssl.deploy.guard import ClockGuard, frame_times_valid
 from hier_ssl.deploy.net import CommandSender, ControlServer, receive
 from hier_ssl.deploy.wire import DetectionFrame, FieldSize, PacketError, parse_response, parse_vision
 
@@ -127,6 +129,7 @@ class DeployLoop:
         clock: Callable[[], float] = time.monotonic,
         priority: int = PRIORITY,
         lockstep: bool = False,
+        referee: RefereeInput | None = None,
     ) -> None:
         if not 0 <= priority <= 99:
             raise ValueError(f"priority {priority}: expected 0 (time-shared) or a SCHED_FIFO priority 1..99")
@@ -135,11 +138,15 @@ class DeployLoop:
         self.sender, self.control, self.clock = sender, control, clock
         self.stats = LoopStats()
         self.world = WorldTime() if lockstep else None
+        self.vision_clock = ClockGuard()  # frames stamped at times no camera could send are dropped ("time")
         self.selector = selectors.DefaultSelector()
         self.selector.register(vision, selectors.EVENT_READ, "vision")
         self.selector.register(sender.sock, selectors.EVENT_READ, "response")
         if control is not None:
             self.selector.register(control.listener, selectors.EVENT_READ, "listener")
+        self.referee = referee  # the game controller: its state holds from the next tick
+        if referee is not None:
+            self.selector.register(referee.sock, selectors.EVENT_READ, "referee")
 
     def run(self, stop: threading.Event, duration: float | None = None) -> LoopStats:
         """Run until ``stop`` is set or ``duration`` seconds pass; then stop every robot."""
@@ -172,6 +179,8 @@ class DeployLoop:
 
     def _tick(self, now: float, arrival: float | None) -> None:
         """Send the controller's commands of monotonic time ``now``; keep the latency from ``arrival``."""
+        if self.referee is not None:
+            self.controller.referee = self.referee.current(self.clock())
         self._send(self.controller.tick(now))
         if arrival is not None and self.stats.ticks >= WARMUP_TICKS:
             self.stats.latencies.append(self.clock() - arrival)
@@ -183,12 +192,16 @@ class DeployLoop:
         self.sender.close()
         if self.control is not None:
             self.control.shutdown()
+        if self.referee is not None:
+            self.referee.close()
 
     def _handle(self, key: selectors.SelectorKey) -> float | None:
         """Serve one ready socket; the arrival time of the newest camera frame it brought, if any."""
         if key.data == "vision":
             return self._read_vision()
-        if key.data == "response":
+        if key.data == "referee":
+            self.referee.read(self.clock(), self.stats.dropped)
+        elif key.data == "response":
             self._read_responses()
         elif key.data == "listener":
             client = self.control.accept()
@@ -212,6 +225,12 @@ class DeployLoop:
                 self.stats.dropped[err.reason] += 1
                 continue
             if isinstance(parsed, DetectionFrame):
+                if not (
+                    frame_times_valid(parsed.t_capture, parsed.t_sent)
+                    and self.vision_clock.accept(parsed.t_sent, arrival, time.time())
+                ):
+                    self.stats.dropped["time"] += 1
+                    continue
                 self.controller.on_frame(parsed, arrival)
                 if self.world is not None:
                     self.world.add(parsed, arrival)

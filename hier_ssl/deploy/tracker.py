@@ -196,11 +196,17 @@ class Tracker:
     tracks: dict[tuple[str, int], Track] = field(default_factory=dict)
     newest_sent: float | None = None
     newest_arrival: float = 0.0
+    # The ball where a camera saw it last (m) and when (monotonic s): not filtered, the rules' zones around
+    # it need its position within centimetres, not its velocity.
+    ball: tuple[float, float] | None = None
+    ball_seen: float = -math.inf
 
     def update(self, frame: DetectionFrame, arrival: float) -> None:
         """Apply one camera frame that arrived at monotonic time ``arrival``."""
         if self.newest_sent is None or frame.t_sent >= self.newest_sent:
             self.newest_sent, self.newest_arrival = frame.t_sent, arrival
+        if frame.ball is not None:
+            self.ball, self.ball_seen = frame.ball, arrival
         cfg = self.settings
         r_pos, r_angle = cfg.pos_noise**2, cfg.angle_noise**2
         for seen in frame.robots:

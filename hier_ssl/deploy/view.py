@@ -31,6 +31,8 @@ from hier_ssl.deploy.tracker import follow
 from hier_ssl.envs import make_scenario, task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
+from hier_ssl.game.legal import RowRules, cap_speed, nearest_legal
+from hier_ssl.game.zones import Zones
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.world.field import get_field
@@ -162,7 +164,9 @@ class DeployView:
         )
         self.worker.reset(np.arange(n))
         self.robot, self.dt = RobotSpec(), config.dt
-        self.reach = np.array(get_field(config.field).wall_half_extent) - self.robot.radius
+        self.field = get_field(config.field)
+        self.reach = np.array(self.field.wall_half_extent) - self.robot.radius
+        self.planner = manager in PLANNERS
         # The core's arrays: its decoding writes sub-goals there, the observation reads targets there.
         self.target, self.subgoal = self.core.target, self.core.subgoal
 
@@ -194,18 +198,34 @@ class DeployView:
         pos = np.where(missing[..., None], corner, np.clip(picked[..., 0:2], -self.reach, self.reach))
         return RobotState(pos, picked[..., 2], picked[..., 3:5], picked[..., 5])
 
-    def decide(self, state: RobotState, live: np.ndarray) -> None:
-        """New sub-goals for the ``live`` (N, M) robots, held in ``self.subgoal`` until the next call."""
+    def decide(self, state: RobotState, live: np.ndarray, rules: RowRules | None = None) -> None:
+        """New sub-goals for the ``live`` (N, M) robots, held in ``self.subgoal`` until the next call; under
+        ``rules`` (one row per robot, field by field) where given: a planner plans with them, and every
+        manager's sub-goal is moved to its nearest legal point, its speed capped at the limit (a learned
+        manager was not trained with the rules: this is the least they ask of it)."""
         if not live.any():
             return
+        rows = live.ravel()
         if self.exported is None:
             obs = self.core.observe(state=state)
             action = np.zeros((self.n, self.m, self.core.act_dim))
-            action[live] = self.policy(obs[live])
+            if self.planner and rules is not None:
+                zones = rules.zones
+                live_rules = RowRules(
+                    Zones(zones.kind[rows], zones.shape[rows], zones.clearance[rows]), rules.speed[rows]
+                )
+                action[live] = self.policy(obs[live], rules=live_rules)
+            else:
+                action[live] = self.policy(obs[live])
             self.core.set_subgoal(action, live)
-            return
-        subgoal = self.exported(exported_rows(self.target, state, self.m)[live.ravel()])
-        self.subgoal[live] = subgoal
+        else:
+            self.subgoal[live] = self.exported(exported_rows(self.target, state, self.m)[rows])
+        if rules is not None:
+            subgoal = self.subgoal.reshape(-1, 5)  # a view: written through to the core's array
+            zones = rules.zones
+            live_zones = Zones(zones.kind[rows], zones.shape[rows], zones.clearance[rows])
+            subgoal[rows, 0:2] = nearest_legal(live_zones, subgoal[rows, 0:2])
+            subgoal[rows, 3:5] = cap_speed(subgoal[rows, 3:5], rules.speed[rows])
 
     def commanded(self, state: RobotState, sent: np.ndarray) -> RobotState:
         """``state`` with the controlled robots moving as ``sent`` (N, M, 3) commands them: (forward, left,

@@ -48,12 +48,14 @@ class Detection:
 
 @dataclass(frozen=True)
 class DetectionFrame:
-    """One camera frame: capture and send times (s, the vision machine's clock), camera, robots."""
+    """One camera frame: capture and send times (s, the vision machine's clock), camera, robots, and the
+    ball the camera is surest of (x, y m; None when it saw none)."""
 
     t_capture: float
     t_sent: float
     camera: int
     robots: tuple[Detection, ...]
+    ball: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -99,6 +101,18 @@ def _robot(team: str, robot: ssl_vision_pb2.SSL_DetectionRobot) -> Detection:
     return Detection(team, robot.robot_id, robot.x / 1000.0, robot.y / 1000.0, angle)
 
 
+def _ball(balls: Any) -> tuple[float, float] | None:
+    """The most confident of a frame's balls (m), or None; ``PacketError`` for one no camera could see."""
+    best = None
+    for ball in balls:
+        _finite("ball", ball.x, ball.y, ball.confidence)
+        if abs(ball.x) > MAX_COORD_MM or abs(ball.y) > MAX_COORD_MM:
+            raise PacketError("invalid", f"ball at ({ball.x}, {ball.y}) mm")
+        if best is None or ball.confidence > best.confidence:
+            best = ball
+    return None if best is None else (best.x / 1000.0, best.y / 1000.0)
+
+
 def parse_vision(data: bytes) -> DetectionFrame | FieldSize:
     """An ``SSL_WrapperPacket`` as its detection frame (or, for a geometry-only packet, the field size);
     ``PacketError`` for anything else."""
@@ -111,7 +125,7 @@ def parse_vision(data: bytes) -> DetectionFrame | FieldSize:
             for team, robots in (("blue", frame.robots_blue), ("yellow", frame.robots_yellow))
             for robot in robots
         )
-        return DetectionFrame(frame.t_capture, frame.t_sent, frame.camera_id, robots)
+        return DetectionFrame(frame.t_capture, frame.t_sent, frame.camera_id, robots, _ball(frame.balls))
     if packet.HasField("geometry"):
         size = packet.geometry.field
         return FieldSize(size.field_length / 1000.0, size.field_width / 1000.0, size.boundary_width / 1000.0)
@@ -131,6 +145,10 @@ def encode_detection(frame_number: int, frame: DetectionFrame) -> bytes:
         robot.pixel_x = robot.pixel_y = 0.0
         if seen.angle is not None:
             robot.orientation = seen.angle
+    if frame.ball is not None:
+        ball = out.balls.add()
+        ball.confidence, ball.x, ball.y = 1.0, frame.ball[0] * 1000.0, frame.ball[1] * 1000.0
+        ball.pixel_x = ball.pixel_y = 0.0
     return packet.SerializeToString()
 
 

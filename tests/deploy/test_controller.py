@@ -38,7 +38,7 @@ def test_decisions_come_every_frame_skip_periods_and_on_a_new_target() -> None:
     controller = _controller(frame_skip=4)
     calls = []
     decide = controller.view.decide
-    controller.view.decide = lambda state, live: (calls.append(live.copy()), decide(state, live))
+    controller.view.decide = lambda s, live, rules: (calls.append(live.copy()), decide(s, live, rules))
     controller.set_target(0, [1.0, 0.0, 0.0])
     for k in range(9):
         _see(controller, k * 0.025, (0, 0.0, 0.0, 0.0))

@@ -59,7 +59,7 @@ def test_a_signal_stops_every_robot_before_exit(sig: signal.Signals) -> None:
         received, signalled = [], None
         start = time.monotonic()
         while time.monotonic() - start < 10 and process.poll() is None:
-            vision.sendto(_frame(time.monotonic()), to)  # robot 0 in sight throughout
+            vision.sendto(_frame(time.time()), to)  # robot 0 in sight throughout; vision stamps UNIX time
             try:
                 received.append((time.monotonic(), wire.parse_grsim(robots.recv(4096))[1]))
             except TimeoutError:

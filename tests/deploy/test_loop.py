@@ -100,7 +100,8 @@ class Running:
 
 def _frame(t: float, team: str = "blue", robot: int = 0) -> bytes:
     seen = (wire.Detection(team, robot, 0.0, 0.0, 0.0),)
-    return wire.encode_detection(int(t * 60), wire.DetectionFrame(t, t, 0, seen))
+    # frame_number is a uint32: a UNIX time counted in 60 Hz frames overflows it
+    return wire.encode_detection(int(t * 60) % 2**32, wire.DetectionFrame(t, t, 0, seen))
 
 
 def _fuzz(rng: np.random.Generator) -> Iterator[bytes]:
@@ -160,7 +161,7 @@ def test_a_robot_out_of_sight_is_stopped_within_100_ms(robots: Robots) -> None:
     try:
         start = time.monotonic()
         while time.monotonic() - start < 0.5:
-            running.send(_frame(time.monotonic()))
+            running.send(_frame(time.time()))
             time.sleep(1 / 60)
         lost = time.monotonic()
         time.sleep(0.3)
@@ -253,10 +254,10 @@ def test_in_lockstep_the_loop_ticks_once_per_world_step_and_stops_a_robot_out_of
     # own clock while frames come; once they stop, the stop within 100 ms.
     running = Running(_loop(robots, lockstep=True))
     try:
-        steps = 15
+        steps, epoch = 15, time.time()  # world time starts at UNIX time, as the field server's does
         for k in range(steps):
             sent = time.monotonic()
-            running.send(_frame(100.0 + k * 0.025))
+            running.send(_frame(epoch + k * 0.025))
             time.sleep(0.04)
         time.sleep(0.3)
     finally:

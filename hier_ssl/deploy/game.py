@@ -1,0 +1,139 @@
+"""The game controller's word in the deploy loop: Referee messages in, the rules the controller plans with.
+
+``RefereeInput`` reads the referee socket (unicast, from one source address) and keeps the state in force.
+What no game controller sends is dropped and counted by reason, beside the vision's drops: what does not
+parse (``hier_ssl.deploy.referee``), a packet time that jumps (``ClockGuard``, as for the cameras), a
+command counter that goes back (mod 2^32), a command that changes while the counter stays (the game
+controller counts every command it issues, so a new command without a new count is a corrupt packet, not
+a decision: one changed byte must not turn HALT into a start), a command the game does not play or a
+placement off the field. A counter that goes back to the same count and command in ``RELEARN`` packets in
+a row is a restarted game controller (or the real count after a corrupt one went ahead) and is followed.
+
+Silence: with no message accepted for ``SILENCE`` (1 s, ten of the game controller's periodic messages),
+or none yet, the controller holds at STOP's limits: the last command may be over, and STOP is the
+strictest state in which robots still may move out of the way.
+
+``game_rules`` turns the state into what the controller plans with: each controlled robot's zones
+(``forbidden_zones``; the keeper from the message's team info; the ball where a camera saw it last,
+``Tracker.ball``) and the speed limit (0 in HALT, 1.5 m/s in STOP). With no ball seen lately, a ball
+placement's zone is a circle around the designated position and STOP's and the free kicks' zones around
+the ball are left out.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import replace
+from math import inf
+
+import numpy as np
+
+from hier_ssl.deploy.guard import RELEARN, ClockGuard, counter_went_back
+from hier_ssl.deploy.net import receive
+from hier_ssl.deploy.referee import RefereeMessage, game_state, parse_referee
+from hier_ssl.deploy.wire import PacketError
+from hier_ssl.game.legal import RowRules, row_rules
+from hier_ssl.game.referee import BLUE, STOP, YELLOW, RefereeState, is_placement, lineup, referee_state
+from hier_ssl.game.zones import BALL, NONE, forbidden_zones, speed_limit
+from hier_ssl.world.field import Field
+
+SILENCE = 1.0  # s without an accepted referee message before the controller holds at STOP's limits
+
+
+class RefereeInput:
+    """Referee messages from ``source`` on ``sock`` (non-blocking UDP), for the game on ``field``."""
+
+    def __init__(self, sock: socket.socket, source: str, field: Field) -> None:
+        self.sock, self.source, self.field = sock, source, field
+        self.clock = ClockGuard()
+        self.message: RefereeMessage | None = None
+        self.state: RefereeState | None = None
+        self.heard = -inf  # monotonic s of the last accepted message
+        self.accepted = 0
+        self.going_back = 0  # packets in a row whose counter went back, all saying ``back_said``
+        self.back_said: tuple[int, str] | None = None  # (counter, command)
+        self._held: tuple[RefereeState | None, RefereeState] | None = None  # (the state it holds from, STOP)
+
+    def read(self, now: float, dropped: Counter) -> None:
+        """Take every waiting datagram, arrived by monotonic ``now``; drops go to ``dropped`` by reason."""
+        while (packet := receive(self.sock)) is not None:
+            reason = self.take(packet[0], packet[1][0], now, time.time())
+            if reason is not None:
+                dropped[f"referee {reason}"] += 1
+
+    def take(self, data: bytes, sender: str, arrival: float, wall: float) -> str | None:
+        """Take one datagram from IP ``sender`` that arrived at monotonic ``arrival`` (UNIX ``wall``); the
+        reason it is dropped, or None when it is accepted."""
+        if sender != self.source:
+            return "source"
+        try:
+            message = parse_referee(data)
+        except PacketError as err:
+            return err.reason
+        if not self.clock.accept(message.sent, arrival, wall):
+            return "time"
+        last = self.message
+        if last is not None and counter_went_back(message.counter, last.counter):
+            # A restarted game controller repeats its count and command; corrupt packets scatter.
+            said = (message.counter, message.command)
+            self.going_back = self.going_back + 1 if said == self.back_said else 1
+            self.back_said = said
+            if self.going_back < RELEARN:
+                if message.command == last.command:
+                    # The game controller repeats the command in force: it is not silent, whatever count
+                    # went ahead of it (silence would hold the team at STOP's limits, moving it out of HALT).
+                    self.heard = arrival
+                return "counter"
+        elif last is not None and message.counter == last.counter and message.command != last.command:
+            return "command without counter"
+        try:
+            state = game_state(message, self.field)
+        except ValueError:
+            return "unplayable"
+        self.message, self.state, self.heard, self.going_back = message, state, arrival, 0
+        self.accepted += 1
+        return None
+
+    def current(self, now: float) -> RefereeState:
+        """The state in force at monotonic ``now``: the last message's, or STOP (its keepers and sides kept)
+        after ``SILENCE`` without one."""
+        if self.state is not None and now - self.heard <= SILENCE:
+            return self.state
+        if (
+            self._held is None or self._held[0] is not self.state
+        ):  # one object while silent: the controller's rules are kept
+            held = referee_state(STOP, self.field) if self.state is None else self.state
+            self._held = (self.state, replace(held, command=np.full_like(held.command, STOP)))
+        return self._held[1]
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def game_rules(
+    referee: RefereeState,
+    field: Field,
+    team: str,
+    robots: Sequence[int],
+    ball: tuple[float, float] | None = None,
+) -> RowRules:
+    """The rules of the controlled ``robots`` (ids of ``team``), one planner row each in their order, under
+    ``referee`` (one field) with the ``ball`` where vision saw it (m; None: not known): zones and speed
+    limit. Without a ball, a ball placement's zone is a circle around the designated position and the
+    other commands' zones around the ball are left out: there is no position to put them at."""
+    own = BLUE if team == "blue" else YELLOW
+    ids = np.asarray(robots, dtype=np.int64)
+    players = lineup(np.full(len(ids), own), ids)
+    at = referee.placement if ball is None else np.asarray(ball, dtype=float)[None]
+    zones = forbidden_zones(referee, at, field, players)
+    if ball is None and not is_placement(referee.command).all():
+        kind = zones.kind.copy()
+        kind[..., BALL] = NONE
+        zones = replace(zones, kind=kind)
+    return row_rules(zones, speed_limit(referee))
+
+
+__all__ = ["SILENCE", "RefereeInput", "game_rules"]

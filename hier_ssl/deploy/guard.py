@@ -1,0 +1,96 @@
+"""Input no camera or game controller could send, dropped before it reaches the controller.
+
+The parsers (``wire``, ``referee``) check each packet alone; what needs the receiver's clock or the packets
+before it is checked here. Both senders stamp their packets with their own clock: SSL-Vision and the game
+controller with the UNIX clock of their machine (not synchronised with ours, possibly off by seconds), the
+lockstep field server with its world time (which runs faster than the wall clock while the controller
+answers quickly, and stands still while it waits). Neither can be compared with our clock directly, so
+``ClockGuard`` compares the *offset* between a packet's time and its arrival on our monotonic clock: for a
+sender whose clock runs with ours it is constant up to the network's jitter (milliseconds), for the lockstep
+server it moves by at most a world step (25 ms) per packet. A packet whose offset jumps by more than
+``WINDOW`` from the last accepted one is dropped; a well-formed frame stamped 1e300 s or 1e6 s in the past
+(the fuzzing found both) jumps by far more.
+
+Why from the last accepted packet, not a learned average: the lockstep server's offset drifts by design,
+and a sender's clock may be stepped (NTP): the window follows it. Why ``WINDOW`` is 0.5 s: far above the
+network's jitter and a lockstep world step, far below what corrupt times are off by, and no longer than a
+robot may go unseen before it is stopped anyway (``Tracker``'s ``forget`` is 1 s). A sender that restarts
+with another clock (the vision PC rebooted, the field server restarted) sends packets that all jump from the
+old offset but agree with one another: after ``RELEARN`` such packets in a row the guard takes the new clock
+(a fuzzer's random times do not agree with one another).
+
+The first packet has nothing to be compared with. It is accepted when its time lies within ``PLAUSIBLE`` of
+this machine's UNIX clock (senders keep UNIX time, the lockstep server's world time starts at it; a day
+covers a vision PC without NTP or with a wrong time zone); otherwise the guard accepts nothing until
+``RELEARN`` packets in a row agree, so one corrupt first frame cannot set the clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+WINDOW = 0.5  # s an offset may move between accepted packets (module docstring)
+PLAUSIBLE = 86400.0  # s a first packet's time may be off this machine's UNIX clock (module docstring)
+RELEARN = 5  # packets in a row that agree on a new offset before it is taken (about 80 ms of one camera)
+COUNTER_SPAN = 1 << 32  # the referee's command counter is a uint32
+
+
+@dataclass
+class ClockGuard:
+    """Whether a packet's time fits the sender's clock as learned from the packets accepted before it."""
+
+    window: float = WINDOW
+    relearn: int = RELEARN
+    offset: float | None = None  # the last accepted packet's time minus its arrival
+    candidate: float | None = None  # the offset the dropped packets in a row agree on
+    agreeing: int = 0
+
+    def accept(self, sent: float, arrival: float, wall: float | None = None) -> bool:
+        """Whether a packet stamped ``sent`` (the sender's clock, s) that arrived at ``arrival`` (monotonic
+        s) is accepted; accepting it moves the learned offset to it. ``wall``: this machine's UNIX time at
+        the arrival, for the first packet (None: the first waits for ``relearn`` agreeing ones)."""
+        offset = sent - arrival
+        if not math.isfinite(offset):
+            return False
+        if self.offset is None and wall is not None and abs(sent - wall) <= PLAUSIBLE:
+            self.offset = offset
+            return True
+        if self.offset is not None and abs(offset - self.offset) <= self.window:
+            self.offset, self.candidate, self.agreeing = offset, None, 0
+            return True
+        if self.candidate is not None and abs(offset - self.candidate) <= self.window:
+            self.agreeing += 1
+        else:
+            self.agreeing = 1
+        self.candidate = offset
+        if self.agreeing >= self.relearn:
+            self.offset, self.candidate, self.agreeing = offset, None, 0
+            return True
+        return False
+
+
+def frame_times_valid(t_capture: float, t_sent: float, window: float = WINDOW) -> bool:
+    """Whether a camera frame was sent no earlier than it was captured (a millisecond of rounding allowed)
+    and no later than ``window`` after: SSL-Vision processes a frame in milliseconds."""
+    return -0.001 <= t_sent - t_capture <= window
+
+
+def counter_went_back(counter: int, last: int | None) -> bool:
+    """Whether the referee's command ``counter`` is behind the ``last`` accepted one, mod 2^32: a step of
+    2^31 or more forward is read as a step back (the counter counts commands, a few a minute, and wraps
+    only after 2^32 of them)."""
+    if last is None:
+        return False
+    return (counter - last) % COUNTER_SPAN >= COUNTER_SPAN // 2
+
+
+__all__ = [
+    "COUNTER_SPAN",
+    "PLAUSIBLE",
+    "RELEARN",
+    "WINDOW",
+    "ClockGuard",
+    "counter_went_back",
+    "frame_times_valid",
+]

@@ -203,10 +203,15 @@ def _render(args: argparse.Namespace) -> int:
     by_name = args.scenario in TASKS and not args.set
     config = None if by_name else task_config(args.scenario, args.set)
     task = args.scenario if by_name else None
-    (evaluation,) = compare([args.manager], config, task=task, episodes=1, seed=args.seed, record=[0])
+    (evaluation,) = compare(
+        [args.manager], config, task=task, episodes=1, seed=args.seed, record=[0], progress=True
+    )
     panels = [(evaluation.name, evaluation.result["trajectories"][0])]
-    draw = episode_video if out.suffix.lower() == ".gif" else figure3
-    path = draw(panels, get_field(evaluation.env.field), out)
+    field = get_field(evaluation.env.field)
+    if out.suffix.lower() == ".gif":
+        path = episode_video(panels, field, out, progress=True)
+    else:
+        path = figure3(panels, field, out)
     print(f"wrote {path}: {panel_title(*panels[0]).replace(chr(10), ': ')}")
     return 0
 

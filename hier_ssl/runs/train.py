@@ -139,9 +139,12 @@ class _Selection:
         )
 
 
-def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, Any]:
-    """``config.eval_episodes`` seeded episodes of the run's environment or scenario (per robot)."""
-    return evaluate(policy, config.task_config, config.eval_episodes, seed)
+def evaluate_run(
+    policy: Policy, config: TrainConfig, seed: int, progress: str | None = None
+) -> dict[str, Any]:
+    """``config.eval_episodes`` seeded episodes of the run's environment or scenario (per robot), with a
+    progress bar labelled ``progress`` where given."""
+    return evaluate(policy, config.task_config, config.eval_episodes, seed, progress=progress)
 
 
 def train(
@@ -173,10 +176,12 @@ def train(
         else:
             policy, train_wall_s = _train_ppo(config, env, run_dir, resume, on_selection=on_selection)
     # Both policies on the held-out episodes: the paper reports its final models, we keep the best.
-    final = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
+    seed, held_out = EVALUATION_SEED + config.seed, f"held-out episodes ({config.eval_episodes})"
+    final = evaluate_run(policy, config, seed, f"{held_out}, final policy" if progress else None)
     best = final
     if (run_dir / BEST_ACTOR_FILE).is_file():
-        best = evaluate_run(load_policy(run_dir, which="best"), config, EVALUATION_SEED + config.seed)
+        label = f"{held_out}, best policy" if progress else None
+        best = evaluate_run(load_policy(run_dir, which="best"), config, seed, label)
     summary = {
         "policy": "best" if best is not final else "final",
         **_figures(best),

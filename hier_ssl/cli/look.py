@@ -13,7 +13,7 @@ from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 from hier_ssl.cli.demo import run_demo
 from hier_ssl.cli.deploy import add_bench_deploy
 from hier_ssl.config import ConfigError
-from hier_ssl.config.files import config_dir, config_names
+from hier_ssl.config.files import config_dir, config_names, load_yaml
 from hier_ssl.envs import TASKS, task_config
 from hier_ssl.evaluation.compare import compare
 from hier_ssl.evaluation.figures import episode_video, figure3, panel_title
@@ -228,5 +228,11 @@ def add_configs(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _configs(args: argparse.Namespace) -> int:
-    print(config_dir() if args.dir else "\n".join(config_names()))
+    if args.dir:
+        print(config_dir())
+        return 0
+    names = config_names()
+    width = max(map(len, names))
+    for name in names:
+        print(f"{name:<{width}}  {load_yaml(name).get('description', '')}".rstrip())
     return 0

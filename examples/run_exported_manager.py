@@ -13,7 +13,11 @@ import json
 import sys
 
 import numpy as np
-import onnxruntime
+
+try:
+    import onnxruntime
+except ModuleNotFoundError:  # the one package this script needs beyond numpy
+    sys.exit("this example runs the file on onnxruntime: pip install onnxruntime (hier_ssl's export extra)")
 
 
 def main() -> None:

@@ -80,3 +80,12 @@ def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:
         x, y = map(float, re.search(r"sub-goal \(([-+.\d]+), ([-+.\d]+)\) m", line).groups())
         assert abs(x) <= 3.0 and abs(y) <= 2.0  # inside the 6 x 4 m field's lines
     assert len(tail) == 4
+
+
+def test_the_exported_manager_example_names_onnxruntime_where_it_is_missing(tmp_path: Path) -> None:
+    # As on the first README line's install, which has no onnxruntime (the export extra installs it).
+    blocked = "import sys, runpy; sys.modules['onnxruntime'] = None; sys.argv = ['x', 'm.onnx']; "
+    run = f"runpy.run_path({str(EXAMPLES / 'run_exported_manager.py')!r}, run_name='__main__')"
+    done = subprocess.run([sys.executable, "-c", blocked + run], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 1 and "pip install onnxruntime" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -130,7 +130,7 @@ def beside_planners(
     scene = make_scenario(evaluations[0].env)
     print()
     for line in closing_note(run, planners, run_config(run_dir), scene.num_agents - 1 + scene.num_obstacles):
-        print(textwrap.fill(line, width=110))
+        print(textwrap.fill(line, width=110, break_on_hyphens=False))
     paths = write_evaluation(
         evaluations,
         run_dir / "beside-planners",

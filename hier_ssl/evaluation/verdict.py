@@ -17,12 +17,22 @@ from hier_ssl.config import TrainConfig
 from hier_ssl.evaluation.paper_tables import PAPER_RESULTS, SETUP_TITLES, TASKS
 
 
-def paper_setup(config: TrainConfig) -> str:
-    """The paper's setup a run's learner is closest to: FSCAPS, Frame Skip, CAPS or Vanilla by its
-    decision period and its smoothness terms (a learner other than SAC has no CAPS terms)."""
-    skips = config.task_config.frame_skip > 1
-    caps = config.algo == "sac" and config.sac.caps
+def paper_setup(config: TrainConfig) -> str | None:
+    """The paper's setup a SAC run is: FSCAPS, Frame Skip, CAPS or Vanilla by its decision period and its
+    smoothness terms; None for another learner, which the paper did not train."""
+    if config.algo != "sac":
+        return None
+    skips, caps = config.task_config.frame_skip > 1, config.sac.caps
     return ("fscaps" if caps else "frame_skip") if skips else ("caps" if caps else "vanilla")
+
+
+def _taught_by(config: TrainConfig) -> str:
+    """Where the manager's behaviour came from, for "What it learned, ...": the reward, or a planner first."""
+    if config.algo == "candidates":
+        return "from the `sampling` planner's choices, then the task's outcomes"
+    if config.algo == "sac" and config.sac.teacher is not None:
+        return "taught by a scripted planner, then from the reward"
+    return "from the reward alone"
 
 
 def _rates(record: dict[str, Any]) -> tuple[float, float, float]:
@@ -59,8 +69,8 @@ def closing_note(
         ]
     else:
         lines = [
-            f"On this task ({task}) {others} other robot{'s' * (others > 1)} move: `direct` drives through "
-            "them (its collisions), `sampling` plans around them.",
+            f"On this task ({task}) {others} other robot{'s move' if others > 1 else ' moves'}: `direct` "
+            "drives through them (its collisions), `sampling` plans around them.",
         ]
     lines.append("The trained manager is " + "; ".join(standing(run, p) for p in planners) + ".")
     success, cpad, public = 100 * run["success_rate"], run["cpad"]["median"], run["cpad_public"]["median"]
@@ -73,14 +83,17 @@ def closing_note(
             "where `direct` keeps the target itself as its sub-goal" if others == 0 else "around the others"
         )
         learned = f"to reach the target ({success:.1f} %) with {moved}, {avoiding}"
-        lines.append(f"What it learned, from the reward alone: {learned}.")
+        lines.append(f"What it learned, {_taught_by(config)}: {learned}.")
     else:
         lines.append(f"It has not learned to reach the target ({success:.1f} % success); its {moved}.")
-    setup = paper_setup(config)
-    paper = PAPER_RESULTS.get((task, setup))
-    if task not in TASKS or paper is None:
+    if task not in TASKS:
         return [*lines, "The paper has no row for this task."]
-    row = _paper_row(task, setup, paper)
+    setup = paper_setup(config)
+    if setup is None:
+        # Not the paper's learner: its best row on the task is what a manager here would be held against.
+        best = _paper_row(task, "fscaps", PAPER_RESULTS[(task, "fscaps")])
+        return [*lines, f"The paper trained SAC only; its best row on this task: {best}."]
+    row = _paper_row(task, setup, PAPER_RESULTS[(task, setup)])
     if task == "proposed":
         baseline = _paper_row("baseline", setup, PAPER_RESULTS[("baseline", setup)])
         row += (

@@ -44,8 +44,14 @@ def test_a_task_with_other_robots_and_a_scenario_without_a_paper_row() -> None:
     obstacle = parse_config({"env": {"task": "obstacle", "frame_skip": 1}})
     assert paper_setup(obstacle) == "vanilla"
     note = closing_note(_record("run", 0.9, 0.1, 300), [DIRECT, SAMPLING], obstacle, others=1)
-    assert "1 other robot move" in note[0] and "Obstacle Vanilla" in note[-1] and "12.38 %" in note[-1]
+    assert "1 other robot moves:" in note[0] and "Obstacle Vanilla" in note[-1] and "12.38 %" in note[-1]
     assert note[2].startswith("What it learned") and "around the others" in note[2]
+    assert "from the reward alone" in note[2]
+    scorer = parse_config({"env": {"task": "obstacle"}, "algo": "candidates"})
+    assert paper_setup(scorer) is None
+    note = closing_note(_record("run", 0.997, 0.003, 109), [DIRECT, SAMPLING], scorer, others=1)
+    assert "from the `sampling` planner's choices, then the task's outcomes" in note[2]
+    assert note[-1].startswith("The paper trained SAC only; its best row on this task: Obstacle FSCAPS,")
     untrained = closing_note(_record("run", 0.0, 0.0, 1200, 3.0), [DIRECT], obstacle, others=1)
     assert untrained[2].startswith("It has not learned to reach the target (0.0 % success)")
     crossing = parse_config({"scenario": {"scenario": "crossing", "num_agents": 6}})

@@ -155,8 +155,8 @@ def test_the_readme_quotes_each_time_as_getting_started_does() -> None:
     (tour,) = _blocks(ROOT / "README.md", "A tour")["bash"]
     for command in ("train obstacle/scorer", "export runs/scorer", "render crossing"):
         (line,) = [line for line in tour.splitlines() if command in line]
-        time = re.search(r"# ((?:about )?\d[^;:]*?(?:min|s))[;:]", line)
-        assert time is not None, line
+        time = re.search(r"# ((?:about )?\d[^;:]*)[;:]", line)
+        assert time is not None and re.search(r"\d (min|s)\b", time.group(1)), line
         assert time.group(1) in guide, f"getting-started.md does not quote {time.group(1)} for {command}"
 
 

@@ -19,11 +19,7 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 
 def play(
-    core: HierarchicalCore,
-    policy: Policy,
-    seed: int,
-    record: Sequence[int] = (),
-    progress: str | None = None,
+    core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int] = (), progress: str | None = None
 ) -> dict[str, Any]:
     """Reset ``core`` (built without auto-reset) with ``seed``, one episode per field, and play every
     episode to its end; the policy acts for the live robots only (its input rows shrink as robots leave).

@@ -13,7 +13,11 @@ import json
 import sys
 
 import numpy as np
-import onnxruntime
+
+try:
+    import onnxruntime
+except ModuleNotFoundError:  # the one package this script needs beyond numpy
+    sys.exit("this example runs the file on onnxruntime: pip install onnxruntime (hier_ssl's export extra)")
 
 
 def main() -> None:
@@ -31,7 +35,18 @@ def main() -> None:
         ],
         dtype=np.float32,
     )
-    (subgoals,) = session.run(["subgoal"], {"state": states[:, :width]})  # (B, 5): x, y, theta, vx, vy
+    # The other robots the manager reads (obstacles, teammates: the layout names their columns) stand still
+    # in a row along one side line, away from these robots' paths.
+    others = layout["input_fields"][11:]
+    columns = np.zeros((len(states), len(others)), dtype=np.float32)
+    for i, name in enumerate(others):
+        robot, value = name.split("_", 1)
+        j = int(robot.lstrip("abcdefghijklmnopqrstuvwxyz"))
+        if value in ("x", "y", "teammate"):
+            columns[:, i] = {"x": -2.5 + 0.5 * j, "y": 1.8, "teammate": float(j < layout["teammates"])}[value]
+    states = np.concatenate([states, columns], axis=1)
+    assert states.shape[1] == width, (states.shape, width)
+    (subgoals,) = session.run(["subgoal"], {"state": states})  # (B, 5): x, y, theta, vx, vy
     for state, subgoal in zip(states, subgoals, strict=True):
         print(
             f"robot at ({state[5]:+.2f}, {state[6]:+.2f}) -> target ({state[0]:+.2f}, {state[1]:+.2f}): "

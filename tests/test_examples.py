@@ -80,3 +80,30 @@ def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:
         x, y = map(float, re.search(r"sub-goal \(([-+.\d]+), ([-+.\d]+)\) m", line).groups())
         assert abs(x) <= 3.0 and abs(y) <= 2.0  # inside the 6 x 4 m field's lines
     assert len(tail) == 4
+
+
+def test_the_exported_manager_example_names_onnxruntime_where_it_is_missing(tmp_path: Path) -> None:
+    # As on the first README line's install, which has no onnxruntime (the export extra installs it).
+    blocked = "import sys, runpy; sys.modules['onnxruntime'] = None; sys.argv = ['x', 'm.onnx']; "
+    run = f"runpy.run_path({str(EXAMPLES / 'run_exported_manager.py')!r}, run_name='__main__')"
+    done = subprocess.run([sys.executable, "-c", blocked + run], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 1 and "pip install onnxruntime" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_the_exported_manager_example_runs_a_manager_that_sees_obstacles(tmp_path: Path) -> None:
+    # The README's tour exports obstacle/scorer and runs this example on it: 11 + 5 columns, not 11.
+    from hier_ssl.envs import parse_config
+    from hier_ssl.runs.train import train
+
+    settings = {
+        "env": {"task": "obstacle", "frame_skip": 16, "max_steps": 160},
+        "num_envs": 4,
+        "total_steps": 50,
+    }
+    train(
+        parse_config({**settings, "eval_interval": 50, "eval_episodes": 2}), tmp_path / "run", progress=False
+    )
+    lines = _run("export_onnx.py", str(tmp_path / "run"), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    tail = lines[lines.index(next(x for x in lines if x.startswith("exported "))) + 1 :]
+    assert tail[0] == "task obstacle, frame skip 16, input columns 16" and len(tail) == 4

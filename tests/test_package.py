@@ -11,6 +11,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+import yaml
 
 import hier_ssl
 from hier_ssl import cli
@@ -77,18 +78,34 @@ def test_train_by_name_from_another_directory_reaches_validation(tmp_path: Path)
     assert list(tmp_path.iterdir()) == []
 
 
-def test_configs_command_lists_names_and_the_directory(capsys: pytest.CaptureFixture[str]) -> None:
+def test_configs_command_lists_names_descriptions_and_the_directory(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # Each file says what it trains in its own words: a variant does not inherit its base's description.
+    own = {name: yaml.safe_load((ROOT / "configs" / f"{name}.yaml").read_text()) for name in SHIPPED}
+    descriptions = {name: data.get("description") for name, data in own.items()}
+    assert all(descriptions.values()) and len(set(descriptions.values())) == len(SHIPPED)
     assert cli.main(["configs"]) == 0
-    assert capsys.readouterr().out.split() == SHIPPED
+    listed = [line.split(None, 1) for line in capsys.readouterr().out.splitlines()]
+    assert listed == [[name, descriptions[name]] for name in SHIPPED]
     assert cli.main(["configs", "--dir"]) == 0
     assert Path(capsys.readouterr().out.strip()) == config_dir()
+
+
+def test_a_description_is_one_short_line() -> None:
+    from hier_ssl.envs import parse_config
+
+    assert parse_config({"description": "Proposed task, SAC"}).description == "Proposed task, SAC"
+    for bad in ("two\nlines", "x" * 101):
+        with pytest.raises(ConfigError, match="description"):
+            parse_config({"description": bad})
 
 
 def test_version_and_python_dash_m(tmp_path: Path) -> None:
     done = _run("-m", "hier_ssl", "--version", cwd=tmp_path)
     assert done.returncode == 0 and done.stdout.strip() == f"hier-ssl {hier_ssl.__version__}"
     done = _run("-m", "hier_ssl", "configs", cwd=tmp_path)
-    assert done.returncode == 0 and done.stdout.split() == SHIPPED
+    assert done.returncode == 0 and [line.split()[0] for line in done.stdout.splitlines()] == SHIPPED
 
 
 def test_the_wheel_ships_configs_and_py_typed_and_finds_them_installed(tmp_path: Path) -> None:

@@ -131,6 +131,7 @@ def _deploy(args: argparse.Namespace) -> int:
     )
     _one_thread()
     loop = build_loop(settings)
+    loop.report = lambda line: print(line, file=sys.stderr, flush=True)
     ports = {"vision_port": loop.vision.getsockname()[1], "commands": list(loop.sender.address)}
     ports["control_port"] = loop.control.port if loop.control is not None else None
     ports["referee_port"] = loop.referee.sock.getsockname()[1] if loop.referee is not None else None

@@ -71,6 +71,7 @@ def add_eval(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="runs sample their actions (the paper's test script) instead of the mean",
     )
+    ev.add_argument("--no-progress", action="store_true", help="no progress bars")
     ev.set_defaults(func=_eval)
 
 
@@ -94,6 +95,7 @@ def _eval(args: argparse.Namespace) -> int:
         record=record,
         which=args.policy,
         sample=args.sample,
+        progress=not args.no_progress,
     )
     first = evaluations[0]
     task = first.env.scenario_name
@@ -107,7 +109,9 @@ def _eval(args: argparse.Namespace) -> int:
     for e in evaluations:
         where = f"{e.env.worker} worker, frame skip {e.env.frame_skip}"
         print(f"eval wall time {e.name} ({where}): {e.record['eval_wall_s']:.1f} s")
-    paths = write_evaluation(evaluations, out, json_path=args.json, video=args.video, title=task)
+    paths = write_evaluation(
+        evaluations, out, json_path=args.json, video=args.video, title=task, progress=not args.no_progress
+    )
     print("wrote " + ", ".join(str(p) for p in paths))
     return 0
 
@@ -129,7 +133,7 @@ def _export(args: argparse.Namespace) -> int:
     # here, not at the top: torch, for this command alone
     from hier_ssl.policies.export import export_manager
 
-    path = export_manager(args.run_dir, args.fmt, args.out)
+    path = export_manager(args.run_dir, args.fmt, args.out, progress=True)
     print(
         f"wrote {path} ({path.stat().st_size:,} bytes, {args.fmt}); input/output layout: docs/guide/export.md"
     )

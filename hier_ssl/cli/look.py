@@ -13,7 +13,7 @@ from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 from hier_ssl.cli.demo import run_demo
 from hier_ssl.cli.deploy import add_bench_deploy
 from hier_ssl.config import ConfigError
-from hier_ssl.config.files import config_dir, config_names
+from hier_ssl.config.files import config_dir, config_names, load_yaml
 from hier_ssl.envs import TASKS, task_config
 from hier_ssl.evaluation.compare import compare
 from hier_ssl.evaluation.figures import episode_video, figure3, panel_title
@@ -203,10 +203,15 @@ def _render(args: argparse.Namespace) -> int:
     by_name = args.scenario in TASKS and not args.set
     config = None if by_name else task_config(args.scenario, args.set)
     task = args.scenario if by_name else None
-    (evaluation,) = compare([args.manager], config, task=task, episodes=1, seed=args.seed, record=[0])
+    (evaluation,) = compare(
+        [args.manager], config, task=task, episodes=1, seed=args.seed, record=[0], progress=True
+    )
     panels = [(evaluation.name, evaluation.result["trajectories"][0])]
-    draw = episode_video if out.suffix.lower() == ".gif" else figure3
-    path = draw(panels, get_field(evaluation.env.field), out)
+    field = get_field(evaluation.env.field)
+    if out.suffix.lower() == ".gif":
+        path = episode_video(panels, field, out, progress=True)
+    else:
+        path = figure3(panels, field, out)
     print(f"wrote {path}: {panel_title(*panels[0]).replace(chr(10), ': ')}")
     return 0
 
@@ -223,5 +228,11 @@ def add_configs(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _configs(args: argparse.Namespace) -> int:
-    print(config_dir() if args.dir else "\n".join(config_names()))
+    if args.dir:
+        print(config_dir())
+        return 0
+    names = config_names()
+    width = max(map(len, names))
+    for name in names:
+        print(f"{name:<{width}}  {load_yaml(name).get('description', '')}".rstrip())
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -69,7 +70,7 @@ def _train(args: argparse.Namespace) -> int:
     print_summary(summary)
     print(f"wrote {run_dir / 'eval.json'}")
     if config.kind == "manager" and not args.no_planners:
-        beside_planners(run_dir, config.eval_episodes, config.seed)
+        beside_planners(run_dir, config.eval_episodes, config.seed, progress=not args.no_progress)
     return 0
 
 
@@ -86,21 +87,25 @@ def _resume_hint(run_dir: Path, save_interval: int) -> str:
 
 
 PLANNERS_SAID = (
-    "What learning bought: the trained manager beside two scripted managers on the same {episodes} held-out\n"
-    "episodes. `direct` names the target as the sub-goal (no planning at all); `sampling` is a classical\n"
+    "The trained manager beside two scripted managers on the same {episodes} held-out episodes.\n"
+    "`direct` names the target as the sub-goal (no planning at all); `sampling` is a classical\n"
     "planner that samples sub-goals and predicts the obstacles at every decision. Success: the robot\n"
     "reached the target pose and stopped; collisions: it touched another robot; length: 25 ms control\n"
     "steps to the end of the episode; CPAD: how far the sub-goal moved in all (m), lower is steadier.\n"
 )
 
 
-def beside_planners(run_dir: Path, episodes: int, seed: int, video: bool = True) -> None:
+def beside_planners(
+    run_dir: Path, episodes: int, seed: int, video: bool = True, progress: bool = False
+) -> None:
     """Print a trained manager beside the ``direct`` and ``sampling`` planners on its held-out episodes
     (eval.json's: the same seed, so its row repeats the summary's) and write Fig. 3 and a GIF of one of
     them (the GIF with ``video``) under ``run_dir/beside-planners/``."""
     # here, not at the top: torch and matplotlib, for this command alone
-    from hier_ssl.evaluation.compare import compare
+    from hier_ssl.envs import make_scenario
+    from hier_ssl.evaluation.compare import compare, run_config
     from hier_ssl.evaluation.report import write_evaluation
+    from hier_ssl.evaluation.verdict import closing_note
     from hier_ssl.runs.train import EVALUATION_SEED
 
     evaluations = compare(
@@ -108,6 +113,7 @@ def beside_planners(run_dir: Path, episodes: int, seed: int, video: bool = True)
         episodes=episodes,
         seed=EVALUATION_SEED + seed,
         record=range(min(16, episodes)),
+        progress=progress,
     )
     print("\n" + PLANNERS_SAID.format(episodes=episodes))
     print("| manager | success % | collisions % | median length | median CPAD m |\n|---|---|---|---|---|")
@@ -120,8 +126,17 @@ def beside_planners(run_dir: Path, episodes: int, seed: int, video: bool = True)
             r["cpad"]["median"],
         )
         print(f"| {e.name} | {cells[0]:.1f} | {cells[1]:.1f} | {cells[2]:.0f} | {cells[3]:.2f} |")
+    run, *planners = (e.record for e in evaluations)
+    scene = make_scenario(evaluations[0].env)
+    print()
+    for line in closing_note(run, planners, run_config(run_dir), scene.num_agents - 1 + scene.num_obstacles):
+        print(textwrap.fill(line, width=110, break_on_hyphens=False))
     paths = write_evaluation(
-        evaluations, run_dir / "beside-planners", video=video, title=evaluations[0].env.scenario_name
+        evaluations,
+        run_dir / "beside-planners",
+        video=video,
+        title=evaluations[0].env.scenario_name,
+        progress=progress,
     )
     print("wrote " + ", ".join(str(path) for path in paths))
 

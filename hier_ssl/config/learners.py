@@ -129,8 +129,8 @@ class SACConfig(BaseModel):
 
 class PPOConfig(Strict):
     """rsl-rl-lib's OnPolicyRunner settings that this project exposes. Defaults are the ones measured to
-    learn the Proposed task with frame skip (benchmarks/ppo_proposed.py); rsl-rl's own (noise 1.0, entropy
-    0.005) stall near 30 % success there, because the sub-goal must be precise to 5 cm."""
+    learn the Proposed task with frame skip (benchmarks/ppo_proposed.py at commit d6783a1); rsl-rl's own
+    (noise 1.0, entropy 0.005) stall near 30 % success there, because the sub-goal must be precise to 5 cm."""
 
     num_steps_per_env: int = Field(16, ge=1)
     learning_rate: float = Field(1e-3, gt=0)

@@ -169,6 +169,8 @@ class TrainConfig(Strict):
     """
 
     name: str = "run"
+    # One line for `hier-ssl configs`: what the config trains, in the words a reader picks one by.
+    description: str = Field("", max_length=100, pattern=r"^[^\n]*$")
     kind: Literal["manager", "worker"] = "manager"
     env: EnvConfig = Field(default_factory=EnvConfig)
     # A multi-robot scenario in place of ``env``: one manager shared by every controlled robot (SAC or

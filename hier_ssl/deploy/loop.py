@@ -4,8 +4,10 @@ A period's tick waits for the first camera frame at or after its due time (so th
 from the newest detections, and the time from that frame's arrival to the command's send is the loop's
 own latency), but never more than ``WAIT`` past it: without vision the ticks go on, and the controller
 stops the robots it no longer sees. Every datagram that is not vision from the configured source is
-dropped and counted by reason; none of them reaches the controller. On exit (``stop`` set, e.g. by
-SIGINT or SIGTERM, or ``duration`` over) every controlled robot is sent a zero command.
+dropped and counted by reason; none of them reaches the controller. While datagrams are being dropped the
+loop says so through ``report`` (at most one line a ``REPORT_EVERY``), not only in the counts at exit: a
+wrong ``--vision-source`` or a second team's SSL-Vision on the port shows at once. On exit (``stop`` set,
+e.g. by SIGINT or SIGTERM, or ``duration`` over) every controlled robot is sent a zero command.
 
 The loop's thread runs under the real-time scheduler (SCHED_FIFO at ``priority``) where the OS allows it:
 a tick computes for about a millisecond, and on cores shared with other processes (the field server, a
@@ -47,6 +49,7 @@ WARMUP_TICKS = 40  # the first second's latencies are not kept: TorchScript's fi
 STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
 PRIORITY = 10  # SCHED_FIFO priority: above every time-shared process, below interrupt threads (50)
 GATHER = 0.02  # s lockstep waits at most for the other cameras' frames of a world time (they go out together)
+REPORT_EVERY = 1.0  # s between two lines about dropped datagrams: a flood must not become a flood of lines
 
 
 def _raise_priority(priority: int) -> tuple[str, Callable[[], None]]:
@@ -117,7 +120,8 @@ class DeployLoop:
     """``controller`` fed from ``vision`` (datagrams from ``source`` only), commands out through
     ``sender``, targets in through ``control`` (optional); its thread runs at SCHED_FIFO ``priority``
     (0: time-shared) while ``run`` runs; ``lockstep`` for a field server that waits for the commands
-    (module docstring)."""
+    (module docstring). ``report`` takes a line on the datagrams dropped since the last one, while some
+    are (None: only the counts in ``stats``)."""
 
     def __init__(
         self,
@@ -130,6 +134,7 @@ class DeployLoop:
         priority: int = PRIORITY,
         lockstep: bool = False,
         referee: RefereeInput | None = None,
+        report: Callable[[str], None] | None = None,
     ) -> None:
         if not 0 <= priority <= 99:
             raise ValueError(f"priority {priority}: expected 0 (time-shared) or a SCHED_FIFO priority 1..99")
@@ -137,6 +142,9 @@ class DeployLoop:
         self.controller, self.vision, self.source = controller, vision, source
         self.sender, self.control, self.clock = sender, control, clock
         self.stats = LoopStats()
+        self.report = report
+        self._reported: Counter = Counter()  # the drops already reported, and when the last report went
+        self._reported_at = clock()
         self.world = WorldTime() if lockstep else None
         self.vision_clock = ClockGuard()  # frames stamped at times no camera could send are dropped ("time")
         self.selector = selectors.DefaultSelector()
@@ -162,6 +170,7 @@ class DeployLoop:
                 for key, _ in self.selector.select(max(0.0, wake - self.clock())):
                     arrival = self._handle(key) or arrival
                 now = self.clock()
+                self._report_drops(now)
                 if self.world is not None and self.world.ready(now):
                     # The world waits for this tick: predict to the frames' time, not to this clock's.
                     self.world.ticked, arrival = self.world.time, self.world.newest
@@ -176,6 +185,18 @@ class DeployLoop:
             self.selector.close()
             restore()
         return self.stats
+
+    def _report_drops(self, now: float) -> None:
+        """One line to ``report`` on what was dropped since the last line, if anything was and
+        ``REPORT_EVERY`` has passed since it."""
+        if self.report is None or now - self._reported_at < REPORT_EVERY:
+            return
+        new = self.stats.dropped - self._reported
+        if not new:
+            return
+        reasons = ", ".join(f"{reason} {count}" for reason, count in sorted(new.items()))
+        self.report(f"dropped {new.total()} datagrams in {now - self._reported_at:.1f} s ({reasons})")
+        self._reported, self._reported_at = self.stats.dropped.copy(), now
 
     def _tick(self, now: float, arrival: float | None) -> None:
         """Send the controller's commands of monotonic time ``now``; keep the latency from ``arrival``."""
@@ -257,4 +278,4 @@ class DeployLoop:
         self.stats.moving_commands += sum(any(c[1:]) for c in commands)
 
 
-__all__ = ["GATHER", "PERIOD", "PRIORITY", "WAIT", "DeployLoop", "LoopStats", "WorldTime"]
+__all__ = ["GATHER", "PERIOD", "PRIORITY", "REPORT_EVERY", "WAIT", "DeployLoop", "LoopStats", "WorldTime"]

@@ -61,7 +61,13 @@ def load_exported(path: str | Path) -> tuple[Callable[[np.ndarray], np.ndarray],
 
         return call, json.loads(extra["layout.json"])
     if path.suffix == ".onnx":
-        import onnxruntime
+        try:
+            import onnxruntime
+        except ModuleNotFoundError:  # an optional extra: say which, not a traceback
+            raise ValueError(
+                f"{path} is ONNX, which runs on onnxruntime: pip install -e '.[export]' (or pip install "
+                "onnxruntime), or export the run as TorchScript (--format torchscript)"
+            ) from None
 
         options = onnxruntime.SessionOptions()
         options.intra_op_num_threads = 1  # a few rows a call: a pool's wake-ups cost more than they save

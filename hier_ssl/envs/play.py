@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from hier_ssl.envs.core import HierarchicalCore
 
@@ -17,7 +18,9 @@ Policy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (B, obs_dim) -> actions (B, act_dim) in [-1, 1], one row per live robot."""
 
 
-def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int] = ()) -> dict[str, Any]:
+def play(
+    core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int] = (), progress: str | None = None
+) -> dict[str, Any]:
     """Reset ``core`` (built without auto-reset) with ``seed``, one episode per field, and play every
     episode to its end; the policy acts for the live robots only (its input rows shrink as robots leave).
     The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
@@ -28,6 +31,9 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     "trajectories": the ``record`` fields' episodes (``Recorder.episode``). ``cpad`` is the paper's
     definition (the sum of the sub-goal's moves); ``cpad_public`` what the paper's public code computed for
     its tables, the square root of the sum of the squared moves (``hier_ssl.manager.metrics.cpad``).
+
+    With ``progress`` (its label) a tqdm bar on stderr counts control steps up to the episode limit, the
+    robots whose episode ended beside it.
 
     A policy with a ``forget(count)`` method keeps a memory per robot: it is told to forget at the reset
     (``count`` = N * M robots) and called as ``policy(obs, rows=...)``, the rows' robot indices
@@ -58,6 +64,9 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
     remembers = callable(getattr(policy, "forget", None))
     if remembers:
         policy.forget(int(np.prod(shape)))
+    # Control steps, not finished robots: most episodes end near the same step, so a count of them would
+    # stand still and then jump, while the time an evaluation takes grows with its steps.
+    bar = tqdm(total=core.config.max_steps, desc=progress, unit="step", disable=progress is None, leave=False)
     while core.active.any():
         live = core.active
         if remembers:
@@ -74,6 +83,9 @@ def play(core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int
         for key in ends:
             ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]
         obs = result.obs
+        bar.update(int(core.steps.max()) - bar.n)
+        bar.set_postfix_str(f"{live.size - int(core.active.sum())}/{live.size} robots done", refresh=False)
+    bar.close()
     # A field's control steps stop counting when its last robot leaves: the recorded episode's length.
     trajectories = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)] if recorder else []
     cpad_public = np.sqrt(squared_moves)

@@ -164,7 +164,8 @@ def compare(
     ``frame_skip`` and the worker applied as to the run), so they meet that run's episodes; without a run
     they take the paper ``task``'s default environment (default "proposed"). Figures are per robot.
     Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
-    robots' ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures.
+    robots' ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures. With
+    ``progress`` each evaluation shows a progress bar on stderr.
 
     ``workers`` are specs (``"paper"``, ``"my_pkg.control:Ctrl+latency=2"``, a run directory), None (each
     manager's own), or Python objects of the worker protocol (their classes or factories too), labelled
@@ -189,8 +190,9 @@ def compare(
             labels = ("-", "-") if is_planner(spec) else (which, "sampled" if sample else "mean")
             jobs.append((manager_name(spec), acting, policy, obj, label, labels))
     evaluations = []
-    for name, acting, policy, obj, label, (checkpoint, actions) in jobs:
-        result = evaluate(policy, acting, episodes, seed, record=record, worker=obj)
+    for i, (name, acting, policy, obj, label, (checkpoint, actions)) in enumerate(jobs):
+        bar = f"{name} ({i + 1}/{len(jobs)})" if progress else None
+        result = evaluate(policy, acting, episodes, seed, record=record, worker=obj, progress=bar)
         per = result["per_robot"]
         label_outcomes(result, per["success"], per["collision"], per["cpad"])
         context = {
@@ -204,8 +206,6 @@ def compare(
             "actions": actions,
         }
         evaluations.append(Evaluation(name, acting, make_record(name, result, **context), result, label))
-        if progress:
-            print(f"  {name} ({label} worker): {result['eval_wall_s']:.1f} s", flush=True)
     return evaluations
 
 

@@ -27,6 +27,7 @@ def evaluate(
     seed: int = 0,
     record: Sequence[int] = (),
     worker: Any = None,
+    progress: str | None = None,
 ) -> dict[str, object]:
     """Run ``episodes`` episodes of the task or scenario ``config`` and summarise them per robot, driven by
     ``worker`` (a spec, or an object, class or factory of the worker protocol) where given, else by the
@@ -42,14 +43,15 @@ def evaluate(
     speed and acceleration limits, robots that succeeded), time_to_target_s_median (robots that
     succeeded, seconds), robots (episodes x M), the per-robot arrays (E, M) under "per_robot" (length,
     success, collision, cpad, cpad_public, distance), and
-    eval_wall_s. With ``record`` (episode indices), "trajectories" holds one dict per recorded episode
+    eval_wall_s. With ``progress`` (its label) a progress bar shows on stderr (``play``). With ``record``
+    (episode indices), "trajectories" holds one dict per recorded episode
     (``hier_ssl.envs.play.Recorder.episode``), every control step of it.
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     start = time.perf_counter()
     core = HierarchicalCore(config, episodes, autoreset=False, worker=worker)
-    ends = play(core, policy, seed, record)
+    ends = play(core, policy, seed, record, progress)
     length, success, collision, cpad = ends["length"], ends["success"], ends["collision"], ends["cpad"]
     distance, dt = ends["distance"], core.config.dt
     solved, nan = bool(success.any()), float("nan")

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from hier_ssl.manager.success import COLLISION_DISTANCE
 from hier_ssl.world.field import Field
@@ -128,12 +129,33 @@ def legend_entries() -> list[tuple[str, dict[str, Any]]]:
     ]
 
 
-def _legend(fig: Any, **where: Any) -> None:
-    """The legend of ``legend_entries`` on one row of ``fig``, placed by ``where`` (``Figure.legend``)."""
+def legend_columns(width_in: float, fontsize: float = 8) -> int:
+    """How many of ``legend_entries`` fit side by side in ``width_in`` inches of figure, measured by
+    drawing them (at least 1): a narrow picture (one panel) wraps its legend onto more rows instead of
+    cutting it at both edges."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, 1), dpi=100)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    for columns in range(len(legend_entries()), 1, -1):
+        legend = _legend(fig, columns, fontsize, loc="center")
+        fits = legend.get_window_extent(renderer).width <= fig.bbox.width
+        legend.remove()
+        if fits:
+            return columns
+    return 1
+
+
+def _legend(fig: Any, columns: int, fontsize: float = 8, **where: Any) -> Any:
+    """The legend of ``legend_entries`` in ``columns`` columns on ``fig``, placed by ``where``
+    (``Figure.legend``)."""
     from matplotlib.lines import Line2D
 
     handles = [Line2D([], [], label=label, **style) for label, style in legend_entries()]
-    fig.legend(handles=handles, ncol=len(handles), frameon=False, fontsize=8, handletextpad=0.3, **where)
+    return fig.legend(
+        handles=handles, ncol=columns, frameon=False, fontsize=fontsize, handletextpad=0.3, **where
+    )
 
 
 def figure3(
@@ -163,9 +185,11 @@ def figure3(
     width, height = size
     cols = min(len(panels), 4)
     rows = -(-len(panels) // cols)
-    legend_in = 0.3
+    fig_width = max(cols * width / 100, 4.4)
+    columns = legend_columns(fig_width)
+    legend_in = 0.3 * -(-len(legend_entries()) // columns)
     fig_height = rows * (height / 100 + 0.55) + (0.3 if title else 0) + legend_in
-    fig = Figure(figsize=(max(cols * width / 100, 4.4), fig_height), dpi=100)
+    fig = Figure(figsize=(fig_width, fig_height), dpi=100)
     FigureCanvasAgg(fig)
     for i, (name, episode) in enumerate(panels):
         ax = fig.add_subplot(rows, cols, i + 1)
@@ -175,7 +199,7 @@ def figure3(
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, legend_in / fig_height, 1, 1))
-    _legend(fig, loc="lower center")
+    _legend(fig, columns, loc="lower center")
     fig.savefig(path)
     return path
 
@@ -188,39 +212,68 @@ def episode_video(
     fps: int = 20,
     max_frames: int = 150,
     size: tuple[int, int] = (440, 300),
+    fontsize: float = 10,
+    progress: bool = False,
 ) -> Path:
-    """An animated GIF of the same episode under every manager, side by side, with a name strip on top.
+    """An animated GIF of the same episode under every manager, side by side, under a strip that names
+    each panel's manager, says its outcome from the frame its episode ended (not before), and holds the
+    legend in ``fontsize`` points.
 
     Frames are every ``stride`` control steps (real time at ``fps`` when stride = 1 / (fps dt)), with at
-    most ``max_frames``; a finished episode stays on its last frame.
+    most ``max_frames``; a finished episode stays on its last frame. With ``progress`` a bar counts the
+    frames drawn on stderr.
     """
-    # here, not at the top: imageio and matplotlib, for a video alone
+    # here, not at the top: imageio, for a video alone
     import imageio.v3 as iio
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
     path = Path(path)
     if path.suffix.lower() != ".gif":
         raise ValueError(f"video path must end in .gif, got {str(path)!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    width, height = size
     longest = max(len(e["robots"]) - 1 for _, e in panels)
     stride = max(2, -(-longest // max_frames))
-    # The names and the legend once, as an image strip above the panels.
-    fig = Figure(figsize=(len(panels) * width / 100, 0.75), dpi=100, facecolor="white")
-    canvas = FigureCanvasAgg(fig)
-    for i, (name, episode) in enumerate(panels):
-        label = panel_title(name, episode).split("\n")[1].split(",")[0]
-        fig.text((i + 0.5) / len(panels), 0.75, f"{name}: {label}", ha="center", va="center")
-    _legend(fig, loc="lower center", bbox_to_anchor=(0.5, 0.0))
-    canvas.draw()
-    strip = np.asarray(canvas.buffer_rgba())[..., :3]
+    steps = [*range(0, longest, stride), longest]
+    strips: dict[tuple[str, ...], np.ndarray] = {}  # one per set of finished panels, not one per frame
     frames = []
-    for step in [*range(0, longest, stride), longest]:
+    for step in tqdm(steps, desc=f"drawing {path.name}", unit="frame", disable=not progress, leave=False):
+        names = frame_labels(panels, step)
+        if names not in strips:
+            strips[names] = _strip(names, size[0], fontsize)
         row = np.concatenate([_panel(field, e, step, size, robot) for _, e in panels], axis=1)
-        frames.append(np.concatenate([strip[:, : row.shape[1]], row], axis=0))
+        frames.append(np.concatenate([strips[names][:, : row.shape[1]], row], axis=0))
     iio.imwrite(path, np.stack(frames), duration=1000 / fps, loop=0)
     return path
+
+
+def frame_labels(panels: Sequence[tuple[str, dict[str, Any]]], step: int) -> tuple[str, ...]:
+    """What the video's strip says over each panel at control step ``step``: the manager's name, and its
+    outcome ("success", "3/6 reached") only from the step its episode ended."""
+    ended = [step >= len(e["robots"]) - 1 for _, e in panels]
+    return tuple(
+        f"{name}: {panel_title(name, e).splitlines()[1].split(',')[0]}" if done else name
+        for (name, e), done in zip(panels, ended, strict=True)
+    )
+
+
+def _strip(names: Sequence[str], panel_width: int, fontsize: float) -> np.ndarray:
+    """An RGB image strip, ``panel_width`` pixels a name: each name over its panel and the legend whole
+    below them, on as many rows as it needs (``legend_columns``)."""
+    # here, not at the top: matplotlib, for drawing alone
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    width_in = len(names) * panel_width / 100
+    columns = legend_columns(width_in, fontsize)
+    rows = -(-len(legend_entries()) // columns)
+    line_in = fontsize / 72 * 1.6
+    fig = Figure(figsize=(width_in, line_in * (1 + rows) + 0.1), dpi=100, facecolor="white")
+    canvas = FigureCanvasAgg(fig)
+    top = 1 - line_in / 2 / fig.get_figheight()
+    for i, name in enumerate(names):
+        fig.text((i + 0.5) / len(names), top, name, ha="center", va="center", fontsize=fontsize)
+    _legend(fig, columns, fontsize, loc="lower center", bbox_to_anchor=(0.5, 0.0))
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3]
 
 
 def pick_episode(recorded: Sequence[Sequence[dict[str, Any]]]) -> int:
@@ -262,7 +315,9 @@ __all__ = [
     "episode_video",
     "collisions",
     "figure3",
+    "frame_labels",
     "label_outcomes",
+    "legend_columns",
     "legend_entries",
     "outcome",
     "panel_title",

@@ -186,11 +186,12 @@ def write_evaluation(
     json_path: str | Path | None = None,
     video: bool = False,
     title: str | None = None,
+    progress: bool = False,
 ) -> list[Path]:
     """What ``hier-ssl eval`` writes for ``hier_ssl.evaluation.compare.compare``'s evaluations: table.md, .csv
     and .tex, fig3.png (when episodes were recorded: of the recorded episodes in which most managers succeed,
-    the one where their paths differ most), episode.gif with ``video``, and the JSON records at ``json_path``.
-    Returns the paths written."""
+    the one where their paths differ most), episode.gif with ``video`` (its frames counted on stderr with
+    ``progress``), and the JSON records at ``json_path``. Returns the paths written."""
     out_dir = Path(out_dir)
     records = [e.record for e in evaluations]
     paths = write_tables(records, out_dir)
@@ -204,7 +205,7 @@ def write_evaluation(
         episode = f"episode {panels[0][1]['field']}" + (f" - {title}" if title else "")
         paths.append(figure3(panels, fld, out_dir / "fig3.png", title=episode))
         if video:
-            paths.append(episode_video(panels, fld, out_dir / "episode.gif"))
+            paths.append(episode_video(panels, fld, out_dir / "episode.gif", progress=progress))
     if json_path is not None:
         json_path = Path(json_path)
         json_path.parent.mkdir(parents=True, exist_ok=True)

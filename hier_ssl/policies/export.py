@@ -27,11 +27,15 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import torch
 from torch import nn
+from tqdm import tqdm
 
 from hier_ssl.checkpoints.actor import load_actor, run_config
 from hier_ssl.config import TrainConfig
@@ -242,23 +246,52 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
     return module.eval(), config
 
 
-def export_manager(run_dir: str | Path, fmt: str, out: str | Path | None = None) -> Path:
+def export_manager(
+    run_dir: str | Path, fmt: str, out: str | Path | None = None, progress: bool = False
+) -> Path:
     """Write the manager of ``run_dir`` as ``fmt`` ("torchscript" or "onnx") to ``out`` (default:
-    ``RUN_DIR/manager.pt`` or ``RUN_DIR/manager.onnx``). Returns the path written."""
+    ``RUN_DIR/manager.pt`` or ``RUN_DIR/manager.onnx``). Returns the path written. With ``progress`` a
+    bar on stderr names the step under way and counts its seconds."""
     if fmt not in FORMATS:
         raise ValueError(f"unknown export format {fmt!r}; expected one of {sorted(FORMATS)}")
-    module, config = exported_manager(run_dir)
-    out = Path(out) if out is not None else Path(run_dir) / f"manager{FORMATS[fmt]}"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    example = torch.zeros(2, STATE_BASE_DIM + module.width * module.num_others)
-    meta = json.dumps(layout(config))
-    if fmt == "torchscript":
-        with warnings.catch_warnings():  # torch 2.13 deprecates TorchScript; C++ stacks still load it
-            warnings.simplefilter("ignore", DeprecationWarning)
-            torch.jit.save(torch.jit.script(module), str(out), _extra_files={"layout.json": meta})
-    else:
-        _export_onnx(module, example, out, meta)
+    bar_format = "{desc}: step {n_fmt}/{total_fmt}{postfix} [{elapsed}]"
+    with tqdm(total=2, desc=f"export {fmt}", bar_format=bar_format, disable=not progress) as bar:
+        bar.set_postfix_str("loading the run")
+        module, config = exported_manager(run_dir)
+        bar.update()
+        out = Path(out) if out is not None else Path(run_dir) / f"manager{FORMATS[fmt]}"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        example = torch.zeros(2, STATE_BASE_DIM + module.width * module.num_others)
+        meta = json.dumps(layout(config))
+        bar.set_postfix_str(f"tracing and writing {out.name}")
+        with _ticking(bar):
+            if fmt == "torchscript":
+                with warnings.catch_warnings():  # torch 2.13 deprecates TorchScript; C++ stacks still load it
+                    warnings.simplefilter("ignore", DeprecationWarning)
+                    torch.jit.save(torch.jit.script(module), str(out), _extra_files={"layout.json": meta})
+            else:
+                _export_onnx(module, example, out, meta)
+        bar.update()
     return out
+
+
+@contextmanager
+def _ticking(bar: tqdm) -> Iterator[None]:
+    """Redraw ``bar`` every second while the body runs: the exporter is one call of a minute or more, and
+    a bar that redraws only when a step ends would look hung."""
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.wait(1.0):
+            bar.refresh()
+
+    thread = threading.Thread(target=tick, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
 
 
 def _export_onnx(module: ExportedManager, example: torch.Tensor, out: Path, meta: str) -> None:

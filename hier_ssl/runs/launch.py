@@ -70,7 +70,9 @@ def _check_same_config(job: Job) -> None:
     """A run directory started from another config would report one experiment under another's name."""
     if not (job.run_dir / CONFIG_FILE).is_file():
         return
-    ignored = {"threads", "device"}  # where it runs, not what it learns
+    # Where it runs and what it says of itself, not what it learns: a run started before a config's
+    # description changed resumes.
+    ignored = {"threads", "device", "description"}
     saved = load_config(job.run_dir / CONFIG_FILE).model_dump(exclude=ignored)
     difference = _first_difference(saved, job.config.model_dump(exclude=ignored))
     if difference is not None:

@@ -103,9 +103,12 @@ class Selection:
         return {k: float(v) for k, v in row.items() if k not in ("step", "transitions")}
 
 
-def evaluate_run(policy: Policy, config: TrainConfig, seed: int) -> dict[str, Any]:
-    """``config.eval_episodes`` seeded episodes of the run's environment or scenario (per robot)."""
-    return evaluate(policy, config.task_config, config.eval_episodes, seed)
+def evaluate_run(
+    policy: Policy, config: TrainConfig, seed: int, progress: str | None = None
+) -> dict[str, Any]:
+    """``config.eval_episodes`` seeded episodes of the run's environment or scenario (per robot), with a
+    progress bar labelled ``progress`` where given."""
+    return evaluate(policy, config.task_config, config.eval_episodes, seed, progress=progress)
 
 
 def train(
@@ -132,10 +135,12 @@ def train(
     learner.learn(_budget(config), Selection(config, run_dir, on_selection))
     policy, train_wall_s = learner.policy(), learner.train_time_s
     # Both policies on the held-out episodes: the paper reports its final models, we keep the best.
-    final = evaluate_run(policy, config, EVALUATION_SEED + config.seed)
+    seed, held_out = EVALUATION_SEED + config.seed, f"held-out episodes ({config.eval_episodes})"
+    final = evaluate_run(policy, config, seed, f"{held_out}, final policy" if progress else None)
     best = final
     if (run_dir / BEST_ACTOR_FILE).is_file():
-        best = evaluate_run(load_policy(run_dir, which="best"), config, EVALUATION_SEED + config.seed)
+        label = f"{held_out}, best policy" if progress else None
+        best = evaluate_run(load_policy(run_dir, which="best"), config, seed, label)
     summary = {
         "policy": "best" if best is not final else "final",
         **_figures(best),

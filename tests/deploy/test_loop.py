@@ -15,7 +15,7 @@ import pytest
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
-from hier_ssl.deploy.loop import GATHER, PRIORITY, DeployLoop, WorldTime
+from hier_ssl.deploy.loop import GATHER, PRIORITY, REPORT_EVERY, DeployLoop, WorldTime
 from hier_ssl.deploy.net import MAX_LINE
 
 FUZZED = 10_000
@@ -154,6 +154,26 @@ def test_packets_from_another_source_are_dropped_and_move_nothing(robots: Robots
         running.close()
     assert running.loop.stats.dropped["source"] == 30 and running.loop.stats.frames == 0
     assert not robots.moving()
+
+
+def test_drops_are_reported_while_they_happen_at_most_once_a_second(robots: Robots) -> None:
+    loop, lines = _loop(robots, source="10.0.0.7"), []
+    loop.report = lines.append
+    running = Running(loop)
+    try:
+        for k in range(150):  # 2.5 s of frames at 60 Hz, every one from the wrong source
+            running.send(_frame(k / 60))
+            time.sleep(1 / 60)
+    finally:
+        running.close()
+    assert 2 <= len(lines) <= 3, lines
+    counts = []
+    for line in lines:
+        words = line.split()
+        assert words[0] == "dropped" and words[2:4] == ["datagrams", "in"] and float(words[4]) >= REPORT_EVERY
+        assert line.endswith(f"(source {words[1]})")
+        counts.append(int(words[1]))
+    assert sum(counts) <= loop.stats.dropped["source"] == 150 and min(counts) > 30
 
 
 def test_a_robot_out_of_sight_is_stopped_within_100_ms(robots: Robots) -> None:

@@ -3,6 +3,7 @@ file that decides as the run it came from."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -126,6 +127,12 @@ def test_unknown_managers_and_counts_are_named() -> None:
     assert (
         DeployView("sampling", 4, task_config("formation", num_agents=6)).m == 4
     )  # a scenario takes any count
+
+
+def test_an_onnx_manager_without_onnxruntime_names_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)  # as on the base install
+    with pytest.raises(ValueError, match=r"runs on onnxruntime: pip install -e '\.\[export\]'"):
+        load_exported("manager.onnx")
 
 
 def test_an_onnx_manager_drives_the_controller_as_its_torchscript_twin_and_its_run(

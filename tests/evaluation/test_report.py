@@ -3,6 +3,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import imageio.v3
 import numpy as np
 import pytest
 from matplotlib.image import imread
@@ -15,6 +16,8 @@ from hier_ssl.evaluation.figures import (
     collisions,
     episode_video,
     figure3,
+    frame_labels,
+    legend_columns,
     legend_entries,
     panel_title,
     path_spread,
@@ -157,6 +160,16 @@ def test_both_cpads_of_a_recorded_episode_match_the_metric_functions() -> None:
     assert result["cpad_public"]["median"] <= result["cpad"]["median"]
 
 
+def test_an_evaluation_shows_its_progress_only_when_asked(capsys: pytest.CaptureFixture[str]) -> None:
+    config = env_config(task="obstacle", frame_skip=16)
+    evaluate(make_planner("direct", config), config, 4, seed=0)
+    assert capsys.readouterr().err == ""
+    evaluate(make_planner("direct", config), config, 4, seed=0, progress="held-out")
+    # Control steps against the episode limit: an evaluation's time grows with them.
+    err = capsys.readouterr().err
+    assert "held-out:" in err and "/1200 [" in err
+
+
 def test_same_manager_same_seed_gives_identical_tables() -> None:
     first, second = (compare(["sampling", "direct"], task="obstacle", episodes=40, seed=5) for _ in range(2))
     assert markdown_table([e.record for e in first]) == markdown_table([e.record for e in second])
@@ -177,8 +190,27 @@ def test_figure_and_video_of_one_episode(tmp_path: Path) -> None:
         panels, get_field("hardware_challenge"), tmp_path / "ep.gif", max_frames=5, size=(110, 75)
     )
     assert gif.read_bytes()[:6] == b"GIF89a"
+    # The outcome is said from the frame the episode ended, not before.
+    end = len(panels[0][1]["robots"]) - 1
+    assert frame_labels(panels[:1], 0) == ("direct",)
+    assert frame_labels(panels[:1], end) == (f"direct: {panels[0][1]['outcome'][0]}",)
+    frames = imageio.v3.imread(gif, index=None)
+    assert not np.array_equal(frames[0][:20], frames[-1][:20])  # the strip's words changed
     with pytest.raises(ValueError, match=".gif"):
         episode_video(panels, get_field("hardware_challenge"), tmp_path / "ep.mp4")
+
+
+def test_a_one_panel_video_keeps_its_legend_whole(tmp_path: Path) -> None:
+    (evaluation,) = compare(["sampling"], task="obstacle", episodes=1, seed=0, record=[0])
+    panels = [(evaluation.name, evaluation.result["trajectories"][0])]
+    assert legend_columns(4.4) < len(legend_entries()) <= legend_columns(13.2)
+    gif = episode_video(panels, get_field("hardware_challenge"), tmp_path / "one.gif", max_frames=3)
+    first = imageio.v3.imread(gif, index=0)[..., :3]
+    strip = first[: first.shape[0] - 300]  # above the 300-pixel panel
+    # Nothing drawn at the strip's left or right edge: no legend entry runs off the picture.
+    for edge in (strip[:, :2], strip[:, -2:]):
+        assert (edge > 240).all()
+    assert (strip < 100).all(axis=-1).sum() > 200  # and the legend's dark text is there
 
 
 def _episodes(outcomes: list[list[str]]) -> list[list[dict]]:

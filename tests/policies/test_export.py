@@ -328,9 +328,12 @@ def test_exported_candidate_managers_choose_as_the_python_policy(exported: dict,
     assert len(np.unique(offsets, axis=0)) > STATES // 4
 
 
-def test_export_writes_one_file_where_asked(tmp_path: Path) -> None:
+def test_export_writes_one_file_where_asked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _sac_run(tmp_path / "run", task="proposed")
     assert export_manager(tmp_path / "run", "torchscript") == tmp_path / "run" / "manager.pt"
+    assert capsys.readouterr().err == ""
+    export_manager(tmp_path / "run", "torchscript", progress=True)
+    assert "export torchscript: step 2/2, tracing and writing manager.pt" in capsys.readouterr().err
     out = export_manager(tmp_path / "run", "torchscript", tmp_path / "deploy" / "m.pt")
     assert sorted(p.name for p in out.parent.iterdir()) == ["m.pt"]
     with pytest.raises(ValueError, match="unknown export format 'tflite'"):

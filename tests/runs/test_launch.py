@@ -199,3 +199,15 @@ def test_a_trial_whose_process_dies_is_retried_by_tune_and_resumes(ray_instance,
     # The retry resumed from the step-20 checkpoint (a fresh start would have rewritten rows 20 and 40).
     assert _steps(run) == [20, 40, 40, 60]
     assert run_state(run) == "finished"
+
+
+def test_a_run_started_under_another_description_is_the_same_run(tmp_path: Path) -> None:
+    from hier_ssl.config import dump_config
+    from hier_ssl.runs.launch import _check_same_config
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "config.yaml").write_text(dump_config(parse_config(TINY)))
+    _check_same_config(Job(parse_config({**TINY, "description": "now says what it trains"}), run))
+    with pytest.raises(ConfigError, match="was started with seed=0"):
+        _check_same_config(Job(parse_config({**TINY, "seed": 1}), run))

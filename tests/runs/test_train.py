@@ -381,7 +381,8 @@ def test_a_trained_manager_is_shown_beside_the_planners_on_its_held_out_episodes
     capsys.readouterr()
     beside_planners(run, config.eval_episodes, config.seed, video=False)  # GIFs: tests/cli/test_eval_cli.py
     out = capsys.readouterr().out
-    assert "What learning bought" in out and "`sampling` is a classical" in out
+    assert "beside two scripted managers" in out and "`sampling` is a classical" in out
+    assert "On this task (proposed) there is no obstacle" in out and "The paper: Proposed" in out
     rows = [line.split(" | ") for line in out.splitlines() if line.startswith("| ") and "---" not in line]
     assert [row[0] for row in rows] == ["| manager", "| run", "| direct", "| sampling"]
     # The same held-out episodes as eval.json: the run's row repeats its success and collision rates.

@@ -139,3 +139,28 @@ def test_the_loop_drops_frames_of_impossible_times_and_they_move_no_robot() -> N
         commands.close()
     assert loop.stats.dropped["time"] == 40 and loop.stats.frames == 1
     assert loop.stats.moving_commands > 0
+
+
+def test_each_window_holds_its_edge() -> None:
+    # Binary-exact times, so each comparison meets its bound exactly: the bounds are "at most".
+    first = ClockGuard()
+    assert first.accept(sent=PLAUSIBLE, arrival=0.0, wall=0.0)  # a first packet a day off is still taken
+    guard = ClockGuard()
+    assert guard.accept(sent=1000.0, arrival=0.0, wall=1000.0)
+    assert guard.accept(sent=1000.5, arrival=0.0)  # the offset moved by exactly WINDOW
+    assert (guard.offset, guard.candidate, guard.agreeing) == (1000.5, None, 0)
+    assert frame_times_valid(t_capture=0.5, t_sent=1.0)  # sent exactly WINDOW after capture
+    assert frame_times_valid(t_capture=0.001, t_sent=0.0)  # the millisecond of rounding, exactly
+
+
+def test_packets_a_window_apart_agree_on_a_new_clock() -> None:
+    guard = ClockGuard(relearn=2)
+    assert guard.accept(sent=1000.0, arrival=0.0, wall=1000.0)
+    assert not guard.accept(sent=5000.0, arrival=0.0)  # far off the learned clock: dropped, a candidate
+    assert guard.accept(sent=5000.5, arrival=0.0)  # exactly a window from the candidate: the second to agree
+    assert (guard.offset, guard.candidate, guard.agreeing) == (5000.5, None, 0)
+
+
+def test_the_counter_half_way_round_is_the_first_step_back() -> None:
+    assert not counter_went_back(2**31 - 1, 0)
+    assert counter_went_back(2**31, 0)

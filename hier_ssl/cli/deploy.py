@@ -146,7 +146,7 @@ def _deploy(args: argparse.Namespace) -> int:
         "ticks": stats.ticks,
         "p50_ms": latency[0],
         "p99_ms": latency[1],
-        "simulator_errors": len(stats.simulator_errors),
+        "simulator_errors": stats.simulator_errors.total(),
         "scheduling": stats.scheduling,
     }
     print(json.dumps(summary), flush=True)

@@ -234,7 +234,15 @@ def parse_response(data: bytes) -> list[str]:
     """The error messages of a simulator's ``RobotControlResponse``; ``PacketError`` when it does not
     parse."""
     packet = parse_message(ssl_simulation_pb2.RobotControlResponse, data, "robot control response")
-    return [f"{error.code}: {error.message}" for error in packet.errors]
+    return [f"{error.code}: {_error_message(error)}" for error in packet.errors]
+
+
+def _error_message(error: ssl_simulation_pb2.SimulatorError) -> str:
+    """The message of either shape of ``SimulatorError`` (the .proto's note): field 3's, else field 2's
+    string; a simulator's text is shown, so bytes that are not UTF-8 are replaced rather than dropped."""
+    if error.HasField("message"):
+        return error.message
+    return error.message_or_capability.decode("utf-8", errors="replace")
 
 
 __all__ = [

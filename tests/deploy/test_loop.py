@@ -266,3 +266,28 @@ def test_in_lockstep_the_loop_ticks_once_per_world_step_and_stops_a_robot_out_of
     assert len(moving) == steps and sent < moving[-1][0] < sent + 0.02  # the last step's command
     after = [(t, c) for t, c in robots.received if t > moving[-1][0]]
     assert all(not any(c[0][1:]) for t, c in after) and after[0][0] - sent < 0.1
+
+
+def test_the_simulators_errors_are_counted_each_and_logged_at_most_once_a_second(
+    robots: Robots, caplog: pytest.LogCaptureFixture
+) -> None:
+    loop = _loop(robots)
+    now = [100.0]
+    loop.clock = lambda: now[0]
+    error = wire.encode_response([("ROBOT_NOT_FOUND", "no robot 7")])
+    simulator = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        with caplog.at_level("WARNING", logger="hier_ssl.deploy.loop"):
+            for t in (100.0, 100.5, 100.99, 101.0, 101.5):
+                now[0] = t
+                simulator.sendto(error, loop.sender.sock.getsockname())
+                time.sleep(0.01)  # loopback delivers it by then
+                loop._read_responses()
+    finally:
+        simulator.close()
+        loop.close()
+    assert loop.stats.simulator_errors == {"ROBOT_NOT_FOUND: no robot 7": 5}
+    assert [r.getMessage() for r in caplog.records] == [
+        "simulator: ROBOT_NOT_FOUND: no robot 7 (1 so far)",
+        "simulator: ROBOT_NOT_FOUND: no robot 7 (4 so far)",
+    ]

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from protobuf_bytes import double, float32, tag, varint
+from protobuf_bytes import double, float32, tag, uint, varint
 from protobuf_bytes import message as embed
 
 from hier_ssl.deploy import wire
@@ -82,6 +82,21 @@ def test_robot_control_has_the_simulation_protocol_field_numbers() -> None:
         + embed(2, embed(1, float32(1, 1.0) + float32(2, 1.0) + float32(3, 1.0) + float32(4, 1.0)))
     )
     assert wire.parse_simulation(embed(1, wheels)) == ([], [5])
+
+
+def test_a_response_of_the_first_protocol_version_parses_despite_its_feedbacks_uint32_id() -> None:
+    # The first version: SimulatorError's message a string at field 2, RobotFeedback's id a uint32 at 1.
+    error = embed(1, embed(1, b"E1") + embed(2, b"first version"))
+    feedback = embed(2, uint(1, 3) + uint(2, 1))
+    assert wire.parse_response(error + feedback) == ["E1: first version"]
+
+
+def test_a_response_of_the_later_protocol_version_parses_with_its_capability_and_robot_id() -> None:
+    # Later versions: the unsupported capability (an enum) at field 2, the message at 3, the id a RobotId.
+    error = embed(1, embed(1, b"E2") + uint(2, 2) + embed(3, b"later version"))
+    feedback = embed(2, embed(1, uint(1, 3) + uint(2, 2)) + uint(2, 1))
+    assert wire.parse_response(error + feedback) == ["E2: later version"]
+    assert wire.parse_response(feedback + feedback) == []
 
 
 def test_a_response_carries_the_simulators_errors() -> None:

@@ -75,7 +75,7 @@ def test_unseen_stale_and_targetless_robots_get_zero_commands() -> None:
         (0, "1,2,3", r"expected \[x, y, theta\]"),
         (0, [0, float("nan"), 0], "finite numbers"),
         (0, [0, True, 0], "finite numbers"),
-        (0, [9.0, 0, 0], "outside the walls"),
+        (0, [9.0, 0, 0], r"at \[9.0, 0.0\] is outside the walls \(\+-\[3.21, 2.21\] m\)$"),
     ],
 )
 def test_bad_targets_are_refused_by_name(robot: object, target: object, message: str) -> None:

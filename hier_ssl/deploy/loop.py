@@ -38,9 +38,9 @@ from math import inf
 
 from hier_ssl.deploy.controller import Controller
 from hier_ssl.deploy.game import RefereeInput
-from hier_ssl.deploy.guard import ClockGuard, frame_times_valid
+from hier_ssl.deploy.guard import ClockGuard, FieldGuard, frame_times_valid
 from hier_ssl.deploy.net import CommandSender, ControlServer, receive
-from hier_ssl.deploy.wire import DetectionFrame, FieldSize, PacketError, parse_response, parse_vision
+from hier_ssl.deploy.wire import DetectionFrame, FieldGeometry, PacketError, parse_response, parse_vision
 
 log = logging.getLogger(__name__)
 
@@ -81,7 +81,7 @@ class LoopStats:
     ticks: int = 0
     moving_commands: int = 0
     latencies: list[float] = field(default_factory=list)
-    field_size: FieldSize | None = None
+    field_size: FieldGeometry | None = None
     simulator_errors: Counter = field(default_factory=Counter)  # by message: bounded, unlike a list of each
     scheduling: str = ""
 
@@ -143,6 +143,7 @@ class DeployLoop:
         self.stats = LoopStats()
         self.world = WorldTime() if lockstep else None
         self.vision_clock = ClockGuard()  # frames stamped at times no camera could send are dropped ("time")
+        self.field_guard = FieldGuard(controller.view.field)
         self.selector = selectors.DefaultSelector()
         self.selector.register(vision, selectors.EVENT_READ, "vision")
         self.selector.register(sender.sock, selectors.EVENT_READ, "response")
@@ -241,6 +242,8 @@ class DeployLoop:
                     self.world.add(parsed, arrival)
                 self.stats.frames += 1
                 newest = arrival
+            elif not self.field_guard.accept(parsed):  # another field than the manager's (FieldGuard)
+                self.stats.dropped["field"] += 1
             else:
                 self.stats.field_size = parsed
                 self.stats.geometry += 1

@@ -17,6 +17,7 @@ from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.loop import GATHER, PRIORITY, DeployLoop, WorldTime
 from hier_ssl.deploy.net import MAX_LINE
+from hier_ssl.world.field import get_field
 
 FUZZED = 10_000
 
@@ -108,7 +109,7 @@ def _fuzz(rng: np.random.Generator) -> Iterator[bytes]:
     """Random bytes, truncated and corrupted valid packets (one byte changed: of other robots only, so
     no change can name the controlled one), oversized ones, and valid ones of other teams' robots."""
     bases = [_frame(1.0 + k, "yellow", 5 + k % 5) for k in range(20)]
-    bases.append(wire.encode_geometry(wire.FieldSize(6.0, 4.0, 0.3), 0.7))
+    bases.append(wire.encode_geometry(get_field("hardware_challenge")))
     for k in range(FUZZED):
         base = bases[k % len(bases)]
         kind = k % 5
@@ -291,3 +292,22 @@ def test_the_simulators_errors_are_counted_each_and_logged_at_most_once_a_second
         "simulator: ROBOT_NOT_FOUND: no robot 7 (1 so far)",
         "simulator: ROBOT_NOT_FOUND: no robot 7 (4 so far)",
     ]
+
+
+def test_cameras_on_another_field_than_the_managers_end_the_run_with_the_field_error(robots: Robots) -> None:
+    loop = _loop(robots)  # "proposed": trained on the hardware-challenge field, 6 x 4 m
+    vision = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        vision.sendto(wire.encode_geometry(get_field("hardware_challenge")), loop.vision.getsockname())
+        for _ in range(3):
+            vision.sendto(wire.encode_geometry(get_field("division_b")), loop.vision.getsockname())
+        with pytest.raises(
+            ValueError, match=r"field_length 9\.0, .*\(hardware_challenge: field_length 6\.0, "
+        ):
+            loop.run(threading.Event(), duration=5.0)
+    finally:
+        vision.close()
+        loop.close()
+    assert loop.stats.geometry == 1 and loop.stats.dropped["field"] == 2
+    time.sleep(0.05)
+    assert robots.received and not robots.moving()  # the run's end stopped the robot

@@ -62,7 +62,7 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
         "--commands", required=True, help="grsim|simulation[:HOST:PORT] (default ports 20011; 10301 / 10302)"
     )
     deploy.add_argument("--team", choices=("blue", "yellow"), required=True)
-    deploy.add_argument("--robots", required=True, help="controlled robot ids, e.g. 0,1")
+    deploy.add_argument("--robots", required=True, help="controlled robot ids, e.g. 0,1 or 0-10 or 0-3,7")
     deploy.add_argument(
         "--targets", default=None, help="ID:x,y,theta[;ID:...] or a YAML file {id: [x, y, theta]}"
     )
@@ -147,7 +147,7 @@ def _deploy(args: argparse.Namespace) -> int:
         "ticks": stats.ticks,
         "p50_ms": latency[0],
         "p99_ms": latency[1],
-        "simulator_errors": len(stats.simulator_errors),
+        "simulator_errors": stats.simulator_errors.total(),
         "scheduling": stats.scheduling,
     }
     print(json.dumps(summary), flush=True)

@@ -14,16 +14,24 @@ from hier_ssl.deploy.loop import PRIORITY, DeployLoop
 from hier_ssl.deploy.net import CommandSender, ControlServer, command_target, open_vision, parse_address
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
+from hier_ssl.deploy.wire import MAX_ROBOT_ID
 
 
 def parse_robots(text: str) -> list[int]:
-    """``0,1,2`` as robot ids; ValueError naming the text."""
-    try:
-        robots = [int(part) for part in text.split(",")]
-    except ValueError:
-        raise ValueError(f"robots {text!r}: expected ids like 0,1,2") from None
-    if not robots or len(set(robots)) != len(robots) or min(robots) < 0 or max(robots) > 15:
-        raise ValueError(f"robots {text!r}: expected distinct ids in 0..15")
+    """``0,1,2``, ``0-10`` or both (``0-3,7``) as robot ids in the order given; ValueError naming the
+    part of the text that is wrong."""
+    robots: list[int] = []
+    for part in text.split(","):
+        first, dash, last = part.strip().partition("-")
+        try:
+            ids = range(int(first), int(last) + 1) if dash else [int(first)]
+        except ValueError:
+            raise ValueError(f"robots {text!r}: {part!r} is not an id or a range like 0-10") from None
+        if not ids or ids[0] < 0 or ids[-1] > MAX_ROBOT_ID:
+            raise ValueError(f"robots {text!r}: {part!r} is not in 0..{MAX_ROBOT_ID} (low to high)")
+        robots += ids
+    if len(set(robots)) != len(robots):
+        raise ValueError(f"robots {text!r}: an id is named twice")
     return robots
 
 

@@ -45,7 +45,8 @@ def check_target(robot: object, target: object, robots: Sequence[int], reach: np
     values[: len(target)] = target
     if (np.abs(values[0:2]) > reach).any():
         raise ValueError(
-            f"target of robot {robot} at {list(values[0:2])} is outside the walls (+-{reach.tolist()} m)"
+            # tolist(): plain floats, which print as numbers rather than as np.float64(...).
+            f"target of robot {robot} at {values[0:2].tolist()} is outside the walls (+-{reach.tolist()} m)"
         )
     return values
 

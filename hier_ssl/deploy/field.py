@@ -45,7 +45,6 @@ from hier_ssl.deploy.wire import (
     TEAMS,
     Detection,
     DetectionFrame,
-    FieldSize,
     PacketError,
     encode_detection,
     encode_geometry,
@@ -152,9 +151,7 @@ class FieldServer:
         self.labels = [(team, i) for i in range(self.m)] + [(other, j) for j in range(self.k)]
         fld = self.core.field
         self.strips = camera_strips(self.cameras, fld.wall_half_extent[0])
-        self.geometry = encode_geometry(
-            FieldSize(fld.field_length, fld.field_width, fld.boundary_width), fld.goal_width, fld.goal_depth
-        )
+        self.geometry = encode_geometry(fld)
         self.vision_to, self.control_port = (LOOPBACK, vision_port), control_port
         self.seed, self.settle, self.rng = seed, settle, np.random.default_rng(seed)
         self.out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

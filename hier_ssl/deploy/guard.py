@@ -29,6 +29,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
+
+from hier_ssl.deploy.wire import FieldGeometry, check_field
 
 WINDOW = 0.5  # s an offset may move between accepted packets (module docstring)
 PLAUSIBLE = 86400.0  # s a first packet's time may be off this machine's UNIX clock (module docstring)
@@ -70,6 +73,32 @@ class ClockGuard:
         return False
 
 
+@dataclass
+class FieldGuard:
+    """Whether a geometry packet's field is the ``trained`` one (a ``Field``; ``check_field``). One that is
+    not is dropped; ``relearn`` in a row that agree on the same other field raise ``check_field``'s error,
+    which ends the deploy: the cameras see another field than the manager plans on. Why not the first: a
+    corrupt packet that still parses (the fuzzing makes them) must not end a deploy, and two corruptions
+    in a row do not agree on one field."""
+
+    trained: Any
+    relearn: int = 3  # SSL-Vision sends its geometry every few seconds: the error comes within seconds
+    candidate: FieldGeometry | None = None
+    agreeing: int = 0
+
+    def accept(self, seen: FieldGeometry) -> bool:
+        try:
+            check_field(seen, self.trained)
+        except ValueError:
+            self.agreeing = self.agreeing + 1 if seen == self.candidate else 1
+            self.candidate = seen
+            if self.agreeing >= self.relearn:
+                raise
+            return False
+        self.candidate, self.agreeing = None, 0
+        return True
+
+
 def frame_times_valid(t_capture: float, t_sent: float, window: float = WINDOW) -> bool:
     """Whether a camera frame was sent no earlier than it was captured (a millisecond of rounding allowed)
     and no later than ``window`` after: SSL-Vision processes a frame in milliseconds."""
@@ -91,6 +120,7 @@ __all__ = [
     "RELEARN",
     "WINDOW",
     "ClockGuard",
+    "FieldGuard",
     "counter_went_back",
     "frame_times_valid",
 ]

@@ -27,6 +27,7 @@ robot is out of sight and gets its stop (within 100 ms, as in the free-running m
 
 from __future__ import annotations
 
+import logging
 import os
 import selectors
 import socket
@@ -39,15 +40,18 @@ from math import inf
 
 from hier_ssl.deploy.controller import Controller
 from hier_ssl.deploy.game import RefereeInput
-from hier_ssl.deploy.guard import ClockGuard, frame_times_valid
+from hier_ssl.deploy.guard import ClockGuard, FieldGuard, frame_times_valid
 from hier_ssl.deploy.net import CommandSender, ControlServer, receive
-from hier_ssl.deploy.wire import DetectionFrame, FieldSize, PacketError, parse_response, parse_vision
+from hier_ssl.deploy.wire import DetectionFrame, FieldGeometry, PacketError, parse_response, parse_vision
+
+log = logging.getLogger(__name__)
 
 PERIOD = 0.025  # s, the control period the managers were trained with
 WAIT = 0.010  # s a tick waits past its due time for a camera frame
 WARMUP_TICKS = 40  # the first second's latencies are not kept: TorchScript's first runs are slower
 STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
 PRIORITY = 10  # SCHED_FIFO priority: above every time-shared process, below interrupt threads (50)
+ERROR_LOG_PERIOD = 1.0  # s between log lines of the simulator's errors
 GATHER = 0.02  # s lockstep waits at most for the other cameras' frames of a world time (they go out together)
 REPORT_EVERY = 1.0  # s between two lines about dropped datagrams: a flood must not become a flood of lines
 
@@ -80,8 +84,8 @@ class LoopStats:
     ticks: int = 0
     moving_commands: int = 0
     latencies: list[float] = field(default_factory=list)
-    field_size: FieldSize | None = None
-    simulator_errors: list[str] = field(default_factory=list)
+    field_size: FieldGeometry | None = None
+    simulator_errors: Counter = field(default_factory=Counter)  # by message: bounded, unlike a list of each
     scheduling: str = ""
 
 
@@ -147,11 +151,13 @@ class DeployLoop:
         self._reported_at = clock()
         self.world = WorldTime() if lockstep else None
         self.vision_clock = ClockGuard()  # frames stamped at times no camera could send are dropped ("time")
+        self.field_guard = FieldGuard(controller.view.field)
         self.selector = selectors.DefaultSelector()
         self.selector.register(vision, selectors.EVENT_READ, "vision")
         self.selector.register(sender.sock, selectors.EVENT_READ, "response")
         if control is not None:
             self.selector.register(control.listener, selectors.EVENT_READ, "listener")
+        self._error_logged = -inf  # when the simulator's errors were last logged (monotonic)
         self.referee = referee  # the game controller: its state holds from the next tick
         if referee is not None:
             self.selector.register(referee.sock, selectors.EVENT_READ, "referee")
@@ -257,6 +263,8 @@ class DeployLoop:
                     self.world.add(parsed, arrival)
                 self.stats.frames += 1
                 newest = arrival
+            elif not self.field_guard.accept(parsed):  # another field than the manager's (FieldGuard)
+                self.stats.dropped["field"] += 1
             else:
                 self.stats.field_size = parsed
                 self.stats.geometry += 1
@@ -265,9 +273,15 @@ class DeployLoop:
     def _read_responses(self) -> None:
         while (packet := receive(self.sender.sock)) is not None:
             try:
-                self.stats.simulator_errors += parse_response(packet[0])
+                errors = parse_response(packet[0])
             except PacketError as err:
                 self.stats.dropped[f"response {err.reason}"] += 1
+                continue
+            self.stats.simulator_errors.update(errors)
+            # A simulator repeats its error in each response (60 a second): logged at most once a second.
+            if errors and self.clock() - self._error_logged >= ERROR_LOG_PERIOD:
+                self._error_logged = self.clock()
+                log.warning("simulator: %s (%d so far)", errors[0], self.stats.simulator_errors.total())
 
     def _send(self, commands: list) -> None:
         try:

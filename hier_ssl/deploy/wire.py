@@ -59,12 +59,46 @@ class DetectionFrame:
 
 
 @dataclass(frozen=True)
-class FieldSize:
-    """The field lines' length and width and the boundary around them (m), from a geometry packet."""
+class FieldGeometry:
+    """A geometry packet's field in metres, by SSL-Vision's names (those of ``hier_ssl.world.field.Field``,
+    whose docstring says what each is); the defense area's sizes are None where the packet lacks them."""
 
-    length: float
-    width: float
-    boundary: float
+    field_length: float
+    field_width: float
+    goal_width: float
+    goal_depth: float
+    boundary_width: float
+    penalty_area_depth: float | None = None
+    penalty_area_width: float | None = None
+
+
+# Sizes a geometry packet must agree on with the field a manager was trained on. The goal and the boundary
+# are left out: the manager's observation holds neither (the goal is the rules' concern, the walls the
+# controller's reach), and venues' boundaries differ from the rules' 0.3 m.
+CHECKED_SIZES = ("field_length", "field_width", "penalty_area_depth", "penalty_area_width")
+# m: the wire's sizes are whole millimetres, and a venue's configured field may be off the rules' by a few
+# centimetres; the presets differ from one another by metres.
+FIELD_TOLERANCE = 0.05
+
+
+def check_field(seen: FieldGeometry, trained: Any) -> None:
+    """ValueError naming both fields' sizes (m) unless ``seen`` agrees with ``trained`` (a ``Field``) on
+    ``CHECKED_SIZES`` within ``FIELD_TOLERANCE``; a size the packet lacks is not compared."""
+    wrong = [
+        name
+        for name in CHECKED_SIZES
+        if getattr(seen, name) is not None
+        and abs(getattr(seen, name) - getattr(trained, name)) > FIELD_TOLERANCE
+    ]
+    if wrong:
+
+        def sizes(fld: Any) -> str:
+            return ", ".join(f"{name} {getattr(fld, name)}" for name in CHECKED_SIZES)
+
+        raise ValueError(
+            f"the geometry packet's field ({sizes(seen)} m) is not the field the manager was trained on "
+            f"({trained.name}: {sizes(trained)} m; tolerance {FIELD_TOLERANCE} m): {', '.join(wrong)} differ"
+        )
 
 
 def parse_message(message: type, data: bytes, what: str) -> Any:
@@ -113,8 +147,8 @@ def _ball(balls: Any) -> tuple[float, float] | None:
     return None if best is None else (best.x / 1000.0, best.y / 1000.0)
 
 
-def parse_vision(data: bytes) -> DetectionFrame | FieldSize:
-    """An ``SSL_WrapperPacket`` as its detection frame (or, for a geometry-only packet, the field size);
+def parse_vision(data: bytes) -> DetectionFrame | FieldGeometry:
+    """An ``SSL_WrapperPacket`` as its detection frame (or, for a geometry-only packet, its field);
     ``PacketError`` for anything else."""
     packet = parse_message(ssl_vision_pb2.SSL_WrapperPacket, data, "vision packet")
     if packet.HasField("detection"):
@@ -128,7 +162,11 @@ def parse_vision(data: bytes) -> DetectionFrame | FieldSize:
         return DetectionFrame(frame.t_capture, frame.t_sent, frame.camera_id, robots, _ball(frame.balls))
     if packet.HasField("geometry"):
         size = packet.geometry.field
-        return FieldSize(size.field_length / 1000.0, size.field_width / 1000.0, size.boundary_width / 1000.0)
+
+        def metres(name: str) -> float | None:
+            return getattr(size, name) / 1000.0 if size.HasField(name) else None
+
+        return FieldGeometry(**{name: metres(name) for name in FieldGeometry.__dataclass_fields__})
     raise PacketError("empty", "vision packet holds neither detection nor geometry")
 
 
@@ -152,13 +190,14 @@ def encode_detection(frame_number: int, frame: DetectionFrame) -> bytes:
     return packet.SerializeToString()
 
 
-def encode_geometry(size: FieldSize, goal_width: float, goal_depth: float = 0.18) -> bytes:
-    """An ``SSL_WrapperPacket`` with the field's size (m in, mm on the wire)."""
+def encode_geometry(fld: Any) -> bytes:
+    """An ``SSL_WrapperPacket`` with the geometry of ``fld`` (a ``Field`` or ``FieldGeometry``; m in, mm on
+    the wire); a defense area size that is None is left out."""
     packet = ssl_vision_pb2.SSL_WrapperPacket()
-    field = packet.geometry.field
-    field.field_length, field.field_width = round(size.length * 1000), round(size.width * 1000)
-    field.goal_width, field.goal_depth = round(goal_width * 1000), round(goal_depth * 1000)
-    field.boundary_width = round(size.boundary * 1000)
+    out = packet.geometry.field
+    for name in FieldGeometry.__dataclass_fields__:
+        if getattr(fld, name) is not None:
+            setattr(out, name, round(getattr(fld, name) * 1000))
     return packet.SerializeToString()
 
 
@@ -234,7 +273,15 @@ def parse_response(data: bytes) -> list[str]:
     """The error messages of a simulator's ``RobotControlResponse``; ``PacketError`` when it does not
     parse."""
     packet = parse_message(ssl_simulation_pb2.RobotControlResponse, data, "robot control response")
-    return [f"{error.code}: {error.message}" for error in packet.errors]
+    return [f"{error.code}: {_error_message(error)}" for error in packet.errors]
+
+
+def _error_message(error: ssl_simulation_pb2.SimulatorError) -> str:
+    """The message of either shape of ``SimulatorError`` (the .proto's note): field 3's, else field 2's
+    string; a simulator's text is shown, so bytes that are not UTF-8 are replaced rather than dropped."""
+    if error.HasField("message"):
+        return error.message
+    return error.message_or_capability.decode("utf-8", errors="replace")
 
 
 __all__ = [
@@ -243,8 +290,11 @@ __all__ = [
     "Command",
     "Detection",
     "DetectionFrame",
-    "FieldSize",
+    "CHECKED_SIZES",
+    "FIELD_TOLERANCE",
+    "FieldGeometry",
     "PacketError",
+    "check_field",
     "encode_detection",
     "encode_geometry",
     "encode_grsim",

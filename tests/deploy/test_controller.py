@@ -9,7 +9,9 @@ import pytest
 from hier_ssl.deploy.controller import MAX_AGE, Controller
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
-from hier_ssl.deploy.wire import Detection, DetectionFrame
+from hier_ssl.deploy.wire import Detection, DetectionFrame, check_field, encode_geometry, parse_vision
+from hier_ssl.envs.registry import task_config
+from hier_ssl.world.field import get_field
 from hier_ssl.world.physics import World
 
 
@@ -75,7 +77,7 @@ def test_unseen_stale_and_targetless_robots_get_zero_commands() -> None:
         (0, "1,2,3", r"expected \[x, y, theta\]"),
         (0, [0, float("nan"), 0], "finite numbers"),
         (0, [0, True, 0], "finite numbers"),
-        (0, [9.0, 0, 0], "outside the walls"),
+        (0, [9.0, 0, 0], r"at \[9.0, 0.0\] is outside the walls \(\+-\[3.21, 2.21\] m\)$"),
     ],
 )
 def test_bad_targets_are_refused_by_name(robot: object, target: object, message: str) -> None:
@@ -151,3 +153,18 @@ def test_robots_must_be_distinct() -> None:
         Controller(view, Tracker(), "blue", [1, 1])
     with pytest.raises(ValueError, match="worker feedback 'odometry'"):
         Controller(view, Tracker(), "blue", [1, 2], feedback="odometry")
+
+
+@pytest.mark.parametrize("name", ["division_b", "division_a"])
+def test_a_manager_trained_on_a_division_field_plans_on_the_whole_of_it(name: str) -> None:
+    config = task_config(manager_task("direct", "proposed", worker="paper"), field=name)
+    controller = Controller(DeployView("direct", 1, config), Tracker(), "blue", [0])
+    fld = get_field(name)
+    # Its whole field and margin up to a robot radius from the walls, corners included: no smaller field's.
+    hx, hy = fld.half_length + fld.boundary_width - 0.1, fld.half_width + fld.boundary_width - 0.1
+    for corner in ([hx, hy, 0.0], [-hx, -hy, 0.0]):
+        controller.set_target(0, corner)
+    with pytest.raises(ValueError, match="outside the walls"):
+        controller.set_target(0, [hx + 0.02, 0.0, 0.0])
+    # The cameras' geometry of that field is the manager's own: accepted.
+    check_field(parse_vision(encode_geometry(fld)), controller.view.field)

@@ -126,7 +126,12 @@ def test_the_field_command_publishes_vision_and_stops_on_sigterm() -> None:
     [
         (["--vision", "localhost:10006"], "expected IP:PORT"),
         (["--vision", "127.0.0.1:10006", "--commands", "udp"], "expected grsim|simulation"),
-        (["--robots", "0,0"], "distinct ids"),
+        (["--robots", "0,0"], "robots '0,0': an id is named twice"),
+        (["--robots", "0-3,2"], "an id is named twice"),
+        (["--robots", "0-16"], "robots '0-16': '0-16' is not in 0..15 (low to high)"),
+        (["--robots", "1,5-2"], "'5-2' is not in 0..15"),
+        (["--robots", "1,x-2"], "robots '1,x-2': 'x-2' is not an id or a range like 0-10"),
+        (["--robots", "-1"], "'-1' is not an id or a range"),
         (["--targets", "0:1,2,x"], "expected ID:x,y,theta"),
         (["--targets", "5:1,2,3"], "robot 5 is not a controlled robot"),
         (["--vision", "224.5.23.2:10006"], "multicast group: name --vision-interface"),
@@ -146,6 +151,9 @@ def test_bad_deploy_options_end_with_one_line(
 
 def test_option_parsers() -> None:
     assert parse_robots("0,3,5") == [0, 3, 5]
+    assert parse_robots("0-10") == list(range(11))
+    assert parse_robots("12-15,0-1,7") == [12, 13, 14, 15, 0, 1, 7]
+    assert parse_robots("4-4") == [4]
     assert parse_targets("0:1,2,0.5;1:-1,0,0,0.2,0") == {0: [1.0, 2.0, 0.5], 1: [-1.0, 0.0, 0.0, 0.2, 0.0]}
     assert command_target("simulation", "yellow") == ("simulation", ("127.0.0.1", 10302))
     assert command_target("grsim:127.0.0.1:20011", "blue") == ("grsim", ("127.0.0.1", 20011))

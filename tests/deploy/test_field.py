@@ -116,7 +116,7 @@ def test_an_episode_through_the_wire_ends_on_its_target(kind: str) -> None:
     assert 20 < record["length"] < 400  # control steps of 25 ms
     stats = loop.stats
     assert stats.frames > 100 and not stats.dropped and not stats.simulator_errors
-    assert stats.field_size == wire.FieldSize(6.0, 4.0, 0.3)
+    assert stats.field_size == wire.FieldGeometry(6.0, 4.0, 0.7, 0.18, 0.3, 0.8, 2.0)
 
 
 def wired_and_direct(lockstep: bool, rate: float = 60.0) -> tuple[np.ndarray, np.ndarray, dict, dict]:

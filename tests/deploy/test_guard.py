@@ -17,9 +17,11 @@ from hier_ssl.deploy.guard import (
     RELEARN,
     WINDOW,
     ClockGuard,
+    FieldGuard,
     counter_went_back,
     frame_times_valid,
 )
+from hier_ssl.world.field import get_field
 
 UNIX = 1.76e9  # s, a UNIX time of these years
 BOOT = 5000.0  # s, a monotonic clock's reading: no relation to UNIX time
@@ -164,3 +166,28 @@ def test_packets_a_window_apart_agree_on_a_new_clock() -> None:
 def test_the_counter_half_way_round_is_the_first_step_back() -> None:
     assert not counter_went_back(2**31 - 1, 0)
     assert counter_went_back(2**31, 0)
+
+
+def _geometry(name: str) -> wire.FieldGeometry:
+    return wire.parse_vision(wire.encode_geometry(get_field(name)))
+
+
+def test_the_field_guard_drops_another_field_and_raises_once_three_in_a_row_agree_on_it() -> None:
+    guard = FieldGuard(get_field("division_b"))
+    b, a, hw = _geometry("division_b"), _geometry("division_a"), _geometry("hardware_challenge")
+    assert guard.accept(b)
+    # Corrupt packets that parse do not agree on one field: dropped, never an error.
+    assert [guard.accept(g) for g in (a, hw, a, b, a, a, b)] == [
+        False,
+        False,
+        False,
+        True,
+        False,
+        False,
+        True,
+    ]
+    assert not guard.accept(a) and not guard.accept(a)
+    with pytest.raises(
+        ValueError, match=r"^the geometry packet's field \(field_length 12\.0, .*\(division_b: "
+    ):
+        guard.accept(a)

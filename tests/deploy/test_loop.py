@@ -17,6 +17,7 @@ from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.loop import GATHER, PRIORITY, REPORT_EVERY, DeployLoop, WorldTime
 from hier_ssl.deploy.net import MAX_LINE
+from hier_ssl.world.field import get_field
 
 FUZZED = 10_000
 
@@ -108,7 +109,7 @@ def _fuzz(rng: np.random.Generator) -> Iterator[bytes]:
     """Random bytes, truncated and corrupted valid packets (one byte changed: of other robots only, so
     no change can name the controlled one), oversized ones, and valid ones of other teams' robots."""
     bases = [_frame(1.0 + k, "yellow", 5 + k % 5) for k in range(20)]
-    bases.append(wire.encode_geometry(wire.FieldSize(6.0, 4.0, 0.3), 0.7))
+    bases.append(wire.encode_geometry(get_field("hardware_challenge")))
     for k in range(FUZZED):
         base = bases[k % len(bases)]
         kind = k % 5
@@ -286,3 +287,47 @@ def test_in_lockstep_the_loop_ticks_once_per_world_step_and_stops_a_robot_out_of
     assert len(moving) == steps and sent < moving[-1][0] < sent + 0.02  # the last step's command
     after = [(t, c) for t, c in robots.received if t > moving[-1][0]]
     assert all(not any(c[0][1:]) for t, c in after) and after[0][0] - sent < 0.1
+
+
+def test_the_simulators_errors_are_counted_each_and_logged_at_most_once_a_second(
+    robots: Robots, caplog: pytest.LogCaptureFixture
+) -> None:
+    loop = _loop(robots)
+    now = [100.0]
+    loop.clock = lambda: now[0]
+    error = wire.encode_response([("ROBOT_NOT_FOUND", "no robot 7")])
+    simulator = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        with caplog.at_level("WARNING", logger="hier_ssl.deploy.loop"):
+            for t in (100.0, 100.5, 100.99, 101.0, 101.5):
+                now[0] = t
+                simulator.sendto(error, loop.sender.sock.getsockname())
+                time.sleep(0.01)  # loopback delivers it by then
+                loop._read_responses()
+    finally:
+        simulator.close()
+        loop.close()
+    assert loop.stats.simulator_errors == {"ROBOT_NOT_FOUND: no robot 7": 5}
+    assert [r.getMessage() for r in caplog.records] == [
+        "simulator: ROBOT_NOT_FOUND: no robot 7 (1 so far)",
+        "simulator: ROBOT_NOT_FOUND: no robot 7 (4 so far)",
+    ]
+
+
+def test_cameras_on_another_field_than_the_managers_end_the_run_with_the_field_error(robots: Robots) -> None:
+    loop = _loop(robots)  # "proposed": trained on the hardware-challenge field, 6 x 4 m
+    vision = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        vision.sendto(wire.encode_geometry(get_field("hardware_challenge")), loop.vision.getsockname())
+        for _ in range(3):
+            vision.sendto(wire.encode_geometry(get_field("division_b")), loop.vision.getsockname())
+        with pytest.raises(
+            ValueError, match=r"field_length 9\.0, .*\(hardware_challenge: field_length 6\.0, "
+        ):
+            loop.run(threading.Event(), duration=5.0)
+    finally:
+        vision.close()
+        loop.close()
+    assert loop.stats.geometry == 1 and loop.stats.dropped["field"] == 2
+    time.sleep(0.05)
+    assert robots.received and not robots.moving()  # the run's end stopped the robot

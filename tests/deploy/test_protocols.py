@@ -11,11 +11,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from protobuf_bytes import double, float32, tag, varint
+from protobuf_bytes import double, float32, tag, uint, varint
 from protobuf_bytes import message as embed
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.proto import grsim_pb2, ssl_simulation_pb2, ssl_vision_pb2
+from hier_ssl.world.field import get_field
 
 ROOT = Path(__file__).parents[2]
 PROTO = ROOT / "hier_ssl" / "deploy" / "proto"
@@ -52,12 +53,37 @@ def test_a_detection_packet_has_the_ssl_vision_field_numbers() -> None:
     )
 
 
-def test_a_geometry_packet_gives_the_field_size() -> None:
-    size = b"".join(tag(n, 0) + varint(v) for n, v in ((1, 9000), (2, 6000), (3, 1000), (4, 180), (5, 300)))
-    assert wire.parse_vision(embed(2, embed(1, size))) == wire.FieldSize(9.0, 6.0, 0.3)
-    assert wire.parse_vision(wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)) == wire.FieldSize(
-        9.0, 6.0, 0.3
+def test_a_geometry_packet_gives_the_field_by_ssl_visions_names() -> None:
+    size = b"".join(uint(n, v) for n, v in ((1, 9000), (2, 6000), (3, 1000), (4, 180), (5, 300)))
+    # SSL-Vision before 2019: no defense area; later ones add lines and arcs (6, 7, skipped) and 8, 9.
+    assert wire.parse_vision(embed(2, embed(1, size))) == wire.FieldGeometry(9.0, 6.0, 1.0, 0.18, 0.3)
+    line = embed(6, embed(1, b"TopTouchLine") + embed(2, float32(1, 0.0) + float32(2, 0.0)))
+    full = size + line + uint(8, 1000) + uint(9, 2000)
+    b = get_field("division_b")
+    geometry = wire.parse_vision(embed(2, embed(1, full)))
+    assert geometry == wire.FieldGeometry(9.0, 6.0, 1.0, 0.18, 0.3, 1.0, 2.0)
+    names = wire.FieldGeometry.__dataclass_fields__
+    assert geometry == wire.FieldGeometry(**{n: getattr(b, n) for n in names})  # the names are Field's
+    assert wire.parse_vision(wire.encode_geometry(b)) == geometry
+
+
+def test_a_field_within_5_cm_of_the_managers_passes_and_one_beyond_fails_naming_both_in_metres() -> None:
+    b = get_field("division_b")
+    # 4 cm off on every checked size, and a goal and boundary unlike the rules' (not checked): passes.
+    wire.check_field(wire.FieldGeometry(9.04, 5.96, 1.3, 0.3, 0.7, 1.04, 1.96), b)
+    wire.check_field(wire.FieldGeometry(9.0, 6.0, 9.0, 0.18, 0.3), b)  # no defense area sent: not compared
+    with pytest.raises(ValueError) as err:
+        wire.check_field(wire.FieldGeometry(9.0, 6.0, 1.0, 0.18, 0.3, 1.0, 2.06), b)
+    assert str(err.value) == (
+        "the geometry packet's field (field_length 9.0, field_width 6.0, penalty_area_depth 1.0, "
+        "penalty_area_width 2.06 m) is not the field the manager was trained on (division_b: field_length "
+        "9.0, field_width 6.0, penalty_area_depth 1.0, penalty_area_width 2.0 m; tolerance 0.05 m): "
+        "penalty_area_width differ"
     )
+    a = wire.parse_vision(wire.encode_geometry(get_field("division_a")))
+    seen = r"^the geometry packet's field \(field_length 12\.0, field_width 9\.0, "
+    with pytest.raises(ValueError, match=seen + r".*: field_length, field_width, penalty_area_depth, pen"):
+        wire.check_field(a, b)
 
 
 def test_grsim_commands_have_the_grsim_field_numbers() -> None:
@@ -84,6 +110,21 @@ def test_robot_control_has_the_simulation_protocol_field_numbers() -> None:
     assert wire.parse_simulation(embed(1, wheels)) == ([], [5])
 
 
+def test_a_response_of_the_first_protocol_version_parses_despite_its_feedbacks_uint32_id() -> None:
+    # The first version: SimulatorError's message a string at field 2, RobotFeedback's id a uint32 at 1.
+    error = embed(1, embed(1, b"E1") + embed(2, b"first version"))
+    feedback = embed(2, uint(1, 3) + uint(2, 1))
+    assert wire.parse_response(error + feedback) == ["E1: first version"]
+
+
+def test_a_response_of_the_later_protocol_version_parses_with_its_capability_and_robot_id() -> None:
+    # Later versions: the unsupported capability (an enum) at field 2, the message at 3, the id a RobotId.
+    error = embed(1, embed(1, b"E2") + uint(2, 2) + embed(3, b"later version"))
+    feedback = embed(2, embed(1, uint(1, 3) + uint(2, 2)) + uint(2, 1))
+    assert wire.parse_response(error + feedback) == ["E2: later version"]
+    assert wire.parse_response(feedback + feedback) == []
+
+
 def test_a_response_carries_the_simulators_errors() -> None:
     error = embed(1, tag(1, 2) + varint(4) + b"CODE" + tag(3, 2) + varint(3) + b"bad")
     assert wire.parse_response(error) == ["CODE: bad"]
@@ -94,7 +135,7 @@ def test_a_response_carries_the_simulators_errors() -> None:
     ("data", "reason"),
     [
         (b"\xff" * 10, "malformed"),
-        (wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)[:-3], "malformed"),
+        (wire.encode_geometry(get_field("division_b"))[:-3], "malformed"),
         (b"", "empty"),
         (b"\x00" * (wire.MAX_PACKET + 1), "oversized"),
         (embed(1, tag(1, 0) + varint(1)), "malformed"),  # a frame without its required times
@@ -218,14 +259,15 @@ def test_a_robot_without_an_id_is_invalid() -> None:
 
 def test_the_geometry_packet_carries_the_goal_and_boundary_in_millimetres() -> None:
     packet = ssl_vision_pb2.SSL_WrapperPacket.FromString(
-        wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.7), 1.0, goal_depth=0.6)
+        wire.encode_geometry(wire.FieldGeometry(9.0, 6.0, 1.0, 0.6, 0.7, 1.0, 2.0))
     )
     field = packet.geometry.field
     assert (field.goal_width, field.goal_depth, field.boundary_width) == (1000, 600, 700)
-    default = ssl_vision_pb2.SSL_WrapperPacket.FromString(
-        wire.encode_geometry(wire.FieldSize(9.0, 6.0, 0.3), 1.0)
+    assert (field.penalty_area_depth, field.penalty_area_width) == (1000, 2000)
+    without = ssl_vision_pb2.SSL_WrapperPacket.FromString(
+        wire.encode_geometry(wire.FieldGeometry(9.0, 6.0, 1.0, 0.18, 0.3))
     )
-    assert default.geometry.field.goal_depth == 180
+    assert not without.geometry.field.HasField("penalty_area_depth")
 
 
 @pytest.mark.parametrize("bad", [0, 1, 2])

@@ -24,17 +24,13 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n*hier_ssl/deploy/proto/ssl_simulation.proto\x12\x17hier_ssl.ssl_simulation\"C\n\x11MoveLocalVelocity\x12\x0f\n\x07\x66orward\x18\x01 \x02(\x02\x12\x0c\n\x04left\x18\x02 \x02(\x02\x12\x0f\n\x07\x61ngular\x18\x03 \x02(\x02\"c\n\x10RobotMoveCommand\x12\x44\n\x0elocal_velocity\x18\x02 \x01(\x0b\x32*.hier_ssl.ssl_simulation.MoveLocalVelocityH\x00\x42\t\n\x07\x63ommand\"\x9e\x01\n\x0cRobotCommand\x12\n\n\x02id\x18\x01 \x02(\r\x12?\n\x0cmove_command\x18\x02 \x01(\x0b\x32).hier_ssl.ssl_simulation.RobotMoveCommand\x12\x12\n\nkick_speed\x18\x03 \x01(\x02\x12\x15\n\nkick_angle\x18\x04 \x01(\x02:\x01\x30\x12\x16\n\x0e\x64ribbler_speed\x18\x05 \x01(\x02\"M\n\x0cRobotControl\x12=\n\x0erobot_commands\x18\x01 \x03(\x0b\x32%.hier_ssl.ssl_simulation.RobotCommand\"B\n\x07RobotId\x12\n\n\x02id\x18\x01 \x01(\r\x12+\n\x04team\x18\x02 \x01(\x0e\x32\x1d.hier_ssl.ssl_simulation.Team\"}\n\x0eSimulatorError\x12\x0c\n\x04\x63ode\x18\x01 \x01(\t\x12L\n\x16unsupported_capability\x18\x02 \x01(\x0e\x32,.hier_ssl.ssl_simulation.SimulatorCapability\x12\x0f\n\x07message\x18\x03 \x01(\t\"\\\n\rRobotFeedback\x12,\n\x02id\x18\x01 \x02(\x0b\x32 .hier_ssl.ssl_simulation.RobotId\x12\x1d\n\x15\x64ribbler_ball_contact\x18\x02 \x01(\x08\"\x89\x01\n\x14RobotControlResponse\x12\x37\n\x06\x65rrors\x18\x01 \x03(\x0b\x32\'.hier_ssl.ssl_simulation.SimulatorError\x12\x38\n\x08\x66\x65\x65\x64\x62\x61\x63k\x18\x02 \x03(\x0b\x32&.hier_ssl.ssl_simulation.RobotFeedback*)\n\x04Team\x12\x0b\n\x07UNKNOWN\x10\x00\x12\n\n\x06YELLOW\x10\x01\x12\x08\n\x04\x42LUE\x10\x02*\xc2\x01\n\x13SimulatorCapability\x12 \n\x1cSIMULATOR_CAPABILITY_UNKNOWN\x10\x01\x12,\n(SIMULATOR_CAPABILITY_MOVE_WHEEL_VELOCITY\x10\x02\x12,\n(SIMULATOR_CAPABILITY_MOVE_LOCAL_VELOCITY\x10\x03\x12-\n)SIMULATOR_CAPABILITY_MOVE_GLOBAL_VELOCITY\x10\x04')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n*hier_ssl/deploy/proto/ssl_simulation.proto\x12\x17hier_ssl.ssl_simulation\"C\n\x11MoveLocalVelocity\x12\x0f\n\x07\x66orward\x18\x01 \x02(\x02\x12\x0c\n\x04left\x18\x02 \x02(\x02\x12\x0f\n\x07\x61ngular\x18\x03 \x02(\x02\"c\n\x10RobotMoveCommand\x12\x44\n\x0elocal_velocity\x18\x02 \x01(\x0b\x32*.hier_ssl.ssl_simulation.MoveLocalVelocityH\x00\x42\t\n\x07\x63ommand\"\x9e\x01\n\x0cRobotCommand\x12\n\n\x02id\x18\x01 \x02(\r\x12?\n\x0cmove_command\x18\x02 \x01(\x0b\x32).hier_ssl.ssl_simulation.RobotMoveCommand\x12\x12\n\nkick_speed\x18\x03 \x01(\x02\x12\x15\n\nkick_angle\x18\x04 \x01(\x02:\x01\x30\x12\x16\n\x0e\x64ribbler_speed\x18\x05 \x01(\x02\"M\n\x0cRobotControl\x12=\n\x0erobot_commands\x18\x01 \x03(\x0b\x32%.hier_ssl.ssl_simulation.RobotCommand\"N\n\x0eSimulatorError\x12\x0c\n\x04\x63ode\x18\x01 \x01(\t\x12\x1d\n\x15message_or_capability\x18\x02 \x01(\x0c\x12\x0f\n\x07message\x18\x03 \x01(\t\"O\n\x14RobotControlResponse\x12\x37\n\x06\x65rrors\x18\x01 \x03(\x0b\x32\'.hier_ssl.ssl_simulation.SimulatorError')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'hier_ssl.deploy.proto.ssl_simulation_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_TEAM']._serialized_start=910
-  _globals['_TEAM']._serialized_end=951
-  _globals['_SIMULATORCAPABILITY']._serialized_start=954
-  _globals['_SIMULATORCAPABILITY']._serialized_end=1148
   _globals['_MOVELOCALVELOCITY']._serialized_start=71
   _globals['_MOVELOCALVELOCITY']._serialized_end=138
   _globals['_ROBOTMOVECOMMAND']._serialized_start=140
@@ -43,12 +39,8 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_ROBOTCOMMAND']._serialized_end=400
   _globals['_ROBOTCONTROL']._serialized_start=402
   _globals['_ROBOTCONTROL']._serialized_end=479
-  _globals['_ROBOTID']._serialized_start=481
-  _globals['_ROBOTID']._serialized_end=547
-  _globals['_SIMULATORERROR']._serialized_start=549
-  _globals['_SIMULATORERROR']._serialized_end=674
-  _globals['_ROBOTFEEDBACK']._serialized_start=676
-  _globals['_ROBOTFEEDBACK']._serialized_end=768
-  _globals['_ROBOTCONTROLRESPONSE']._serialized_start=771
-  _globals['_ROBOTCONTROLRESPONSE']._serialized_end=908
+  _globals['_SIMULATORERROR']._serialized_start=481
+  _globals['_SIMULATORERROR']._serialized_end=559
+  _globals['_ROBOTCONTROLRESPONSE']._serialized_start=561
+  _globals['_ROBOTCONTROLRESPONSE']._serialized_end=640
 # @@protoc_insertion_point(module_scope)

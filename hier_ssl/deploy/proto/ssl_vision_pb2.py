@@ -24,7 +24,7 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n&hier_ssl/deploy/proto/ssl_vision.proto\x12\x13hier_ssl.ssl_vision\"x\n\x11SSL_DetectionBall\x12\x12\n\nconfidence\x18\x01 \x02(\x02\x12\x0c\n\x04\x61rea\x18\x02 \x01(\r\x12\t\n\x01x\x18\x03 \x02(\x02\x12\t\n\x01y\x18\x04 \x02(\x02\x12\t\n\x01z\x18\x05 \x01(\x02\x12\x0f\n\x07pixel_x\x18\x06 \x02(\x02\x12\x0f\n\x07pixel_y\x18\x07 \x02(\x02\"\x97\x01\n\x12SSL_DetectionRobot\x12\x12\n\nconfidence\x18\x01 \x02(\x02\x12\x10\n\x08robot_id\x18\x02 \x01(\r\x12\t\n\x01x\x18\x03 \x02(\x02\x12\t\n\x01y\x18\x04 \x02(\x02\x12\x13\n\x0borientation\x18\x05 \x01(\x02\x12\x0f\n\x07pixel_x\x18\x06 \x02(\x02\x12\x0f\n\x07pixel_y\x18\x07 \x02(\x02\x12\x0e\n\x06height\x18\x08 \x01(\x02\"\x95\x02\n\x12SSL_DetectionFrame\x12\x14\n\x0c\x66rame_number\x18\x01 \x02(\r\x12\x11\n\tt_capture\x18\x02 \x02(\x01\x12\x0e\n\x06t_sent\x18\x03 \x02(\x01\x12\x11\n\tcamera_id\x18\x04 \x02(\r\x12\x35\n\x05\x62\x61lls\x18\x05 \x03(\x0b\x32&.hier_ssl.ssl_vision.SSL_DetectionBall\x12>\n\rrobots_yellow\x18\x06 \x03(\x0b\x32\'.hier_ssl.ssl_vision.SSL_DetectionRobot\x12<\n\x0brobots_blue\x18\x07 \x03(\x0b\x32\'.hier_ssl.ssl_vision.SSL_DetectionRobot\"\x82\x01\n\x15SSL_GeometryFieldSize\x12\x14\n\x0c\x66ield_length\x18\x01 \x02(\x05\x12\x13\n\x0b\x66ield_width\x18\x02 \x02(\x05\x12\x12\n\ngoal_width\x18\x03 \x02(\x05\x12\x12\n\ngoal_depth\x18\x04 \x02(\x05\x12\x16\n\x0e\x62oundary_width\x18\x05 \x02(\x05\"M\n\x10SSL_GeometryData\x12\x39\n\x05\x66ield\x18\x01 \x02(\x0b\x32*.hier_ssl.ssl_vision.SSL_GeometryFieldSize\"\x88\x01\n\x11SSL_WrapperPacket\x12:\n\tdetection\x18\x01 \x01(\x0b\x32\'.hier_ssl.ssl_vision.SSL_DetectionFrame\x12\x37\n\x08geometry\x18\x02 \x01(\x0b\x32%.hier_ssl.ssl_vision.SSL_GeometryData')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n&hier_ssl/deploy/proto/ssl_vision.proto\x12\x13hier_ssl.ssl_vision\"x\n\x11SSL_DetectionBall\x12\x12\n\nconfidence\x18\x01 \x02(\x02\x12\x0c\n\x04\x61rea\x18\x02 \x01(\r\x12\t\n\x01x\x18\x03 \x02(\x02\x12\t\n\x01y\x18\x04 \x02(\x02\x12\t\n\x01z\x18\x05 \x01(\x02\x12\x0f\n\x07pixel_x\x18\x06 \x02(\x02\x12\x0f\n\x07pixel_y\x18\x07 \x02(\x02\"\x97\x01\n\x12SSL_DetectionRobot\x12\x12\n\nconfidence\x18\x01 \x02(\x02\x12\x10\n\x08robot_id\x18\x02 \x01(\r\x12\t\n\x01x\x18\x03 \x02(\x02\x12\t\n\x01y\x18\x04 \x02(\x02\x12\x13\n\x0borientation\x18\x05 \x01(\x02\x12\x0f\n\x07pixel_x\x18\x06 \x02(\x02\x12\x0f\n\x07pixel_y\x18\x07 \x02(\x02\x12\x0e\n\x06height\x18\x08 \x01(\x02\"\x95\x02\n\x12SSL_DetectionFrame\x12\x14\n\x0c\x66rame_number\x18\x01 \x02(\r\x12\x11\n\tt_capture\x18\x02 \x02(\x01\x12\x0e\n\x06t_sent\x18\x03 \x02(\x01\x12\x11\n\tcamera_id\x18\x04 \x02(\r\x12\x35\n\x05\x62\x61lls\x18\x05 \x03(\x0b\x32&.hier_ssl.ssl_vision.SSL_DetectionBall\x12>\n\rrobots_yellow\x18\x06 \x03(\x0b\x32\'.hier_ssl.ssl_vision.SSL_DetectionRobot\x12<\n\x0brobots_blue\x18\x07 \x03(\x0b\x32\'.hier_ssl.ssl_vision.SSL_DetectionRobot\"\xba\x01\n\x15SSL_GeometryFieldSize\x12\x14\n\x0c\x66ield_length\x18\x01 \x02(\x05\x12\x13\n\x0b\x66ield_width\x18\x02 \x02(\x05\x12\x12\n\ngoal_width\x18\x03 \x02(\x05\x12\x12\n\ngoal_depth\x18\x04 \x02(\x05\x12\x16\n\x0e\x62oundary_width\x18\x05 \x02(\x05\x12\x1a\n\x12penalty_area_depth\x18\x08 \x01(\x05\x12\x1a\n\x12penalty_area_width\x18\t \x01(\x05\"M\n\x10SSL_GeometryData\x12\x39\n\x05\x66ield\x18\x01 \x02(\x0b\x32*.hier_ssl.ssl_vision.SSL_GeometryFieldSize\"\x88\x01\n\x11SSL_WrapperPacket\x12:\n\tdetection\x18\x01 \x01(\x0b\x32\'.hier_ssl.ssl_vision.SSL_DetectionFrame\x12\x37\n\x08geometry\x18\x02 \x01(\x0b\x32%.hier_ssl.ssl_vision.SSL_GeometryData')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -38,9 +38,9 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_SSL_DETECTIONFRAME']._serialized_start=340
   _globals['_SSL_DETECTIONFRAME']._serialized_end=617
   _globals['_SSL_GEOMETRYFIELDSIZE']._serialized_start=620
-  _globals['_SSL_GEOMETRYFIELDSIZE']._serialized_end=750
-  _globals['_SSL_GEOMETRYDATA']._serialized_start=752
-  _globals['_SSL_GEOMETRYDATA']._serialized_end=829
-  _globals['_SSL_WRAPPERPACKET']._serialized_start=832
-  _globals['_SSL_WRAPPERPACKET']._serialized_end=968
+  _globals['_SSL_GEOMETRYFIELDSIZE']._serialized_end=806
+  _globals['_SSL_GEOMETRYDATA']._serialized_start=808
+  _globals['_SSL_GEOMETRYDATA']._serialized_end=885
+  _globals['_SSL_WRAPPERPACKET']._serialized_start=888
+  _globals['_SSL_WRAPPERPACKET']._serialized_end=1024
 # @@protoc_insertion_point(module_scope)

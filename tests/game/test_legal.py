@@ -259,3 +259,10 @@ def test_row_rules_give_each_row_its_clearances_and_a_float_speed() -> None:
     rules = row_rules(z.Zones(kind, np.zeros((2, 1, 2, 4)), clearance), [0, 1])  # HALT, then 1 m/s
     assert rules.zones.clearance.tolist() == [[0.59, 0.09], [0.09, 0.0]]
     assert rules.speed.dtype == np.float64 and rules.speed.tolist() == [0.0, 1.0]
+
+
+def test_a_float32_velocity_is_capped_in_float64() -> None:
+    # (1, 1) m/s at 1 m/s: scaled by 1 / sqrt(2) to 1 / sqrt(2) = 0.70710678118654752 each. Its speed taken
+    # in float32 (1.4142135, 1.5e-8 short) would give 0.7071067966.
+    out = cap_speed(np.array([[1.0, 1.0]], np.float32), np.array([1.0]))
+    assert out[0] == pytest.approx([1 / math.sqrt(2)] * 2, abs=1e-12)

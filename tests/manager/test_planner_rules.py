@@ -234,10 +234,12 @@ def test_a_path_clear_of_the_zones_still_answers_to_the_still_obstacles() -> Non
         assert not accepted(each, 1.0 + 0j, 3.0 + 0j, 0.0, 1.0, TrajectoryParams())[0][0]
 
 
-def _one_candidate(robot, candidate: complex) -> complex:
+def _one_candidate(robot, candidate: complex, drawn: tuple[complex, ...] = ()) -> complex:
     """``plan`` in STOP for the robot at rest at ``robot`` going to (0.3, 0), made (0.64, 0), behind the
-    ball, with ``candidate`` (relative to the robot-target line) its only sub-destination."""
-    planner = make_planner("trajectory", env_config(task="proposed"), num_sub_destinations=0)
+    ball, with ``candidate`` (relative to the robot-target line) its only sub-destination, or the first
+    before ``drawn``."""
+    planner = make_planner("trajectory", env_config(task="proposed"), num_sub_destinations=len(drawn))
+    planner.draw = lambda n: np.array([drawn] * n, complex).reshape(n, len(drawn))
     scene = read_scene(_obs(robot, (0.3, 0.0)), FIELD.max_pos, 2.5)
     return complex(planner.plan(scene, np.array([candidate]), STOP)[0][0])
 
@@ -254,3 +256,8 @@ def test_a_sub_destination_inside_a_zone_is_no_candidate_and_the_robot_stops() -
     # The candidate 0.5 + 0j is halfway along the line: (-0.43, 0.1), 0.44 m from the ball, inside its zone.
     # With no other path, the robot (outside every zone) stops where it is: its own nearest legal point.
     assert _one_candidate((-1.5, 0.2), 0.5 + 0j) == pytest.approx(-1.5 + 0.2j, abs=1e-6)
+
+
+def test_a_sub_destination_inside_a_zone_leaves_the_others_candidates() -> None:
+    # Both candidates of the two tests above: the one inside the ball's zone is dropped, the other kept.
+    assert _one_candidate((-1.5, 0.2), 0.5 + 0.5j, (0.5 + 0j,)) == pytest.approx(-0.33 + 1.17j, abs=1e-6)

@@ -135,3 +135,22 @@ def test_a_command_the_game_does_not_play_or_a_placement_off_the_field_is_named(
     far = referee.parse_referee(_packet(17, extra=message(9, float32(1, 5000.0) + float32(2, 0.0))))
     with pytest.raises(ValueError, match=r"\(5, 0\) m"):
         referee.game_state(far, get_field("division_b"))
+
+
+def test_an_oversized_packet_is_named_a_referee_message() -> None:
+    with pytest.raises(PacketError) as err:
+        referee.parse_referee(b"\x00" * (MAX_PACKET + 1))
+    assert str(err.value) == f"oversized: referee message of {MAX_PACKET + 1} bytes > {MAX_PACKET}"
+
+
+def test_the_teams_required_fields_go_out_empty() -> None:
+    # The message carries no team names, scores, cards or timeouts: a HALT parsed from a packet with 4
+    # timeouts and 300 us of timeout time left goes back out with "" and 0 for each, its keepers kept.
+    theirs = ssl_gc_referee_message_pb2.Referee.FromString(
+        referee.encode_referee(referee.parse_referee(_packet(0, yellow_keeper=5, blue_keeper=2)))
+    )
+    for team, keeper in ((theirs.blue, 2), (theirs.yellow, 5)):
+        assert team.name == ""
+        counts = (team.score, team.red_cards, team.yellow_cards, team.timeouts, team.timeout_time)
+        assert counts == (0, 0, 0, 0, 0)
+        assert team.goalkeeper == keeper

@@ -39,6 +39,12 @@ def _zones(*slots: tuple[int, tuple[float, ...], float]) -> z.Zones:
     )
 
 
+def _rows(*rows: tuple[tuple[int, tuple[float, ...], float], ...]) -> z.Zones:
+    """Robots' zones (R, S), one row each."""
+    each = [_zones(*row) for row in rows]
+    return z.Zones(*(np.concatenate([getattr(a, f) for a in each]) for f in ("kind", "shape", "clearance")))
+
+
 def _moved(zones: z.Zones, target: tuple[float, float]) -> np.ndarray:
     point = nearest_legal(zones, np.array([target]))[0]
     assert (distances(zones, point[None]) >= 0.0).all()  # no zone broken, ``violates`` False
@@ -150,3 +156,113 @@ def test_row_rules_are_field_major() -> None:
     assert rules.zones.kind.shape == (6, 4) and rules.zones.shape.shape == (6, 4, 4)
     assert rules.zones.shape[4].tolist() == shape[1, 1].tolist()  # row 4: field 1, robot 1
     assert rules.speed.tolist() == [1.5, 1.5, 1.5, np.inf, np.inf, np.inf]
+
+
+def test_integer_targets_move_to_a_point_between_integers() -> None:
+    # (1, 0) lies on the box's edge x = 1, inside its 0.09 m clearance: out to (0.91, 0), not rounded to 0.
+    out = nearest_legal(_zones(BOX, EMPTY), [[1, 0]])
+    assert out[0] == pytest.approx((0.91, 0.0), abs=1e-8)
+
+
+def test_the_referees_field_by_robot_zones_give_each_robot_its_own_point() -> None:
+    # N = 2 fields of M = 3 robots, S = 2 slots (M != S, so no axis can stand in for another).
+    slots = [[(BALL, EMPTY)] * 3, [(BOX, EMPTY), (KEEP, BALL), (EMPTY, EMPTY)]]
+    zones = z.Zones(
+        np.array([[[s[0] for s in robot] for robot in field] for field in slots]),
+        np.array([[[s[1] for s in robot] for robot in field] for field in slots], float),
+        np.array([[[s[2] for s in robot] for robot in field] for field in slots], float),
+    )
+    targets = np.array([[[0.3, 0.0], [2.0, 2.0], [0.0, -0.1]], [[1.05, 0.2], [1.2, 0.3], [5.0, 5.0]]])
+    out = nearest_legal(zones, targets)
+    assert out.shape == (2, 3, 2)
+    # Field 0: out of the ball to 0.59 m, kept (2.83 m off), out of the ball; field 1: out of the box's
+    # edge x = 1, back inside the keep-in (0.91, 0.3), 0.958 m from the ball, no zones at all.
+    expected = [[[0.59, 0.0], [2.0, 2.0], [0.0, -0.59]], [[0.91, 0.2], [0.91, 0.3], [5.0, 5.0]]]
+    assert out.tolist() == [[pytest.approx(p, abs=1e-8) for p in field] for field in expected]
+    away = distances(zones, targets)
+    assert away.shape == (2, 3, 2)
+    assert away[0, 0].tolist() == [pytest.approx(0.3 - 0.59), np.inf]
+    assert away[1, 1].tolist() == pytest.approx([-0.2 - 0.09, math.hypot(1.2, 0.3) - 0.59])
+
+
+def test_one_point_against_several_rows_of_zones() -> None:
+    # The point (0.3, 0.4), 0.5 m from the origin, against three robots' zones: the ball (0.5 - 0.59); the
+    # stadium, 0.4 m above its segment, and the box, 0.7 m left of it; the keep-in, 0.6 m from its top.
+    zones = _rows((BALL, EMPTY), (STADIUM, BOX), (KEEP, EMPTY))
+    away = distances(zones, np.array([0.3, 0.4]))
+    assert away.tolist() == [
+        [pytest.approx(-0.09), np.inf],
+        [pytest.approx(-0.19), pytest.approx(0.61)],
+        [pytest.approx(0.51), np.inf],
+    ]
+
+
+def test_one_row_of_zones_against_several_paths() -> None:
+    # The ball and the box against three paths: 1 m beside the ball and 1 m short of the box's corner
+    # (1, 1); through both; moving away, 5 m from the ball and sqrt(10) m from the box's corner (2, 1).
+    value = path_clearance(
+        _zones(BALL, BOX), np.array([-1 + 1j, -1 + 0j, 3 + 4j]), np.array([0 + 1j, 3 + 0j, 6 + 8j])
+    )
+    assert value.shape == (3, 2)
+    assert value.tolist() == [
+        pytest.approx([1 - 0.59, 1 - 0.09]),
+        pytest.approx([-0.59, -0.09]),
+        pytest.approx([5 - 0.59, math.sqrt(10) - 0.09]),
+    ]
+
+
+def test_zones_per_row_against_that_rows_paths() -> None:
+    # Zones (2, 1, S) against paths (2, 2): row 0 the ball (1 m beside it, through it); row 1 the box and
+    # the keep-in: (0, 0) -> (0.5, 0.8) ends 0.5 m from the box's edge x = 1 and 0.2 m below the keep-in's
+    # top; x = 1.5 from y = -2 to 2 crosses the box, its ends 1 m beyond the keep-in's y edges.
+    zones = _rows((BALL, EMPTY), (BOX, KEEP))
+    zones = z.Zones(zones.kind[:, None], zones.shape[:, None], zones.clearance[:, None])
+    start = np.array([[-1 + 1j, -1 + 0j], [0j, 1.5 - 2j]])
+    end = np.array([[1 + 1j, 3 + 0j], [0.5 + 0.8j, 1.5 + 2j]])
+    value = path_clearance(zones, start, end)
+    assert value.shape == (2, 2, 2)
+    assert value.tolist() == [
+        [[pytest.approx(1 - 0.59), np.inf], [pytest.approx(-0.59), np.inf]],
+        [pytest.approx([0.5 - 0.09, 0.2 - 0.09]), pytest.approx([-0.09, -1 - 0.09])],
+    ]
+
+
+# Path i against zones row j: the ball, and the box with the keep-in. (0, 0) -> (0.5, 0.8) as above; the
+# path (-1, 1.5) -> (0, 1.5) passes 1.5 m above the ball, sqrt(1.25) m from the box's corner (1, 1), and
+# ends 0.5 m above the keep-in's top.
+SPREAD = [
+    [[-0.59, np.inf], [0.5 - 0.09, 0.2 - 0.09]],
+    [[1.5 - 0.59, np.inf], [math.sqrt(1.25) - 0.09, -0.5 - 0.09]],
+]
+
+
+@pytest.mark.parametrize("given", ["broadcast", "in full"])
+def test_zones_and_paths_broadcast_like_arrays(given) -> None:
+    zones = _rows((BALL, EMPTY), (BOX, KEEP))  # (2, S): rows j, against paths (2, 1): rows i
+    start, end = np.array([[0j], [-1 + 1.5j]]), np.array([[0.5 + 0.8j], [1.5j]])
+    if given == "in full":  # each of the (2, 2) paths with its own zones (2, 2, S)
+        zones = z.Zones(*(np.stack([x, x]) for x in (zones.kind, zones.shape, zones.clearance)))
+        start, end = np.repeat(start, 2, axis=1), np.repeat(end, 2, axis=1)
+    value = path_clearance(zones, start, end)
+    assert value.shape == (2, 2, 2)
+    assert value.tolist() == [[pytest.approx(p) for p in row] for row in SPREAD]
+
+
+def test_a_robot_at_rest_in_halt_stays_at_rest() -> None:
+    # Speed 0 is not over a limit of 0: no 0 / 0 scale.
+    assert cap_speed(np.array([[0.0, 0.0]]), np.array([0.0])).tolist() == [[0.0, 0.0]]
+
+
+def test_row_rules_give_each_row_its_clearances_and_a_float_speed() -> None:
+    kind = np.array([[[z.CAPSULE, z.BOX]], [[z.KEEP_IN, z.NONE]]])  # 2 fields of 1 robot
+    clearance = np.array([[[0.59, 0.09]], [[0.09, 0.0]]])
+    rules = row_rules(z.Zones(kind, np.zeros((2, 1, 2, 4)), clearance), [0, 1])  # HALT, then 1 m/s
+    assert rules.zones.clearance.tolist() == [[0.59, 0.09], [0.09, 0.0]]
+    assert rules.speed.dtype == np.float64 and rules.speed.tolist() == [0.0, 1.0]
+
+
+def test_a_float32_velocity_is_capped_in_float64() -> None:
+    # (1, 1) m/s at 1 m/s: scaled by 1 / sqrt(2) to 1 / sqrt(2) = 0.70710678118654752 each. Its speed taken
+    # in float32 (1.4142135, 1.5e-8 short) would give 0.7071067966.
+    out = cap_speed(np.array([[1.0, 1.0]], np.float32), np.array([1.0]))
+    assert out[0] == pytest.approx([1 / math.sqrt(2)] * 2, abs=1e-12)

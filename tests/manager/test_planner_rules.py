@@ -8,6 +8,8 @@ ball at the origin, kept 0.5 + 0.09 = 0.59 m from. The planners move a target in
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -17,8 +19,8 @@ from hier_ssl.game import zones as z
 from hier_ssl.game.legal import RowRules
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.bangbang import bang_bang_2d
-from hier_ssl.manager.planners import ZONE_MARGIN
-from hier_ssl.manager.trajectory import TrajectoryParams, accepted, first_collisions
+from hier_ssl.manager.planners import ZONE_MARGIN, read_scene
+from hier_ssl.manager.trajectory import Collisions, TrajectoryParams, accepted, first_collisions
 from hier_ssl.world.field import get_field
 
 FIELD = get_field("hardware_challenge")
@@ -221,3 +223,41 @@ def test_sampling_under_the_rules_is_row_wise() -> None:
         rules.speed[[3, 0]],
     )
     assert planner(obs[[3, 0]], rules=some).tobytes() == every[[3, 0]].tobytes()
+
+
+def test_a_path_clear_of_the_zones_still_answers_to_the_still_obstacles() -> None:
+    # 1 to 3 (2 m), a still robot hit at 2 s (threshold 0.5) 1.5 m short of the end (0.75): rejected, zones
+    # checked and never entered or not.
+    hits = Collisions(np.array([2.0]), np.array([1.5 + 0j]), np.array([np.inf]), np.zeros(1, complex))
+    checked = dataclasses.replace(hits, zone_time=np.array([np.inf]), zone_pos=np.zeros(1, complex))
+    for each in (hits, checked):
+        assert not accepted(each, 1.0 + 0j, 3.0 + 0j, 0.0, 1.0, TrajectoryParams())[0][0]
+
+
+def _one_candidate(robot, candidate: complex, drawn: tuple[complex, ...] = ()) -> complex:
+    """``plan`` in STOP for the robot at rest at ``robot`` going to (0.3, 0), made (0.64, 0), behind the
+    ball, with ``candidate`` (relative to the robot-target line) its only sub-destination, or the first
+    before ``drawn``."""
+    planner = make_planner("trajectory", env_config(task="proposed"), num_sub_destinations=len(drawn))
+    planner.draw = lambda n: np.array([drawn] * n, complex).reshape(n, len(drawn))
+    scene = read_scene(_obs(robot, (0.3, 0.0)), FIELD.max_pos, 2.5)
+    return complex(planner.plan(scene, np.array([candidate]), STOP)[0][0])
+
+
+def test_every_path_into_a_zone_heads_for_the_one_clear_until_its_switch() -> None:
+    # From (-1.5, 0.2) the line to (0.64, 0) is 2.14 - 0.2j; the candidate 0.5 + 0.5j is (1.17 + 0.97j) off
+    # the robot: (-0.33, 1.17), 1.22 m from the ball, reached clear of it. From there and from every switch
+    # before it the straight way on passes within 0.59 m of the ball (from (-0.33, 1.17): 0.49 m), so no
+    # path is accepted; the sub-path is clear until its switch, and the robot heads for it.
+    assert _one_candidate((-1.5, 0.2), 0.5 + 0.5j) == pytest.approx(-0.33 + 1.17j, abs=1e-6)
+
+
+def test_a_sub_destination_inside_a_zone_is_no_candidate_and_the_robot_stops() -> None:
+    # The candidate 0.5 + 0j is halfway along the line: (-0.43, 0.1), 0.44 m from the ball, inside its zone.
+    # With no other path, the robot (outside every zone) stops where it is: its own nearest legal point.
+    assert _one_candidate((-1.5, 0.2), 0.5 + 0j) == pytest.approx(-1.5 + 0.2j, abs=1e-6)
+
+
+def test_a_sub_destination_inside_a_zone_leaves_the_others_candidates() -> None:
+    # Both candidates of the two tests above: the one inside the ball's zone is dropped, the other kept.
+    assert _one_candidate((-1.5, 0.2), 0.5 + 0.5j, (0.5 + 0j,)) == pytest.approx(-0.33 + 1.17j, abs=1e-6)

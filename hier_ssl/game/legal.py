@@ -327,7 +327,10 @@ def path_clearance(zones: Zones, start: np.ndarray, end: np.ndarray) -> np.ndarr
     start, end = np.broadcast_arrays(np.asarray(start, complex), np.asarray(end, complex))
     lead, s = zones.kind.shape[:-1], zones.kind.shape[-1]
     full = np.broadcast_shapes(lead, start.shape)
-    if full == start.shape and len(lead) >= 1 and lead[0] == full[0] and all(d == 1 for d in lead[1:]):
+    # In place only where the zones' axes are the paths' own (N, 1, ..., 1): zones (N,) against paths
+    # (N, N) broadcast along the paths' last axis, and are spread out like any other broadcast.
+    in_place = len(lead) == len(full) >= 1 and lead[0] == full[0] and all(d == 1 for d in lead[1:])
+    if full == start.shape and in_place:
         kind, shape, clearance = (
             x.reshape((lead[0], s) + x.shape[len(lead) + 1 :])
             for x in (zones.kind, zones.shape, zones.clearance)

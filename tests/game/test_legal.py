@@ -266,3 +266,18 @@ def test_a_float32_velocity_is_capped_in_float64() -> None:
     # in float32 (1.4142135, 1.5e-8 short) would give 0.7071067966.
     out = cap_speed(np.array([[1.0, 1.0]], np.float32), np.array([1.0]))
     assert out[0] == pytest.approx([1 / math.sqrt(2)] * 2, abs=1e-12)
+
+
+def test_zones_of_one_axis_against_square_paths_broadcast_as_numpy_does() -> None:
+    # Two rows of zones (N = 2, one circle each) against a 2 x 2 grid of paths: numpy pairs zone j with
+    # path [i, j], so each column of the grid is measured against one circle.
+    zones = z.Zones(
+        kind=np.array([[z.CAPSULE], [z.CAPSULE]]),
+        shape=np.array([[[0.0, 0.0, 0.0, 0.0]], [[10.0, 0.0, 10.0, 0.0]]]),
+        clearance=np.array([[1.0], [1.0]]),
+    )
+    start = np.array([[0.0 + 5j, 10.0 + 5j], [0.0 + 3j, 10.0 + 3j]])
+    end = start + 1.0  # short paths 5 m or 3 m above their own column's circle
+    got = path_clearance(zones, start, end)
+    assert got.shape == (2, 2, 1)
+    np.testing.assert_allclose(got[..., 0], [[4.0, 4.0], [2.0, 2.0]])

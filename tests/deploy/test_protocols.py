@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from protobuf_bytes import double, float32, tag, uint, varint
@@ -291,3 +292,52 @@ def test_grsim_wheel_speeds_are_unsupported() -> None:
     data = embed(1, double(1, 0.0) + tag(2, 0) + varint(0) + embed(3, robot))
     message = "unsupported: grSim wheel speeds (only local velocities are simulated)"
     assert _dropped(wire.parse_grsim, data) == message
+
+
+def _ball(confidence: float, x: float, y: float) -> bytes:
+    # SSL_DetectionBall: confidence 1, x 3, y 4, pixel_x 6, pixel_y 7 (the required fields)
+    return float32(1, confidence) + float32(3, x) + float32(4, y) + float32(6, 0.0) + float32(7, 0.0)
+
+
+def _frame_with(*balls: bytes) -> bytes:
+    frame = uint(1, 1) + double(2, 10.0) + double(3, 10.0) + uint(4, 0)
+    return embed(1, frame + b"".join(embed(5, ball) for ball in balls))
+
+
+def test_the_most_confident_ball_is_kept_in_metres_the_first_of_equals() -> None:
+    frame = _frame_with(_ball(0.5, 1000.0, -500.0), _ball(0.75, -1500.0, 250.0), _ball(0.75, 0.0, 0.0))
+    assert wire.parse_vision(frame).ball == (-1.5, 0.25)
+    assert wire.parse_vision(_frame_with()).ball is None
+
+
+def test_a_ball_on_the_20_m_edge_is_kept_and_one_beyond_it_dropped() -> None:
+    assert wire.parse_vision(_frame_with(_ball(1.0, 20000.0, -20000.0))).ball == (20.0, -20.0)
+    for x, y in ((20001.0, 0.0), (0.0, -20001.0)):
+        assert _dropped(wire.parse_vision, _frame_with(_ball(1.0, x, y))) == f"invalid: ball at ({x}, {y}) mm"
+
+
+@pytest.mark.parametrize("ball", [(math.nan, 0.0, 0.0), (1.0, math.nan, 0.0), (1.0, 0.0, math.nan)])
+def test_a_ball_with_a_nan_is_dropped(ball: tuple[float, float, float]) -> None:
+    assert _dropped(wire.parse_vision, _frame_with(_ball(*ball))) == "invalid: ball is not finite"
+
+
+def test_an_encoded_frame_carries_its_ball_as_ssl_vision_does() -> None:
+    frame = wire.DetectionFrame(10.0, 10.0, 0, (), ball=(-1.5, 0.25))
+    expected = ssl_vision_pb2.SSL_WrapperPacket.FromString(_frame_with(_ball(1.0, -1500.0, 250.0)))
+    assert ssl_vision_pb2.SSL_WrapperPacket.FromString(wire.encode_detection(1, frame)) == expected
+    assert wire.parse_vision(wire.encode_detection(1, frame)).ball == (-1.5, 0.25)
+
+
+def test_a_simulator_message_that_is_not_utf8_is_shown_replaced() -> None:
+    error = embed(1, embed(1, b"E") + embed(2, b"bad \xff"))
+    assert wire.parse_response(error) == ["E: bad \ufffd"]
+
+
+def test_a_field_off_by_exactly_the_tolerance_agrees() -> None:
+    # Sizes of 0 and exactly FIELD_TOLERANCE: the only pair whose float difference is the tolerance itself.
+    trained = SimpleNamespace(
+        name="edge", field_length=0.0, field_width=0.0, penalty_area_depth=0.0, penalty_area_width=0.0
+    )
+    wire.check_field(wire.FieldGeometry(wire.FIELD_TOLERANCE, 0.0, 1.0, 0.18, 0.3, 0.0, 0.0), trained)
+    with pytest.raises(ValueError, match="field_width differ"):
+        wire.check_field(wire.FieldGeometry(0.0, 2 * wire.FIELD_TOLERANCE, 1.0, 0.18, 0.3, 0.0, 0.0), trained)

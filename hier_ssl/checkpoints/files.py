@@ -1,6 +1,6 @@
-"""Every file a run writes (checkpoints, its config, its curve, its figures) goes through ``atomic_write``:
-a run killed mid-write leaves the previous file whole, never a truncated one that a resume or a reader
-would then fail on."""
+"""The files a run resumes from or is read back by (checkpoints, its config, its curve, eval.json) go
+through ``atomic_write``: a run killed mid-write leaves the previous file whole, never a truncated one
+that a resume or a reader would then fail on."""
 
 from __future__ import annotations
 

@@ -19,8 +19,6 @@ from hier_ssl.game.referee import TEAM_NAMES, RefereeState, referee_state
 from hier_ssl.world.field import Field
 
 Referee = ssl_gc_referee_message_pb2.Referee
-COMMANDS: tuple[str, ...] = tuple(Referee.Command.keys())
-STAGES: tuple[str, ...] = tuple(Referee.Stage.keys())
 BALL_PLACEMENT = ("BALL_PLACEMENT_YELLOW", "BALL_PLACEMENT_BLUE")
 
 
@@ -112,8 +110,6 @@ def game_state(message: RefereeMessage, field: Field) -> RefereeState:
 
 __all__ = [
     "BALL_PLACEMENT",
-    "COMMANDS",
-    "STAGES",
     "RefereeMessage",
     "encode_referee",
     "game_state",

@@ -83,8 +83,10 @@ def play(
         for key in ends:
             ends[key][at] = episode[key] > 0 if ends[key].dtype == bool else episode[key]
         obs = result.obs
-        bar.update(int(core.steps.max()) - bar.n)
-        bar.set_postfix_str(f"{live.size - int(core.active.sum())}/{live.size} robots done", refresh=False)
+        if progress is not None:  # the bar's figures cost two reductions a decision: only for a shown bar
+            bar.update(int(core.steps.max()) - bar.n)
+            done = live.size - int(core.active.sum())
+            bar.set_postfix_str(f"{done}/{live.size} robots done", refresh=False)
     bar.close()
     # A field's control steps stop counting when its last robot leaves: the recorded episode's length.
     trajectories = [recorder.episode(j, int(core.steps[i])) for j, i in enumerate(record)] if recorder else []

@@ -100,8 +100,8 @@ class Scenario:
         }
         # others[i]: every robot but robot i, the ones it sees and can hit; teammate: which are controlled.
         m, r = num_agents, self.num_robots
-        self.others = np.array([[j for j in range(r) if j != i] for i in range(m)], dtype=np.int64)
-        self.others = self.others.reshape(m, r - 1)
+        others = [[j for j in range(r) if j != i] for i in range(m)]
+        self.others = np.array(others, dtype=np.int64).reshape(m, r - 1)  # (m, 0) where r = 1
         self.teammate = self.others < m
         # The controlled robots' columns, None where every robot is controlled (no slicing to do).
         self._own = None if self.num_obstacles == 0 else np.s_[:, :m]

@@ -20,6 +20,7 @@ from hier_ssl.game.zones import (
     OPPONENT_DEFENSE,
     OWN_DEFENSE,
     ROBOT_RADIUS,
+    STOP_SPEED,  # rules 5.1.1's limit is the one 8.4.3 "Robot Stop Speed" calls a foul above
     forbidden_zones,
     violates,
 )
@@ -28,7 +29,6 @@ from hier_ssl.world.field import Field
 CRASH_SPEED = 1.5  # m/s, rules 8.4.2 "Crashing": the projected speed difference above which it is a crash
 CRASH_DRAWN_SPEED = 0.3  # m/s, rules 8.4.2: a crash with speeds this close is both robots' foul
 GRACE = 2.0  # s, rules 8.4.1 and 8.4.3: every grace period of the fouls played here
-STOP_SPEED = 1.5  # m/s, rules 8.4.3 "Robot Stop Speed"
 
 KINDS = (
     "crash_unique",  # 8.4.2 Crashing, the faster robot's

@@ -360,6 +360,8 @@ def cap_speed(velocity: np.ndarray, limit: np.ndarray) -> np.ndarray:
     limit = np.asarray(limit, dtype=float)
     speed = np.hypot(velocity[..., 0], velocity[..., 1])
     over = speed > limit
+    if not over.any():  # outside STOP and HALT the limit is inf: most calls cap nothing
+        return velocity
     scale = np.where(over, limit / np.where(over, speed, 1.0), 1.0)
     return np.where(over[..., None], velocity * scale[..., None], velocity)
 

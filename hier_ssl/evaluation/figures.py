@@ -234,11 +234,12 @@ def episode_video(
     stride = max(2, -(-longest // max_frames))
     steps = [*range(0, longest, stride), longest]
     strips: dict[tuple[str, ...], np.ndarray] = {}  # one per set of finished panels, not one per frame
+    columns = legend_columns(len(panels) * size[0] / 100, fontsize)  # the strip's width never changes
     frames = []
     for step in tqdm(steps, desc=f"drawing {path.name}", unit="frame", disable=not progress, leave=False):
         names = frame_labels(panels, step)
         if names not in strips:
-            strips[names] = _strip(names, size[0], fontsize)
+            strips[names] = _strip(names, size[0], fontsize, columns)
         row = np.concatenate([_panel(field, e, step, size, robot) for _, e in panels], axis=1)
         frames.append(np.concatenate([strips[names][:, : row.shape[1]], row], axis=0))
     iio.imwrite(path, np.stack(frames), duration=1000 / fps, loop=0)
@@ -255,15 +256,14 @@ def frame_labels(panels: Sequence[tuple[str, dict[str, Any]]], step: int) -> tup
     )
 
 
-def _strip(names: Sequence[str], panel_width: int, fontsize: float) -> np.ndarray:
+def _strip(names: Sequence[str], panel_width: int, fontsize: float, columns: int) -> np.ndarray:
     """An RGB image strip, ``panel_width`` pixels a name: each name over its panel and the legend whole
-    below them, on as many rows as it needs (``legend_columns``)."""
+    below them in ``columns`` (``legend_columns``), on as many rows as it needs."""
     # here, not at the top: matplotlib, for drawing alone
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     width_in = len(names) * panel_width / 100
-    columns = legend_columns(width_in, fontsize)
     rows = -(-len(legend_entries()) // columns)
     line_in = fontsize / 72 * 1.6
     fig = Figure(figsize=(width_in, line_in * (1 + rows) + 0.1), dpi=100, facecolor="white")

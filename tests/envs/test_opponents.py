@@ -3,10 +3,13 @@ kept, decisions only where they are due."""
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from hier_ssl.envs.opponents import MARK_DISTANCE, OpponentTeam
+from hier_ssl.envs.opponents import MARK_DISTANCE, ROLE_SHARE, ROLES, OpponentTeam
 from hier_ssl.game import referee as ref
 from hier_ssl.game.legal import distances
 from hier_ssl.game.zones import STOP_SPEED, forbidden_zones
@@ -225,3 +228,12 @@ def test_bad_inputs_are_named():
     yellow = ref.lineup(np.zeros(5, int), np.arange(5))
     with pytest.raises(ValueError, match=r"opponents \(slots 2..4\) must be BLUE"):
         team.commands(state, ball, referee, yellow, np.zeros(1, int), rng)
+
+
+def test_the_guide_gives_the_codes_roles_and_shares():
+    page = (Path(__file__).parents[2] / "docs" / "guide" / "ssl-game.md").read_text()
+    section = page.split("## The second team\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| `")]
+    assert tuple(re.match(r"\| `(\w+)`", row)[1] for row in rows) == ROLES
+    shares = re.findall(r"(\d+) % `(\w+)`", " ".join(section.split()))
+    assert {role: int(share) / 100 for share, role in shares} == ROLE_SHARE

@@ -52,8 +52,9 @@ MARK_DISTANCE = (0.3, 0.5)  # m from the marked robot towards BLUE's goal, drawn
 COVER_SPAN = (0.2, 0.8)  # of the way from BLUE's goal to the ball, drawn per episode
 FREE_HOLD = 3.0  # s a free robot keeps its spot, on average, before it draws another
 FREE_SPOTS = 8  # random spots a free robot draws, keeping the one farthest from every robot
-# Other robots each opponent's planner avoids, nearest first: its neighbourhood, not all 21 others, so a
-# decision of 11 opponents stays within the game benchmark's budget.
+FREE_ATTACK = 0.5  # chance a free robot looks for its spot in the half BLUE attacks rather than anywhere
+# Other robots each opponent's planner avoids, nearest first: its neighbourhood, not all 21 others, as the
+# planners' work grows with the obstacles they are given.
 NEIGHBOURS = 5
 
 
@@ -93,12 +94,13 @@ class OpponentTeam:
         if planner not in PLANNERS:
             raise ValueError(f"unknown opponent planner {planner!r}; known: {list(PLANNERS)}")
         unknown = [r for r in roles if r not in ROLES]
-        if unknown or not roles:
-            raise ValueError(
-                f"unknown opponent role {unknown[0] if unknown else None!r}; known: {list(ROLES)}"
-            )
+        if unknown:
+            raise ValueError(f"unknown opponent role {unknown[0]!r}; known: {list(ROLES)}")
+        if not roles:
+            raise ValueError(f"OpponentTeam roles must name at least one of {list(ROLES)}, got {roles!r}")
         for name, value, least in (
             ("num_fields", num_fields, 1),
+            ("num_ours", num_ours, 0),
             ("count", count, 1),
             ("decide_every", decide_every, 1),
         ):
@@ -258,7 +260,8 @@ class OpponentTeam:
         ball = ball[:, None]
         targets = np.empty(own.shape[:2] + (3,))
         name = np.array(self.roles)[role]
-        # mark: goal-side of the marked robot, facing it
+        # mark: goal-side of the marked robot, facing it (a team without ours has no markers: slot 0
+        # stands in, its target never chosen)
         marked = np.take_along_axis(pos[:, : max(m, 1)], self.marked[rows][..., None], axis=1)
         away = goal - marked
         unit = away / np.maximum(np.linalg.norm(away, axis=-1, keepdims=True), 1e-9)
@@ -274,9 +277,9 @@ class OpponentTeam:
         # free: the spot, drawn afresh where due, facing the ball
         free = name == "free"
         due = free & (self.stale[rows] | (rng.random(free.shape) < self._redraw))
-        spots = self._free_spots(pos, side, rng)
-        self.spot[rows] = np.where(due[..., None], spots, self.spot[rows])
-        self.stale[rows] &= ~due
+        if due.any():
+            self.spot[rows] = np.where(due[..., None], self._free_spots(pos, side, rng), self.spot[rows])
+            self.stale[rows] &= ~due
         xy = np.where(free[..., None], self.spot[rows], xy)
         face = np.where(free[..., None], ball - self.spot[rows], face)
         targets[..., :2] = xy
@@ -291,7 +294,7 @@ class OpponentTeam:
         hl, hw = self.field.half_length, self.field.half_width
         draw = rng.random((d, k, FREE_SPOTS, 2))
         x = -hl + 2 * hl * draw[..., 0]
-        attack = rng.random((d, k, 1)) < 0.5
+        attack = rng.random((d, k, 1)) < FREE_ATTACK
         x = np.where(attack, -side[:, None, None] * np.abs(x), x)
         spots = np.stack([x, -hw + 2 * hw * draw[..., 1]], axis=-1)  # (D, K, S, 2)
         gaps = np.linalg.norm(spots[:, :, :, None] - pos[:, None, None], axis=-1).min(axis=-1)
@@ -299,4 +302,4 @@ class OpponentTeam:
         return np.take_along_axis(spots, best[..., None, None], axis=2)[:, :, 0]
 
 
-__all__ = ["MARK_DISTANCE", "NEIGHBOURS", "PLANNERS", "ROLES", "ROLE_SHARE", "OpponentTeam"]
+__all__ = ["COVER_SPAN", "MARK_DISTANCE", "NEIGHBOURS", "PLANNERS", "ROLES", "ROLE_SHARE", "OpponentTeam"]

@@ -204,7 +204,8 @@ def test_decisions_come_every_decide_every_steps_and_after_a_reset():
     [
         ({"planner": "tiger"}, "unknown opponent planner 'tiger'"),
         ({"roles": ("mark", "goalie")}, "unknown opponent role 'goalie'"),
-        ({"roles": ()}, "unknown opponent role None"),
+        ({"roles": ()}, r"roles must name at least one of .*, got \(\)"),
+        ({"num_ours": -1, "roles": ("cover",)}, "num_ours must be >= 0, got -1"),
         ({"decide_every": 0}, "decide_every must be >= 1, got 0"),
         ({"count": 0}, "count must be >= 1, got 0"),
         ({"num_ours": 0}, "'mark' needs robots of ours"),

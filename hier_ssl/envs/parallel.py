@@ -222,6 +222,8 @@ class HierarchicalSSLEnv(ParallelEnv):
             trails=[trail[:, i] for i in range(m)],
             team=[0] * m + [1] * k,
             extra=functools.partial(self.core.scenario.extra_render, field_index=0),
+            balls=None if self.core.world.ball is None else self.core.world.ball.pos,
+            ball=self.core.world.ball_spec,
         )
         if self.render_mode == "human":
             self._show(frame)

@@ -14,6 +14,7 @@ import pytest
 from hier_ssl.envs import HierarchicalCore, scenario_config
 from hier_ssl.envs.scenario import Placement
 from hier_ssl.envs.scenarios import Crossing
+from hier_ssl.envs.state import global_state, state_columns, state_dim
 from hier_ssl.world import Entities, World
 from hier_ssl.world.ball import BallSpec, BallState
 from hier_ssl.world.goals import goal_boxes
@@ -213,3 +214,15 @@ def test_the_core_places_the_balls_of_its_scenario() -> None:
     scenario.with_ball = False
     with pytest.raises(ValueError, match="'crossing': its world holds balls, its placement has no ball_pos"):
         core.reset_fields(np.array([1]))
+
+
+def test_the_global_state_ends_with_the_balls() -> None:
+    core = HierarchicalCore(_BallCrossing(scenario_config("crossing", num_agents=2)), 2)
+    core.reset()
+    state, scales = global_state(core), core.scenario.scales
+    assert state.shape == (2, state_dim(2, 0, 1)) == (2, state_dim(2, 0) + 4)
+    assert state_columns(2, 0, 1)[-4:] == ["ball_0_x", "ball_0_y", "ball_0_vx", "ball_0_vy"]
+    expected = np.concatenate(
+        [core.world.ball.pos / scales["max_pos"], core.world.ball.vel / scales["max_v"]], -1
+    )
+    np.testing.assert_allclose(state[:, -4:], expected[:, 0].astype(np.float32), rtol=1e-6)

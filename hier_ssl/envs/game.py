@@ -467,7 +467,6 @@ class GameScenario(FieldScenario):
                     (y0 - clear, y0 - clear, y1 + clear, y1 + clear),
                 )
                 ax.fill(xs, ys, color="#e03131", alpha=0.2, zorder=1)
-        ax.plot(*ball, "o", color="#fd7e14", markersize=4, zorder=5)
         name = COMMANDS[int(referee.command[0])]
         ax.text(
             -self.field.half_length, self.field.half_width + 0.1, name, color="white", fontsize=8, zorder=6

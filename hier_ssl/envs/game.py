@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, field_validator
 
 from hier_ssl.config import ScenarioConfig, Strict
 from hier_ssl.envs.opponents import OpponentTeam
@@ -100,13 +100,12 @@ class GameOptions(Strict):
             raise ValueError(f"unknown referee state {value!r}; known: {sorted(COMMAND_NUMBERS)}")
         return value
 
-    @model_validator(mode="after")
-    def _ranges(self) -> GameOptions:
-        for key in ("command_at", "ball_speed"):
-            low, high = getattr(self, key)
-            if not 0 <= low <= high:
-                raise ValueError(f"{key}: ({low}, {high}) is no range of values >= 0")
-        return self
+    @field_validator("command_at", "ball_speed")
+    @classmethod
+    def _range(cls, value: tuple[float, float]) -> tuple[float, float]:
+        if not 0 <= value[0] <= value[1]:
+            raise ValueError(f"{value} is no range (low, high) with 0 <= low <= high")
+        return value
 
 
 @dataclass

@@ -257,8 +257,9 @@ class GameScenario(FieldScenario):
         placed: np.ndarray,
     ) -> np.ndarray:
         """Points (F, C, 2) drawn in ``box`` (low, high (C, 2), drawing frame), mirrored into each field,
-        moved to the nearest point ``target_margin`` beyond their zones (F, C, S) and at least ``gap`` from
-        each other and from ``placed`` (F, P, 2): a point that is not is drawn again until none is."""
+        moved to the nearest point ``target_margin`` beyond their zones (F, C, S), inside the field lines and
+        at least ``gap`` from each other and from ``placed`` (F, P, 2): a point that is not is drawn again
+        until none is."""
         f, c = zones.kind.shape[:2]
         inflated = Zones(zones.kind, zones.shape, zones.clearance + self.options.target_margin)
         earlier = np.tril(np.ones((c, c), bool), k=-1)
@@ -268,7 +269,9 @@ class GameScenario(FieldScenario):
             pts = nearest_legal(inflated, np.where(bad[..., None], fresh, pts))
             near = np.linalg.norm(pts[:, :, None] - pts[:, None], axis=-1) < self.gap
             near_placed = np.linalg.norm(pts[:, :, None] - placed[:, None], axis=-1) < self.gap
-            bad = (near & earlier).any(axis=2) | near_placed.any(axis=2)
+            # A point a zone pushed beyond the box's field lines (the drawing box's bound) is drawn again.
+            off = (np.abs(pts) > self.half + self.config.spawn_margin).any(axis=-1)
+            bad = (near & earlier).any(axis=2) | near_placed.any(axis=2) | off
             if not bad.any():
                 return pts
         raise RuntimeError(f"scenario {self.name!r}: cannot place {c} robots {self.gap} m apart, legally")

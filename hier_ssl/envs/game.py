@@ -226,14 +226,9 @@ class GameScenario(FieldScenario):
         )
         return self.world
 
-    def referee_of(self, fields: np.ndarray | None) -> RefereeState:
+    def referee_of(self, fields: np.ndarray | list[int] | None) -> RefereeState:
         """The referee's state of ``fields`` (F,) ints, every field for None."""
-        r = self.referee
-        if fields is None:
-            return r
-        return RefereeState(
-            r.command[fields], r.placement[fields], r.keeper[fields], r.blue_on_positive_half[fields]
-        )
+        return self.referee if fields is None else self.referee.fields(fields)
 
     # -- resets --------------------------------------------------------------------------------------------
 

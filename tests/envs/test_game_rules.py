@@ -209,3 +209,11 @@ def test_evaluation_reports_fouls_by_kind() -> None:
     assert result["foul_rate"] == per["foul"].mean()
     table = markdown_table([make_record("direct", result)])
     assert table.splitlines()[0].endswith("| Foul |") and "fouls of direct: " in table
+
+
+def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() -> None:
+    core = _core("game_ball_placement", fields=3)
+    core.step(np.zeros((3, 2, core.act_dim)))
+    np.testing.assert_array_equal(core.observe(np.array([2, 0])), core.observe()[[2, 0]])
+    referee = core.scenario.referee.fields([2, 0])
+    np.testing.assert_array_equal(referee.placement, core.scenario.referee.placement[[2, 0]])

@@ -1,18 +1,19 @@
 """Gymnasium ids of the single-agent manager tasks, registered when ``hier_ssl`` is imported.
 
-=========================  ========================================================================
-id                         environment (``gymnasium.make(id, **settings)``; settings as
-                           ``hier_ssl.manager_env`` takes them: ``frame_skip=16``, ``worker=...``)
-=========================  ========================================================================
-``hier_ssl/Baseline-v0``   the paper's Baseline task (robot-centric reward)
-``hier_ssl/Proposed-v0``   the paper's Proposed task (action-centric reward)
-``hier_ssl/Obstacle-v0``   the paper's Obstacle task (one obstacle at the midpoint)
-``hier_ssl/Crowd-v0``      the ``crowd`` scenario: one robot across a band of 8 random-walking obstacles
-``hier_ssl/GameStop-v0``   ``game_stop`` with one robot of ours against the six opponents
-``hier_ssl/GameFreeKick-v0``  ``game_free_kick``, one robot of ours
-``hier_ssl/GameBallPlacement-v0``  ``game_ball_placement``, one robot of ours
-``hier_ssl/GameMatch-v0``  ``game_match``, one robot of ours against the eleven opponents
-=========================  ========================================================================
+=================================  ================================================================
+id                                 environment (``gymnasium.make(id, **settings)``; settings as
+                                   ``hier_ssl.manager_env`` takes them: ``frame_skip=16``, ...)
+=================================  ================================================================
+``hier_ssl/Baseline-v0``           the paper's Baseline task (robot-centric reward)
+``hier_ssl/Proposed-v0``           the paper's Proposed task (action-centric reward)
+``hier_ssl/Obstacle-v0``           the paper's Obstacle task (one obstacle at the midpoint)
+``hier_ssl/Crowd-v0``              the ``crowd`` scenario: one robot across a band of 8 random-walking
+                                   obstacles
+``hier_ssl/GameStop-v0``           ``game_stop``: one robot of ours against the six opponents
+``hier_ssl/GameFreeKick-v0``       ``game_free_kick``: one robot of ours against the six opponents
+``hier_ssl/GameBallPlacement-v0``  ``game_ball_placement``: one robot of ours against the six
+``hier_ssl/GameMatch-v0``          ``game_match``: one robot of ours against the eleven opponents
+=================================  ================================================================
 
 A Gymnasium env has one agent, so only the tasks with one controlled robot have ids: the paper's three
 and ``crowd`` (one robot by default). ``crossing`` and ``formation`` are about several robots meeting

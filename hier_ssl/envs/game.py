@@ -36,7 +36,7 @@ from pydantic import Field, field_validator
 from hier_ssl.config import ScenarioConfig, Strict
 from hier_ssl.envs.opponents import OpponentTeam
 from hier_ssl.envs.registry import register_scenario
-from hier_ssl.envs.scenario import ObstacleGroup, Placement
+from hier_ssl.envs.scenario import Placement
 from hier_ssl.envs.scenarios import FieldScenario
 from hier_ssl.game import (
     BALL_PLACEMENT_BLUE,
@@ -170,7 +170,6 @@ class GameScenario(FieldScenario):
         if config.num_obstacles < 1:
             raise ValueError("num_obstacles: 0; a game needs at least one opponent")
         super().__init__(config)
-        self.groups = [ObstacleGroup("stationary", {}, config.num_obstacles)]
         m, k, opt = self.num_agents, self.num_obstacles, self.options
         # Rules 3.1: each team within its division's limit, checked alone so the error names its key.
         for key, team, count in (("num_agents", YELLOW, m), ("num_obstacles", BLUE, k)):
@@ -195,7 +194,7 @@ class GameScenario(FieldScenario):
 
     def make_world(self, num_fields: int) -> World:
         """The world: our robots, the opponents, a ball; and the per-field state of the game, every field
-        at rest until its reset."""
+        at rest until its reset. A scenario object serves the one core that made its world."""
         entities = Entities()
         entities.add("robot", self.num_agents, "controlled")
         entities.add("robot", self.num_obstacles, "opponents")

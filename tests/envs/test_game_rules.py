@@ -13,6 +13,7 @@ from hier_ssl.envs import HierarchicalCore, Scenario, scenario_config
 from hier_ssl.envs.game import COLLIDED, FOULED, IN_PLAY, SUCCEEDED, game_outcome
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import evaluate
+from hier_ssl.evaluation.figures import label_outcomes, panel_title
 from hier_ssl.evaluation.report import make_record, markdown_table
 from hier_ssl.game import (
     DIRECT_FREE_BLUE,
@@ -217,3 +218,15 @@ def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() ->
     np.testing.assert_array_equal(core.observe(np.array([2, 0])), core.observe()[[2, 0]])
     referee = core.scenario.referee.fields([2, 0])
     np.testing.assert_array_equal(referee.placement, core.scenario.referee.placement[[2, 0]])
+
+
+def test_a_fouled_robot_is_labelled_a_foul_in_figures() -> None:
+    result = {"trajectories": [{"field": 0}]}
+    no = np.zeros((1, 3), bool)
+    label_outcomes(
+        result, no, np.array([[False, True, False]]), np.zeros((1, 3)), np.array([[True, False, False]])
+    )
+    episode = result["trajectories"][0]
+    assert episode["outcome"] == ["foul", "collision", "timeout"]
+    episode["robots"] = np.zeros((5, 3, 2))
+    assert panel_title("direct", episode) == "direct\n0/3 reached, 1 collided (robot 1), 1 fouled, 4 steps"

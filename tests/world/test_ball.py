@@ -88,6 +88,20 @@ def test_a_robot_driving_into_the_ball_pushes_it_and_touches_it() -> None:
     assert not world.ball_touch.any()
 
 
+def test_a_ball_bounces_off_a_robot_at_its_restitution() -> None:
+    world = _world(1)
+    world.set_state([0], np.array([[[1.0, 0.0]]]), np.zeros((1, 1)))
+    world.set_balls([0], np.zeros((1, 1, 2)), np.array([[[2.0, 0.0]]]))
+    before = world.ball.vel[0, 0, 0]
+    while not world.ball_touch[0, 0]:
+        before = world.ball.vel[0, 0, 0]
+        world.step(np.zeros((1, 1, 3)))
+    # The robot, 48 times heavier and held by its motors, barely moves: the ball keeps about the
+    # restitution's share of its speed, less a period's rolling deceleration.
+    after = world.ball.vel[0, 0, 0]
+    assert -SPEC.restitution_robot * before * 1.05 < after < -SPEC.restitution_robot * before * 0.9
+
+
 def _shot(world: World, start: tuple[float, float], vel: tuple[float, float], steps: int) -> np.ndarray:
     """The ball's path (T, 2) after a shot from ``start`` at ``vel`` in field 0."""
     world.set_balls([0], np.array([[start]]), np.array([[vel]]))

@@ -79,9 +79,9 @@ class World:
         field: Field | str = "hardware_challenge",
         robot: RobotSpec | None = None,
         dt: float = 0.025,
-        ball: BallSpec | None = None,
         substeps: int = 2,
         iterations: int = 5,
+        ball: BallSpec | None = None,
     ) -> None:
         if not (isinstance(num_fields, int | np.integer) and num_fields >= 1):
             raise ValueError(f"num_fields must be an integer >= 1, got {num_fields!r}")
@@ -358,8 +358,9 @@ class World:
         ``command`` (N, R, 3) is each robot's (vx, vy, w) in its own frame, m/s and rad/s. The world caps
         speed and angular speed at the robot's limits; acceleration is capped by the joints' force. After
         the call ``state`` holds the new poses and ``robot_contacts`` (N, R, R) / ``wall_contacts`` (N, R)
-        tell which robots touched which robot or wall during any substep of this period, ``robot_touch``
-        (N, R) which touched any robot.
+        tell which robots touched which robot or wall (a goal wall included) during any substep of this
+        period, ``robot_touch`` (N, R) which touched any robot and ``ball_touch`` (N, R) which touched a
+        ball; ``ball`` holds the balls' new positions and velocities.
         """
         command = as_float(command)
         expected = (self.num_fields, self.num_robots, 3)

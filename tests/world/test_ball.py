@@ -201,6 +201,25 @@ def test_each_fields_ball_rolls_as_in_a_world_of_its_own() -> None:
     assert np.abs(many.ball.pos[1] - many.ball.pos[0]).max() > 1.0
 
 
+def test_blocks_stepped_in_threads_move_the_balls_as_one_thread_does() -> None:
+    worlds = [_world(70, robots=2) for _ in range(2)]  # two blocks of 35 fields
+    worlds[1].use_threads(2)
+    rng = np.random.default_rng(3)
+    robots, balls, vel = (
+        rng.uniform(-1, 1, (70, 2, 2)),
+        rng.uniform(-1, 1, (70, 1, 2)),
+        rng.uniform(-3, 3, (70, 1, 2)),
+    )
+    command = np.tile([1.0, 0.0, 0.0], (70, 2, 1))
+    for world in worlds:
+        world.set_state(np.arange(70), robots * [1.0, 3.0], np.zeros((70, 2)))
+        world.set_balls(np.arange(70), balls, vel)
+        for _ in range(10):
+            world.step(command)
+    np.testing.assert_array_equal(worlds[0].ball.pos, worlds[1].ball.pos)
+    np.testing.assert_array_equal(worlds[0].ball_touch, worlds[1].ball_touch)
+
+
 class _BallCrossing(Crossing):
     """Crossing with a ball in every field, at the centre unless ``ball_pos`` is taken away."""
 

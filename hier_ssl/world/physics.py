@@ -172,10 +172,10 @@ class World:
         for block, size in zip(self.blocks, sizes, strict=True):
             reads = self._read_rows[block.fields], self._ball_read[block.fields]
             block.bind(self._velocity_rows[first : first + size], *reads)
-            robot_rows, control_rows, ball_rows_ = block.body_rows()
-            self._velocity_at[block.fields, :, 0] = first + robot_rows
-            self._velocity_at[block.fields, :, 1] = first + control_rows
-            self._ball_at[block.fields] = first + ball_rows_
+            robot_at, control_at, ball_at = block.body_rows()
+            self._velocity_at[block.fields, :, 0] = first + robot_at
+            self._velocity_at[block.fields, :, 1] = first + control_at
+            self._ball_at[block.fields] = first + ball_at
             first += size
         reach = (hx - spec.radius, hy - spec.radius)
         self._limits = np.array([spec.max_speed, spec.max_ang_speed, self.dt, *reach])
@@ -254,11 +254,8 @@ class World:
         """A new ball state from the rows of the last read, of every field or of ``fields`` (F,) ints and
         the current ball state's other fields (as ``_state_of_rows``)."""
         if fields is None:
-            fields = self._all_fields
-            pos, vel = (
-                np.empty((self.num_fields, self.num_balls, 2)),
-                np.empty((self.num_fields, self.num_balls, 2)),
-            )
+            fields, shape = self._all_fields, (self.num_fields, self.num_balls, 2)
+            pos, vel = np.empty(shape), np.empty(shape)
         else:
             pos, vel = self.ball.pos.copy(), self.ball.vel.copy()
         unpack_balls(self._ball_read, self.offsets, self._ball_delta, fields, pos, vel)
@@ -300,7 +297,7 @@ class World:
             "vel": (vel, (m, r, 2)),
             "ang_vel": (ang_vel, (m, r)),
         }
-        checked = _checked_arrays("set_state", arrays)
+        checked = _checked_arrays("set_state", "robot", fields, arrays)
         _check_inside("set_state", "robot", fields, checked["pos"], self._limits[3:5])
         if m == 0:
             return
@@ -334,7 +331,7 @@ class World:
         fields = self._checked_fields(fields)
         shape = (len(fields), self.num_balls, 2)
         vel = np.zeros(shape) if vel is None else vel
-        checked = _checked_arrays("set_balls", {"pos": (pos, shape), "vel": (vel, shape)})
+        checked = _checked_arrays("set_balls", "ball", fields, {"pos": (pos, shape), "vel": (vel, shape)})
         _check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
         rows = np.concatenate([checked["pos"] + self.offsets[fields, None, :], checked["vel"]], axis=-1)
         for f, field_rows in zip(fields.tolist(), rows, strict=True):
@@ -404,9 +401,11 @@ class World:
             block.step(self._sub_dt, self.substeps)
 
 
-def _checked_arrays(method: str, arrays: dict[str, tuple[object, tuple[int, ...]]]) -> dict[str, np.ndarray]:
-    """Each of ``arrays`` (name: (value, expected shape)) as float64 of its shape and finite; a ValueError
-    naming ``method`` and the array otherwise."""
+def _checked_arrays(
+    method: str, kind: str, fields: np.ndarray, arrays: dict[str, tuple[object, tuple[int, ...]]]
+) -> dict[str, np.ndarray]:
+    """Each of ``arrays`` (name: (value, expected shape (F, E, ...))) as float64 of its shape and finite; a
+    ValueError naming ``method``, the array and the first entity of ``kind`` and its field otherwise."""
     checked = {}
     for name, (value, shape) in arrays.items():
         value = np.asarray(value, dtype=np.float64)
@@ -414,7 +413,10 @@ def _checked_arrays(method: str, arrays: dict[str, tuple[object, tuple[int, ...]
             raise ValueError(f"{method}: {name} has shape {value.shape}, expected {shape}")
         if not all_finite(value):
             f, i = np.argwhere(~np.isfinite(value.reshape(*shape[:2], -1)).all(axis=-1))[0]
-            raise ValueError(f"{method}: {name} holds NaN or infinite values ({name}[{f}, {i}])")
+            raise ValueError(
+                f"{method}: {name} holds NaN or infinite values: {value[f, i].tolist()}, {kind} {i} of field "
+                f"{fields[f]}"
+            )
         checked[name] = value
     return checked
 

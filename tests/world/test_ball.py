@@ -154,7 +154,9 @@ def test_set_balls_names_the_bad_value() -> None:
         world.set_balls([0], np.zeros((1, 1, 2)))
     bad = np.zeros((1, 2, 2))
     bad[0, 1, 0] = np.nan
-    with pytest.raises(ValueError, match=r"set_balls: vel holds NaN or infinite values \(vel\[0, 1\]\)"):
+    with pytest.raises(
+        ValueError, match=r"set_balls: vel holds NaN or infinite values: \[nan, 0.0\], ball 1 of field 1"
+    ):
         world.set_balls([1], np.zeros((1, 2, 2)), bad)
     far = np.zeros((1, 2, 2))
     far[0, 1] = (4.0, 5.0)

@@ -141,7 +141,7 @@ class World:
         self.ball_touch = np.zeros((n, r), dtype=bool)
         self._contacts_set = False  # whether a callback has written a contact since the last clearing
         # What a ball's next read-back velocity lacks (``exchange.ball_rows``): nothing before a step.
-        self._ball_delta = np.zeros((n, self.num_balls, 2))
+        self._ball_delta = np.zeros((n, self.num_balls, 3))
         self.ball: BallState | None = None
         self.state = self._read_state()
 

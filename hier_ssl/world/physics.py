@@ -24,6 +24,7 @@ import pymunk
 
 from hier_ssl.world.ball import BallSpec, BallState
 from hier_ssl.world.blocks import BALL, ROBOT, FieldBlock, block_bounds
+from hier_ssl.world.checks import check_inside, checked_arrays, checked_fields
 from hier_ssl.world.entities import Entities, robots
 from hier_ssl.world.exchange import ball_rows, unpack_balls, unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
@@ -287,7 +288,7 @@ class World:
 
         Shapes: fields (M,) ints; pos (M, R, 2); angle (M, R); vel (M, R, 2) and ang_vel (M, R), zero if None.
         """
-        fields = self._checked_fields(fields)
+        fields = checked_fields(fields, self.num_fields)
         m, r = len(fields), self.num_robots
         vel = np.zeros((m, r, 2)) if vel is None else vel
         ang_vel = np.zeros((m, r)) if ang_vel is None else ang_vel
@@ -297,8 +298,8 @@ class World:
             "vel": (vel, (m, r, 2)),
             "ang_vel": (ang_vel, (m, r)),
         }
-        checked = _checked_arrays("set_state", "robot", fields, arrays)
-        _check_inside("set_state", "robot", fields, checked["pos"], self._limits[3:5])
+        checked = checked_arrays("set_state", "robot", fields, arrays)
+        check_inside("set_state", "robot", fields, checked["pos"], self._limits[3:5])
         if m == 0:
             return
         packed = np.concatenate(
@@ -328,24 +329,16 @@ class World:
         """
         if self.ball is None:
             raise ValueError("set_balls: this world holds no balls (its entities add none)")
-        fields = self._checked_fields(fields)
+        fields = checked_fields(fields, self.num_fields)
         shape = (len(fields), self.num_balls, 2)
         vel = np.zeros(shape) if vel is None else vel
-        checked = _checked_arrays("set_balls", "ball", fields, {"pos": (pos, shape), "vel": (vel, shape)})
-        _check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
+        checked = checked_arrays("set_balls", "ball", fields, {"pos": (pos, shape), "vel": (vel, shape)})
+        check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
         rows = np.concatenate([checked["pos"] + self.offsets[fields, None, :], checked["vel"]], axis=-1)
         for f, field_rows in zip(fields.tolist(), rows, strict=True):
             self._ball_read[f] = self.blocks[self._block_of[f]].place_balls(f, field_rows)
         self._ball_delta[fields] = 0.0
         self.ball = self._balls_of_rows(fields)
-
-    def _checked_fields(self, fields: np.ndarray | list[int]) -> np.ndarray:
-        """``fields`` as (F,) int64, each one of this world's."""
-        fields = np.asarray(fields, dtype=np.int64).reshape(-1)
-        if len(fields) and (fields.min() < 0 or fields.max() >= self.num_fields):
-            bad = fields[(fields < 0) | (fields >= self.num_fields)]
-            raise ValueError(f"field index {bad.tolist()} out of range [0, {self.num_fields})")
-        return fields
 
     # -- stepping -----------------------------------------------------------------------------------------
 
@@ -399,34 +392,3 @@ class World:
         """Write the velocity rows into ``blocks``, step them and read them back, one after another."""
         for block in blocks:
             block.step(self._sub_dt, self.substeps)
-
-
-def _checked_arrays(
-    method: str, kind: str, fields: np.ndarray, arrays: dict[str, tuple[object, tuple[int, ...]]]
-) -> dict[str, np.ndarray]:
-    """Each of ``arrays`` (name: (value, expected shape (F, E, ...))) as float64 of its shape and finite; a
-    ValueError naming ``method``, the array and the first entity of ``kind`` and its field otherwise."""
-    checked = {}
-    for name, (value, shape) in arrays.items():
-        value = np.asarray(value, dtype=np.float64)
-        if value.shape != shape:
-            raise ValueError(f"{method}: {name} has shape {value.shape}, expected {shape}")
-        if not all_finite(value):
-            f, i = np.argwhere(~np.isfinite(value.reshape(*shape[:2], -1)).all(axis=-1))[0]
-            raise ValueError(
-                f"{method}: {name} holds NaN or infinite values: {value[f, i].tolist()}, {kind} {i} of field "
-                f"{fields[f]}"
-            )
-        checked[name] = value
-    return checked
-
-
-def _check_inside(method: str, kind: str, fields: np.ndarray, pos: np.ndarray, reach: np.ndarray) -> None:
-    """A ValueError naming the first entity of ``pos`` (F, E, 2) whose centre is beyond ``reach`` (x, y)."""
-    outside = (np.abs(pos) > reach).any(axis=-1)
-    if np.count_nonzero(outside):
-        f, i = np.argwhere(outside)[0]
-        raise ValueError(
-            f"{method}: {kind} {i} of field {fields[f]} at {pos[f, i].tolist()} is not inside "
-            f"the walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
-        )

@@ -140,7 +140,7 @@ def test_stop_caps_speed_and_keeps_subgoals_out_of_the_zones(planner):
     referee = ref.referee_state(ref.STOP, FIELD, n=n, keeper=(0, 0), blue_on_positive_half=[True, False])
     lineup = _lineup(m, k)
     ruled, free = _team(m, k, n, planner=planner), _team(m, k, n, planner=planner, obey_rules=False)
-    fastest = 0.0
+    fastest, broken = 0.0, False
     for team in (ruled, free):
         team.reset(np.arange(n), np.random.default_rng(0))
     for step in range(3):
@@ -155,7 +155,9 @@ def test_stop_caps_speed_and_keeps_subgoals_out_of_the_zones(planner):
         assert (distances(zones, ruled.subgoal[..., :2]) >= 0.0).all()
         command = free.commands(state, ball, referee, lineup, steps, rng)
         fastest = max(fastest, np.hypot(command[..., 0], command[..., 1]).max())
+        broken = broken or (distances(zones, free.subgoal[..., :2]) < 0.0).any()
     assert fastest > STOP_SPEED  # the rule-breaking team does not slow down
+    assert broken  # nor keep out of the zones
 
 
 @pytest.mark.parametrize("planner", ["trajectory", "sampling", "random"])

@@ -149,6 +149,12 @@ class HierarchicalCore:
                 f"expected {(len(fields), m, 5)}"
             )
         self.world.set_state(fields, placement.pos, placement.angle, placement.vel, placement.ang_vel)
+        if self.world.ball is not None:
+            if placement.ball_pos is None:
+                raise ValueError(
+                    f"scenario {self.scenario.name!r}: its world holds balls, its placement has no ball_pos"
+                )
+            self.world.set_balls(fields, placement.ball_pos, placement.ball_vel)
         self.target[fields] = placement.target
         # Until the first decision the sub-goal is the robot's own pose: the worker holds still.
         self.subgoal[fields] = 0.0

@@ -45,6 +45,8 @@ class Placement:
 
     Shapes: pos (F, M + K, 2) m and angle (F, M + K) rad, controlled robots first; target (F, M, 5) x, y,
     theta, vx, vy of each controlled robot; vel (F, M + K, 2) and ang_vel (F, M + K), at rest if None.
+    In a world with B balls per field, ``ball_pos`` (F, B, 2) m places them (required there) and
+    ``ball_vel`` (F, B, 2) m/s sets them rolling (at rest if None).
     """
 
     pos: np.ndarray
@@ -52,6 +54,8 @@ class Placement:
     target: np.ndarray
     vel: np.ndarray | None = None
     ang_vel: np.ndarray | None = None
+    ball_pos: np.ndarray | None = None
+    ball_vel: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

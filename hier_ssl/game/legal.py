@@ -280,33 +280,39 @@ def _segment_box(
 
 
 @numba.njit(cache=True)
+def segment_away(
+    x0: float, y0: float, x1: float, y1: float, kind: int, ax: float, ay: float, bx: float, by: float
+) -> float:
+    """How far the straight path (x0, y0) -> (x1, y1) keeps from one zone's shape (``kind``, (ax, ay, bx,
+    by)), before its clearance (``segment_clearance`` less the clearance); +inf for an empty slot."""
+    if kind == CAPSULE:
+        return _segment_segment(x0, y0, x1, y1, ax, ay, bx, by)
+    if kind == BOX:
+        return _segment_box(x0, y0, x1, y1, ax, ay, bx, by)
+    if kind == KEEP_IN:  # convex: the worse end
+        return min(
+            min(min(x0 - ax, bx - x0), min(y0 - ay, by - y0)),
+            min(min(x1 - ax, bx - x1), min(y1 - ay, by - y1)),
+        )
+    return math.inf
+
+
+@numba.njit(cache=True)
 def _rows_path_clearance(
     kind: np.ndarray, shape: np.ndarray, clearance: np.ndarray, start: np.ndarray, end: np.ndarray
 ) -> np.ndarray:
     """(N, P, S) ``path_clearance`` of the paths start -> end (N, P) complex against their row's zones:
-    kind (N, S), shape (N, S, 4), clearance (N, S). One pass, no temporaries: the planners call it on every
-    collision check."""
+    kind (N, S), shape (N, S, 4), clearance (N, S). One pass, no temporaries."""
     n, p, s = start.shape[0], start.shape[1], kind.shape[1]
     out = np.empty((n, p, s))
     for i in range(n):
         for j in range(p):
             x0, y0, x1, y1 = start[i, j].real, start[i, j].imag, end[i, j].real, end[i, j].imag
             for k in range(s):
-                z = kind[i, k]
-                ax, ay, bx, by = shape[i, k, 0], shape[i, k, 1], shape[i, k, 2], shape[i, k, 3]
-                if z == CAPSULE:
-                    away = _segment_segment(x0, y0, x1, y1, ax, ay, bx, by)
-                elif z == BOX:
-                    away = _segment_box(x0, y0, x1, y1, ax, ay, bx, by)
-                elif z == KEEP_IN:  # convex: the worse end
-                    away = min(
-                        min(min(x0 - ax, bx - x0), min(y0 - ay, by - y0)),
-                        min(min(x1 - ax, bx - x1), min(y1 - ay, by - y1)),
-                    )
-                else:
-                    out[i, j, k] = math.inf
-                    continue
-                out[i, j, k] = away - clearance[i, k]
+                z = shape[i, k]
+                out[i, j, k] = (
+                    segment_away(x0, y0, x1, y1, kind[i, k], z[0], z[1], z[2], z[3]) - clearance[i, k]
+                )
     return out
 
 
@@ -374,5 +380,6 @@ __all__ = [
     "nearest_legal",
     "path_clearance",
     "row_rules",
+    "segment_away",
     "segment_clearance",
 ]

@@ -57,6 +57,11 @@ class Zones:
     shape: np.ndarray
     clearance: np.ndarray
 
+    def take(self, index: object) -> Zones:
+        """The zones of the robots ``index`` picks on the leading axes (any numpy index: rows, a mask,
+        ``np.s_[:, None]`` for an axis more), every slot kept."""
+        return Zones(self.kind[index], self.shape[index], self.clearance[index])
+
 
 def defense_box(field: Field, side: np.ndarray) -> np.ndarray:
     """(..., 4) the defense area in front of the goal at x sign ``side`` (...): rules 2.1.3 "Defense Area",

@@ -298,6 +298,22 @@ def segment_away(
 
 
 @numba.njit(cache=True)
+def segment_breaks(
+    x0: float, y0: float, x1: float, y1: float, kind: int, shape: np.ndarray, clearance: float
+) -> bool:
+    """Whether the straight path (x0, y0) -> (x1, y1) breaks one zone (``segment_away`` less the
+    clearance below 0): a path whose bounding box keeps farther than the clearance from the shape's,
+    along x or y, is not measured (no point of it is nearer; the slack covers the rounding)."""
+    ax, ay, bx, by = shape[0], shape[1], shape[2], shape[3]
+    if kind == CAPSULE or kind == BOX:
+        gap_x = max(min(ax, bx) - max(x0, x1), min(x0, x1) - max(ax, bx))
+        gap_y = max(min(ay, by) - max(y0, y1), min(y0, y1) - max(ay, by))
+        if max(gap_x, gap_y) > clearance + 1e-9:
+            return False
+    return segment_away(x0, y0, x1, y1, kind, ax, ay, bx, by) - clearance < 0.0
+
+
+@numba.njit(cache=True)
 def _rows_path_clearance(
     kind: np.ndarray, shape: np.ndarray, clearance: np.ndarray, start: np.ndarray, end: np.ndarray
 ) -> np.ndarray:
@@ -381,5 +397,6 @@ __all__ = [
     "path_clearance",
     "row_rules",
     "segment_away",
+    "segment_breaks",
     "segment_clearance",
 ]

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from hier_ssl.game.legal import RowRules, distances, nearest_legal, segment_away
+from hier_ssl.game.legal import RowRules, distances, nearest_legal, segment_breaks
 from hier_ssl.game.zones import Zones
 from hier_ssl.manager.actions import action_dim
 from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d, position_1d, profile_2d, state_at
@@ -122,12 +122,19 @@ def _walk(
     radius: float,
     t_max: float,
     zones: tuple,
+    judge: tuple = (False, 0.0, 0j, 0.0, 0.0, 0.0, 0.0),
 ) -> tuple:
     """The first collisions of one path (``first_collisions``): its ``positions`` (C,) complex at the
     check ``times`` (C,), from ``start``, lasting ``total`` s, against obstacles (K,) and the rules' zones
     (kind (S,), shape (S, 4), clearance (S,), which the robot already breaks (S,): S = 0 unchecked).
-    Returns still time and position, moving time and position, zone time and position (inf, 0: none)."""
+    Returns still time and position, moving time and position, zone time and position (inf, 0: none).
+
+    ``judge``: (on, the switch time, the goal, threshold_max_collision_time, the robot's speed, its
+    braking, brake_time_offset): on, the walk stops as soon as the path can neither win nor be a fallback
+    of ``_search``: a still collision the still acceptor refuses, a step into a zone before the switch, or
+    after it with a collision the moving acceptor refuses."""
     kind, shape, clearance, leaving = zones
+    judged, switch, goal, threshold_time, speed, brake, brake_offset = judge
     still_t = still_x = still_y = moving_x = moving_y = zone_x = zone_y = 0.0
     still_t = moving_t = zone_t = math.inf
     last_x, last_y = start.real, start.imag
@@ -139,6 +146,8 @@ def _walk(
         seen = min(t, t_max)
         hit_still = hit_moving = False
         for k in range(q.shape[0]):
+            if still[k] and not math.isinf(still_t) or not still[k] and not math.isinf(moving_t):
+                continue  # its kind's first collision is found
             nx, ny = px - (q[k].real + u[k].real * seen), py - (q[k].imag + u[k].imag * seen)
             hit = math.hypot(nx, ny) < radius
             if c > 0 and not hit:  # the closest approach on the straight stretch from the previous check
@@ -146,17 +155,21 @@ def _walk(
                 bx = positions[c - 1].real - (q[k].real + u[k].real * before)
                 by = positions[c - 1].imag - (q[k].imag + u[k].imag * before)
                 mx, my = nx - bx, ny - by
-                move = math.hypot(mx, my)
-                along = min(max(-(bx * mx + by * my) / max(move * move, 1e-12), 0.0), 1.0)
-                hit = math.hypot(bx + along * mx, by + along * my) < radius
+                # No point of the stretch is nearer than its nearer end less half its length: only a
+                # stretch that may come within the radius is measured (the slack covers the rounding).
+                reach = radius * (1.0 + 1e-9) + 0.5 * (abs(mx) + abs(my))
+                if min(nx * nx + ny * ny, bx * bx + by * by) <= reach * reach:
+                    move = math.hypot(mx, my)
+                    along = min(max(-(bx * mx + by * my) / max(move * move, 1e-12), 0.0), 1.0)
+                    hit = math.hypot(bx + along * mx, by + along * my) < radius
             hit_still |= hit and still[k]
             hit_moving |= hit and not still[k]
         broken = False
-        for z in range(kind.shape[0]):
-            if not leaving[z]:
-                a = shape[z]
-                away = segment_away(last_x, last_y, px, py, kind[z], a[0], a[1], a[2], a[3])
-                broken |= away - clearance[z] < 0.0
+        if math.isinf(zone_t):
+            for z in range(kind.shape[0]):
+                broken |= not leaving[z] and segment_breaks(
+                    last_x, last_y, px, py, kind[z], shape[z], clearance[z]
+                )
         last_x, last_y = px, py
         if hit_still and math.isinf(still_t):
             still_t, still_x, still_y = t, px, py
@@ -166,6 +179,16 @@ def _walk(
             zone_t, zone_x, zone_y = t, px, py
         if not (math.isinf(still_t) or math.isinf(moving_t) or (kind.shape[0] > 0 and math.isinf(zone_t))):
             break  # every first collision found: the later checks change nothing
+        if judged and (
+            (hit_still and not still_accepts(still_t, complex(still_x, still_y), start, goal, threshold_time))
+            or (broken and zone_t <= switch)
+            or (
+                (broken or hit_moving)
+                and not math.isinf(zone_t)
+                and not moving_accepts(moving_t, speed, brake, brake_offset)
+            )
+        ):
+            break
     return still_t, still_x, still_y, moving_t, moving_x, moving_y, zone_t, zone_x, zone_y
 
 
@@ -244,14 +267,26 @@ def _search(
                         times = np.concatenate((times, np.empty(n)))
                     t = offset + n * step
                     if t < w:
-                        x, y = state_at(t, fx)[0], state_at(t, fy)[0]
+                        x = position_1d(t, fx[0], fx[1], fx[2], fx[3], fx[4], fx[5], fx[6], fx[7], fx[8])
+                        y = position_1d(t, fy[0], fy[1], fy[2], fy[3], fy[4], fy[5], fy[6], fy[7], fy[8])
                     else:
                         x = position_1d(t - w, tx[0], tx[1], tx[2], tx[3], tx[4], tx[5], tx[6], tx[7], tx[8])
                         y = position_1d(t - w, ty[0], ty[1], ty[2], ty[3], ty[4], ty[5], ty[6], ty[7], ty[8])
                     positions[n], times[n] = complex(x, y), t
                     n += 1
+                judge = (True, w, end, threshold_time, now, brake, brake_offset)
                 hits = _walk(
-                    positions[:n], times[:n], pos[r], total, q[r], u[r], still[r], radius, t_max, row_zones
+                    positions[:n],
+                    times[:n],
+                    pos[r],
+                    total,
+                    q[r],
+                    u[r],
+                    still[r],
+                    radius,
+                    t_max,
+                    row_zones,
+                    judge,
                 )
                 free = still_accepts(hits[0], complex(hits[1], hits[2]), pos[r], end, threshold_time)
                 still_ok = free and math.isinf(hits[6])

@@ -68,7 +68,7 @@ def distances(zones: Zones, points: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _zone_distance(x: float, y: float, kind: int, shape: np.ndarray, clearance: float) -> float:
+def zone_distance(x: float, y: float, kind: int, shape: np.ndarray, clearance: float) -> float:
     """``signed_distance`` of the point (x, y) from one zone (its ``shape`` (4,)); +inf for an empty slot."""
     x0, y0, x1, y1 = shape[0], shape[1], shape[2], shape[3]
     if kind == CAPSULE:
@@ -184,7 +184,7 @@ def _nearest_legal_row(
             continue
         worst = math.inf
         for k in range(s):
-            worst = min(worst, _zone_distance(x, y, kind[k], shape[k], clearance[k]))
+            worst = min(worst, zone_distance(x, y, kind[k], shape[k], clearance[k]))
         if worst >= 0.0:
             best, best_far = c, far
         elif best < 0 and worst > least_worst:
@@ -399,4 +399,5 @@ __all__ = [
     "segment_away",
     "segment_breaks",
     "segment_clearance",
+    "zone_distance",
 ]

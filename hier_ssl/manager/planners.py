@@ -30,13 +30,14 @@ sub-goal inside a zone is never handed. A robot in HALT (limit 0) is handed its 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
-from hier_ssl.game.legal import RowRules, distances, path_clearance
-from hier_ssl.game.zones import Zones
+from hier_ssl.game.legal import RowRules, segment_away, zone_distance
 from hier_ssl.manager.actions import action_dim, encode_subgoal
 from hier_ssl.manager.candidate_points import candidate_points, candidate_weights
 from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
@@ -83,6 +84,137 @@ class DirectPlanner:
             frame=self.action_frame,
             target=scene.target,
         )
+
+
+@numba.njit(cache=True)
+def _length(d: complex) -> float:
+    """abs(d), as sqrt(x^2 + y^2): a few times faster than libm's hypot, which guards against overflows
+    that metres never reach; both within a unit in the last place of numpy's abs."""
+    return math.sqrt(d.real * d.real + d.imag * d.imag)
+
+
+@numba.njit(cache=True)
+def _nearer(d: complex, radius: float) -> int:
+    """The sign of ``_length(d)`` - radius, the squares compared first: the root only where the two are
+    within rounding of each other."""
+    square, bound = d.real * d.real + d.imag * d.imag, radius * radius
+    if square < bound * (1.0 - 1e-9) or square > bound * (1.0 + 1e-9):
+        return -1 if square < bound else 1
+    size = _length(d)
+    return -1 if size < radius else (1 if size > radius else 0)
+
+
+@numba.njit(cache=True)
+def _rollouts(pos, vel, goal, cand, speed, q, u, choosable, prune, timing, motion, safety) -> np.ndarray:
+    """``SamplingPlanner.rollout`` compiled: (4, N, M) arrival, clearance, hard, near. A row's candidates
+    step together, each until it arrives (the clearances count only until then); under ``prune``, a
+    candidate is dropped once it is later than a choosable one already arrived clear. ``timing``: dt,
+    horizon, hold, switch_radius, arrive_radius; ``motion``: the speed change a step, twice the braking;
+    ``safety``: collision distance + margin, margin_growth, predict_horizon."""
+    dt, horizon, hold, switch_radius, arrive_radius = timing
+    step, two_brake = motion
+    distance, growth, predict = safety
+    n, m, k = cand.shape[0], cand.shape[1], q.shape[1]
+    steps = math.ceil(horizon / dt)
+    out = np.empty((4, n, m))
+    ahead = np.empty((steps + 1, k), np.complex128)  # a row's obstacles as predicted at each step
+    p, v = np.empty(m, np.complex128), np.empty(m, np.complex128)
+    via, moving = np.empty(m, np.bool_), np.empty(m, np.bool_)
+    for r in range(n):
+        for i in range(1, steps + 1):
+            for o in range(k):
+                ahead[i, o] = q[r, o] + u[r, o] * min(i * dt, predict)
+        goal_r, soonest = goal[r], math.inf
+        arrival, clearance, hard, near = out[0, r], out[1, r], out[2, r], out[3, r]
+        for j in range(m):
+            p[j], v[j], moving[j] = pos[r], vel[r], True
+            arrival[j] = clearance[j] = hard[j] = near[j] = math.inf
+            # Heading for the sub-goal rather than the target: every candidate but the target itself, until
+            # the sub-goal is no longer held and the robot is within switch_radius of it.
+            via[j] = cand[r, j] != goal_r and (hold > 0.0 or _nearer(cand[r, j] - p[j], switch_radius) > 0)
+        for i in range(1, steps + 1):
+            t = i * dt
+            seen = min(t, predict)
+            margin = growth * seen**1.5
+            left = 0
+            for j in range(m):
+                if not moving[j]:
+                    continue
+                if prune and t > soonest:  # it arrives after a clear one: it cannot be chosen
+                    moving[j] = False
+                    arrival[j], clearance[j], hard[j], near[j] = math.inf, -math.inf, -math.inf, -math.inf
+                    continue
+                # Bang-bang towards the current goal: braking curve, speed cap, land on it in the last step.
+                delta = (cand[r, j] if via[j] else goal_r) - p[j]
+                dist = _length(delta)
+                want = min(min(math.sqrt(two_brake * dist), speed[r]), dist / dt)
+                change = delta * (want / max(dist, 1e-9)) - v[j]
+                if _nearer(change, step) >= 0:  # a change within a step's is made whole
+                    change = change * min(1.0, step / max(_length(change), 1e-12))
+                v[j] = v[j] + change
+                p[j] = p[j] + v[j] * dt
+                if t >= hold and via[j]:  # the worker drives to the sub-goal for as long as it is held
+                    via[j] = _nearer(cand[r, j] - p[j], switch_radius) > 0
+                if k:
+                    # The nearest obstacle by squared distance, then its distance (and any as near, within
+                    # the rounding of a square): the least of the distances, one root most steps.
+                    least = math.inf
+                    for o in range(k):
+                        d = p[j] - ahead[i, o]
+                        least = min(least, d.real * d.real + d.imag * d.imag)
+                    gap = math.inf
+                    for o in range(k):
+                        d = p[j] - ahead[i, o]
+                        if d.real * d.real + d.imag * d.imag <= least * (1.0 + 1e-12):
+                            gap = min(gap, _length(d))
+                    gap -= distance
+                    hard[j] = min(hard[j], gap)
+                    if t <= predict:
+                        near[j] = min(near[j], gap)
+                    clearance[j] = min(clearance[j], gap - margin)
+                if not via[j] and _nearer(goal_r - p[j], arrive_radius) < 0:
+                    arrival[j], moving[j] = t, False
+                    if clearance[j] >= 0.0 and choosable[r, j]:
+                        soonest = min(soonest, t)
+                else:
+                    left += 1
+            if not left:
+                break
+        for j in range(m):
+            if moving[j]:
+                arrival[j] = horizon + _length(goal_r - p[j]) / speed[r]
+    return out
+
+
+@numba.njit(cache=True)
+def _zone_detours(robot, goal, cand, kind, shape, clearance) -> tuple[np.ndarray, np.ndarray]:
+    """``SamplingPlanner.zone_detour`` compiled: robots and targets (N,), candidates (N, M) complex, the
+    rows' zones (N, S)."""
+    n, m, s = cand.shape[0], cand.shape[1], kind.shape[1]
+    clear, detour = np.empty((n, m), np.bool_), np.empty((n, m))
+    for r in range(n):
+        x0, y0, gx, gy = robot[r].real, robot[r].imag, goal[r].real, goal[r].imag
+        leaving = np.array(
+            [zone_distance(x0, y0, kind[r, z], shape[r, z], clearance[r, z]) < 0.0 for z in range(s)]
+        )
+        any_first = False
+        for j in range(m):
+            x, y = cand[r, j].real, cand[r, j].imag
+            first, second = True, math.inf
+            for z in range(s):
+                a = shape[r, z]
+                legal = zone_distance(x, y, kind[r, z], a, clearance[r, z]) >= 0.0
+                leg = segment_away(x0, y0, x, y, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
+                first = first and legal and (leg >= 0.0 or leaving[z])
+                second = min(
+                    second, segment_away(x, y, gx, gy, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
+                )
+            clear[r, j] = first and second >= 0.0
+            detour[r, j] = second if first else -math.inf
+            any_first |= first
+        if not any_first:  # column 0, the target, is legal
+            detour[r, 0] = 0.0
+    return clear, detour
 
 
 @dataclass(frozen=True)
@@ -175,81 +307,63 @@ class SamplingPlanner:
         return as_complex(cand)
 
     def rollout(
-        self, scene: Scene, cand: np.ndarray, speed: np.ndarray | None = None
+        self,
+        scene: Scene,
+        cand: np.ndarray,
+        speed: np.ndarray | None = None,
+        choosable: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Each candidate's trajectory scored, all (N, M): arrival time in s (horizon + remaining distance
         / speed when it does not arrive); the smallest clearance in m to the nearest predicted obstacle
         beyond the growing safety distance; the same beyond the fixed one (collision distance + margin);
         the same within the prediction window. Clearances are +inf without obstacles and only count before
-        arrival. ``speed`` (N,) m/s caps each row's speed below the planner's (the rules' limit)."""
-        n, m = cand.shape
-        dt = self.dt
-        speed = self.speed if speed is None else np.minimum(self.speed, speed)[:, None]
-        step = self.robot.max_accel * dt
-        two_brake = 2.0 * (self.brake_accel or self.robot.max_accel)
-        goal = (scene.target[:, 0] + 1j * scene.target[:, 1])[:, None]
-        p = np.repeat((scene.robot_pos[:, 0] + 1j * scene.robot_pos[:, 1])[:, None], m, axis=1)
-        v = np.repeat((scene.robot_vel[:, 0] + 1j * scene.robot_vel[:, 1])[:, None], m, axis=1)
-        q = (scene.obstacle_pos[..., 0] + 1j * scene.obstacle_pos[..., 1])[:, None, :]  # (N, 1, K)
-        u = (scene.obstacle_vel[..., 0] + 1j * scene.obstacle_vel[..., 1])[:, None, :]
-        has_obstacles = q.shape[2] > 0
-        # Heading for the sub-goal rather than the target: every candidate but the target itself, until the
-        # sub-goal is no longer held and the robot is within switch_radius of it.
-        via = np.abs(cand - goal) > 0.0
-        if self.hold <= 0.0:
-            via &= np.abs(cand - p) > self.switch_radius
-        arrival = np.full((n, m), np.inf)
-        clearance = np.full((n, m), np.inf)
-        hard = np.full((n, m), np.inf)
-        near = np.full((n, m), np.inf)
-        steps = int(np.ceil(self.horizon / dt))
-        for i in range(1, steps + 1):
-            t = i * dt
-            # Bang-bang towards the current goal: braking curve, speed cap, land on it in the last step.
-            aim = np.where(via, cand, goal)
-            delta = aim - p
-            dist = np.abs(delta)
-            want = np.minimum(np.minimum(np.sqrt(two_brake * dist), speed), dist / dt)
-            change = delta * (want / np.maximum(dist, 1e-9)) - v
-            size = np.abs(change)
-            v = v + change * np.minimum(1.0, step / np.maximum(size, 1e-12))
-            p = p + v * dt
-            if t >= self.hold:  # the worker drives to the sub-goal for as long as it is held
-                via &= np.abs(cand - p) > self.switch_radius
-            moving = np.isinf(arrival)
-            if has_obstacles:
-                seen = min(t, self.predict_horizon)
-                gap = np.abs(p[:, :, None] - (q + u * seen)).min(axis=2)
-                gap = np.where(moving, gap - (self.collision_distance + self.margin), np.inf)
-                hard = np.minimum(hard, gap)
-                if t <= self.predict_horizon:
-                    near = np.minimum(near, gap)
-                clearance = np.minimum(clearance, gap - self.margin_growth * seen**1.5)
-            arrival = np.where(moving & ~via & (np.abs(goal - p) < self.arrive_radius), t, arrival)
-            if not np.isinf(arrival).any():
-                break
-        late = np.isinf(arrival)
-        arrival[late] = self.horizon + (np.abs(goal - p) / speed)[late]
-        return arrival, clearance, hard, near
+        arrival. ``speed`` (N,) m/s caps each row's speed below the planner's (the rules' limit).
 
-    def score(self, scene: Scene, cand: np.ndarray, rules: RowRules | None = None) -> np.ndarray:
+        ``choosable`` (N, M) bool, for a choice only (``plan``): candidates are rolled out in order, and one
+        is dropped (arrival +inf, clearances -inf) once it is later than the soonest choosable candidate
+        clear of the growing safety distance so far, which it can no longer beat."""
+        n, m = cand.shape
+        limit = np.full(n, self.speed) if speed is None else np.minimum(self.speed, speed)
+        out = _rollouts(
+            scene.robot_pos @ np.array([1.0, 1j]),
+            scene.robot_vel @ np.array([1.0, 1j]),
+            scene.target[:, 0:2] @ np.array([1.0, 1j]),
+            np.ascontiguousarray(cand, complex),
+            limit,
+            scene.obstacle_pos @ np.array([1.0, 1j]),
+            scene.obstacle_vel @ np.array([1.0, 1j]),
+            np.ones((n, m), bool) if choosable is None else np.ascontiguousarray(choosable),
+            choosable is not None,
+            (self.dt, self.horizon, self.hold, self.switch_radius, self.arrive_radius),
+            (self.robot.max_accel * self.dt, 2.0 * (self.brake_accel or self.robot.max_accel)),
+            (self.collision_distance + self.margin, self.margin_growth, self.predict_horizon),
+        )
+        return out[0], out[1], out[2], out[3]
+
+    def score(
+        self, scene: Scene, cand: np.ndarray, rules: RowRules | None = None, choice: bool = False
+    ) -> np.ndarray:
         """How the planner ranks the candidates (N, M): the highest is its choice. Within the best tier it
         can choose from, minus the arrival time (the candidates clear of the growing safety distance;
         failing those, the ones clear of the fixed one), -inf outside it; failing both, the distance kept
         from the obstacles over the prediction window (1e3 without obstacles). Under ``rules``, only the
-        candidates clear of the zones are ranked so; a row without any ranks by ``zone_detour``."""
+        candidates clear of the zones are ranked so; a row without any ranks by ``zone_detour``.
+        ``choice``: only the highest is right (``rollout``'s ``choosable``), the rest may be -inf."""
         # A halted robot's row keeps the planner's speed: ``halted`` gives it its own position anyway.
         limit = None if rules is None else np.where(rules.speed > 0, rules.speed, np.inf)
-        arrival, clearance, hard, near = self.rollout(scene, cand, limit)
-        safe, close = clearance >= 0.0, hard >= 0.0
-        score = np.where(np.isfinite(near), near, 1e3)
+        clear = None
         if rules is not None:
             clear, detour = self.zone_detour(scene, cand, rules)
+        choosable = (np.ones(cand.shape, bool) if clear is None else clear) if choice else None
+        arrival, clearance, hard, near = self.rollout(scene, cand, limit, choosable)
+        safe, close = clearance >= 0.0, hard >= 0.0
+        score = np.where(np.isfinite(near), near, 1e3)
+        if clear is not None:
             safe, close = safe & clear, close & clear
             score = np.where(clear, score, -np.inf)
         score = np.where(close.any(1, keepdims=True), np.where(close, -arrival, -np.inf), score)
         score = np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
-        return score if rules is None else np.where(clear.any(1, keepdims=True), score, detour)
+        return score if clear is None else np.where(clear.any(1, keepdims=True), score, detour)
 
     @staticmethod
     def zone_detour(scene: Scene, cand: np.ndarray, rules: RowRules) -> tuple[np.ndarray, np.ndarray]:
@@ -262,25 +376,22 @@ class SamplingPlanner:
         the target, legal (``ruled_scene``). A zone the robot already breaks does not bar its first leg:
         it is leaving it."""
         zones = rules.zones
-        per_row = Zones(zones.kind[:, None], zones.shape[:, None], zones.clearance[:, None])
-        xy = np.stack([cand.real, cand.imag], axis=-1)
-        legal = (distances(per_row, xy) >= 0.0).all(-1)
-        robot = scene.robot_pos[:, 0] + 1j * scene.robot_pos[:, 1]
-        goal = (scene.target[:, 0] + 1j * scene.target[:, 1])[:, None]
-        leaving = (distances(zones, scene.robot_pos) < 0.0)[:, None]  # (N, 1, S)
-        from_robot = path_clearance(per_row, np.broadcast_to(robot[:, None], cand.shape), cand)
-        first = legal & ((from_robot >= 0.0) | leaving).all(-1)
-        second = path_clearance(per_row, cand, np.broadcast_to(goal, cand.shape)).min(-1)
-        detour = np.where(first, second, -np.inf)
-        detour[:, 0] = np.where(first.any(1), detour[:, 0], 0.0)  # column 0, the target, is legal
-        return first & (second >= 0.0), detour
+        clear, detour = _zone_detours(
+            scene.robot_pos @ np.array([1.0, 1j]),
+            scene.target[:, 0:2] @ np.array([1.0, 1j]),
+            np.ascontiguousarray(cand, complex),
+            np.ascontiguousarray(zones.kind, np.int64),
+            np.ascontiguousarray(zones.shape, float),
+            np.ascontiguousarray(zones.clearance, float),
+        )
+        return clear, detour
 
     def plan(self, scene: Scene, rules: RowRules | None = None) -> np.ndarray:
         """The chosen sub-goal poses (N, 5): x, y, the target's heading, zero velocity; under ``rules``
         (module docstring), of ``ruled_scene``'s target."""
         scene = ruled_scene(scene, rules, self.zone_margin)
         cand = self.candidates(scene)
-        best = np.argmax(self.score(scene, cand, rules), axis=1)  # ties to the earlier candidate
+        best = np.argmax(self.score(scene, cand, rules, choice=True), axis=1)  # ties to the earlier one
         return halted(scene, rules, self.subgoals(scene, cand[np.arange(len(cand)), best]))
 
     subgoals = staticmethod(subgoal_poses)

@@ -87,102 +87,98 @@ class DirectPlanner:
 
 
 @numba.njit(cache=True)
-def _length(d: complex) -> float:
-    """abs(d), as sqrt(x^2 + y^2): a few times faster than libm's hypot, which guards against overflows
-    that metres never reach; both within a unit in the last place of numpy's abs."""
-    return math.sqrt(d.real * d.real + d.imag * d.imag)
+def _least(a: float, b: float) -> float:
+    """min(a, b) as one select, which a loop of them can run as vector instructions (no NaN here)."""
+    return a if a < b else b
 
 
 @numba.njit(cache=True)
-def _nearer(d: complex, radius: float) -> int:
-    """The sign of ``_length(d)`` - radius, the squares compared first: the root only where the two are
-    within rounding of each other."""
-    square, bound = d.real * d.real + d.imag * d.imag, radius * radius
-    if square < bound * (1.0 - 1e-9) or square > bound * (1.0 + 1e-9):
-        return -1 if square < bound else 1
-    size = _length(d)
-    return -1 if size < radius else (1 if size > radius else 0)
+def _most(a: float, b: float) -> float:
+    """max(a, b) as one select."""
+    return a if a > b else b
 
 
 @numba.njit(cache=True)
 def _rollouts(pos, vel, goal, cand, speed, q, u, choosable, prune, timing, motion, safety) -> np.ndarray:
-    """``SamplingPlanner.rollout`` compiled: (4, N, M) arrival, clearance, hard, near. A row's candidates
-    step together, each until it arrives (the clearances count only until then); under ``prune``, a
-    candidate is dropped once it is later than a choosable one already arrived clear. ``timing``: dt,
-    horizon, hold, switch_radius, arrive_radius; ``motion``: the speed change a step, twice the braking;
-    ``safety``: collision distance + margin, margin_growth, predict_horizon."""
+    """``SamplingPlanner.rollout`` compiled: (4, N, M) arrival, clearance, hard, near. Positions and
+    velocities (N, 2), candidates (N, M, 2), obstacles (N, K, 2). ``timing``: dt, horizon, hold,
+    switch_radius, arrive_radius; ``motion``: the speed change a step, twice the braking; ``safety``:
+    collision distance + margin, margin_growth, predict_horizon.
+
+    A row's candidates step together, one loop over them a step with no branch, so that it runs as
+    vector instructions; a candidate that arrived keeps moving there, its figures no longer counted. Under
+    ``prune``, the row stops the step after a choosable candidate arrived clear of the growing safety
+    distance: every candidate still on its way arrives later, and is dropped (arrival +inf, clearances
+    -inf). Lengths are sqrt(x^2 + y^2), a few times faster than libm's hypot (which guards against
+    overflows metres never reach), both within a unit in the last place of numpy's abs."""
     dt, horizon, hold, switch_radius, arrive_radius = timing
     step, two_brake = motion
     distance, growth, predict = safety
     n, m, k = cand.shape[0], cand.shape[1], q.shape[1]
     steps = math.ceil(horizon / dt)
     out = np.empty((4, n, m))
-    ahead = np.empty((steps + 1, k), np.complex128)  # a row's obstacles as predicted at each step
-    p, v = np.empty(m, np.complex128), np.empty(m, np.complex128)
+    px, py, vx, vy = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     via, moving = np.empty(m, np.bool_), np.empty(m, np.bool_)
+    ox, oy, gap = np.empty(k), np.empty(k), np.empty(m)
     for r in range(n):
-        for i in range(1, steps + 1):
-            for o in range(k):
-                ahead[i, o] = q[r, o] + u[r, o] * min(i * dt, predict)
-        goal_r, soonest = goal[r], math.inf
+        gx, gy, top = goal[r, 0], goal[r, 1], speed[r]
+        cx, cy = cand[r, :, 0].copy(), cand[r, :, 1].copy()
         arrival, clearance, hard, near = out[0, r], out[1, r], out[2, r], out[3, r]
+        px[:], py[:], vx[:], vy[:] = pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1]
+        moving[:], arrival[:], clearance[:], hard[:], near[:] = True, math.inf, math.inf, math.inf, math.inf
         for j in range(m):
-            p[j], v[j], moving[j] = pos[r], vel[r], True
-            arrival[j] = clearance[j] = hard[j] = near[j] = math.inf
             # Heading for the sub-goal rather than the target: every candidate but the target itself, until
             # the sub-goal is no longer held and the robot is within switch_radius of it.
-            via[j] = cand[r, j] != goal_r and (hold > 0.0 or _nearer(cand[r, j] - p[j], switch_radius) > 0)
+            away = math.sqrt((cx[j] - px[j]) ** 2 + (cy[j] - py[j]) ** 2) > switch_radius
+            via[j] = (cx[j] != gx or cy[j] != gy) and (hold > 0.0 or away)
         for i in range(1, steps + 1):
             t = i * dt
             seen = min(t, predict)
-            margin = growth * seen**1.5
-            left = 0
+            margin, held, window = growth * seen**1.5, t < hold, t <= predict
+            for o in range(k):
+                ox[o], oy[o] = q[r, o, 0] + u[r, o, 0] * seen, q[r, o, 1] + u[r, o, 1] * seen
             for j in range(m):
-                if not moving[j]:
-                    continue
-                if prune and t > soonest:  # it arrives after a clear one: it cannot be chosen
-                    moving[j] = False
-                    arrival[j], clearance[j], hard[j], near[j] = math.inf, -math.inf, -math.inf, -math.inf
-                    continue
                 # Bang-bang towards the current goal: braking curve, speed cap, land on it in the last step.
-                delta = (cand[r, j] if via[j] else goal_r) - p[j]
-                dist = _length(delta)
-                want = min(min(math.sqrt(two_brake * dist), speed[r]), dist / dt)
-                change = delta * (want / max(dist, 1e-9)) - v[j]
-                if _nearer(change, step) >= 0:  # a change within a step's is made whole
-                    change = change * min(1.0, step / max(_length(change), 1e-12))
-                v[j] = v[j] + change
-                p[j] = p[j] + v[j] * dt
-                if t >= hold and via[j]:  # the worker drives to the sub-goal for as long as it is held
-                    via[j] = _nearer(cand[r, j] - p[j], switch_radius) > 0
-                if k:
-                    # The nearest obstacle by squared distance, then its distance (and any as near, within
-                    # the rounding of a square): the least of the distances, one root most steps.
-                    least = math.inf
-                    for o in range(k):
-                        d = p[j] - ahead[i, o]
-                        least = min(least, d.real * d.real + d.imag * d.imag)
-                    gap = math.inf
-                    for o in range(k):
-                        d = p[j] - ahead[i, o]
-                        if d.real * d.real + d.imag * d.imag <= least * (1.0 + 1e-12):
-                            gap = min(gap, _length(d))
-                    gap -= distance
-                    hard[j] = min(hard[j], gap)
-                    if t <= predict:
-                        near[j] = min(near[j], gap)
-                    clearance[j] = min(clearance[j], gap - margin)
-                if not via[j] and _nearer(goal_r - p[j], arrive_radius) < 0:
-                    arrival[j], moving[j] = t, False
-                    if clearance[j] >= 0.0 and choosable[r, j]:
-                        soonest = min(soonest, t)
-                else:
-                    left += 1
+                dx = (cx[j] if via[j] else gx) - px[j]
+                dy = (cy[j] if via[j] else gy) - py[j]
+                dist = math.sqrt(dx * dx + dy * dy)
+                want = _least(_least(math.sqrt(two_brake * dist), top), dist / dt) / _most(dist, 1e-9)
+                ex, ey = dx * want - vx[j], dy * want - vy[j]
+                scale = _least(1.0, step / _most(math.sqrt(ex * ex + ey * ey), 1e-12))
+                vx[j], vy[j] = vx[j] + ex * scale, vy[j] + ey * scale
+                px[j], py[j] = px[j] + vx[j] * dt, py[j] + vy[j] * dt
+                # The worker drives to the sub-goal for as long as it is held.
+                sx, sy = cx[j] - px[j], cy[j] - py[j]
+                via[j] = via[j] and (held or math.sqrt(sx * sx + sy * sy) > switch_radius)
+                gap[j] = math.inf
+            for o in range(k):
+                for j in range(m):
+                    sx, sy = px[j] - ox[o], py[j] - oy[o]
+                    gap[j] = _least(gap[j], math.sqrt(sx * sx + sy * sy))
+            for j in range(m):
+                g = gap[j] - distance if moving[j] else math.inf
+                hard[j] = _least(hard[j], g)
+                near[j] = _least(near[j], g if window else math.inf)
+                clearance[j] = _least(clearance[j], g - margin)
+                sx, sy = gx - px[j], gy - py[j]
+                there = moving[j] and not via[j] and math.sqrt(sx * sx + sy * sy) < arrive_radius
+                arrival[j] = t if there else arrival[j]
+                moving[j] = moving[j] and not there
+            left, clear = 0, False
+            for j in range(m):
+                left += moving[j]
+                clear |= arrival[j] == t and clearance[j] >= 0.0 and choosable[r, j]
             if not left:
+                break
+            if prune and clear:  # every candidate still on its way arrives later than this one
+                for j in range(m):
+                    if moving[j]:
+                        moving[j] = False
+                        arrival[j], clearance[j], hard[j], near[j] = math.inf, -math.inf, -math.inf, -math.inf
                 break
         for j in range(m):
             if moving[j]:
-                arrival[j] = horizon + _length(goal_r - p[j]) / speed[r]
+                arrival[j] = horizon + math.sqrt((gx - px[j]) ** 2 + (gy - py[j]) ** 2) / top
     return out
 
 
@@ -325,13 +321,13 @@ class SamplingPlanner:
         n, m = cand.shape
         limit = np.full(n, self.speed) if speed is None else np.minimum(self.speed, speed)
         out = _rollouts(
-            scene.robot_pos @ np.array([1.0, 1j]),
-            scene.robot_vel @ np.array([1.0, 1j]),
-            scene.target[:, 0:2] @ np.array([1.0, 1j]),
-            np.ascontiguousarray(cand, complex),
+            np.ascontiguousarray(scene.robot_pos, float),
+            np.ascontiguousarray(scene.robot_vel, float),
+            np.ascontiguousarray(scene.target[:, 0:2], float),
+            np.stack([cand.real, cand.imag], axis=-1),
             limit,
-            scene.obstacle_pos @ np.array([1.0, 1j]),
-            scene.obstacle_vel @ np.array([1.0, 1j]),
+            np.ascontiguousarray(scene.obstacle_pos, float),
+            np.ascontiguousarray(scene.obstacle_vel, float),
             np.ones((n, m), bool) if choosable is None else np.ascontiguousarray(choosable),
             choosable is not None,
             (self.dt, self.horizon, self.hold, self.switch_radius, self.arrive_radius),

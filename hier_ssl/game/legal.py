@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from hier_ssl.game.zones import BOX, CAPSULE, KEEP_IN, Zones, signed_distance
+from hier_ssl.game.zones import BOX, CAPSULE, KEEP_IN, Zones, point_segment, signed_distance, zone_distance
 
 SLACK = 1e-9  # m a projected point keeps beyond the clearance: the rounding of a projection is ~1e-16 m
 
@@ -65,20 +65,6 @@ def distances(zones: Zones, points: np.ndarray) -> np.ndarray:
         np.broadcast_to(zones.clearance, lead + (s,)).reshape(1, flat, s),
     )
     return signed_distance(z, np.broadcast_to(points, lead + (2,)).reshape(1, flat, 2)).reshape(lead + (s,))
-
-
-@numba.njit(cache=True)
-def zone_distance(x: float, y: float, kind: int, shape: np.ndarray, clearance: float) -> float:
-    """``signed_distance`` of the point (x, y) from one zone (its ``shape`` (4,)); +inf for an empty slot."""
-    x0, y0, x1, y1 = shape[0], shape[1], shape[2], shape[3]
-    if kind == CAPSULE:
-        return _point_segment(x, y, x0, y0, x1, y1) - clearance
-    if kind == BOX or kind == KEEP_IN:
-        qx = abs(x - (x0 + x1) / 2) - (x1 - x0) / 2
-        qy = abs(y - (y0 + y1) / 2) - (y1 - y0) / 2
-        box = math.hypot(max(qx, 0.0), max(qy, 0.0)) + min(max(qx, qy), 0.0)
-        return (box if kind == BOX else -box) - clearance
-    return math.inf
 
 
 @numba.njit(cache=True)
@@ -229,15 +215,6 @@ def nearest_legal(zones: Zones, points: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
-    """Distance of the point p from the segment a -> b; a point segment is a point."""
-    ux, uy, wx, wy = bx - ax, by - ay, px - ax, py - ay
-    length2 = ux * ux + uy * uy
-    t = 0.0 if length2 <= 0.0 else min(max((wx * ux + wy * uy) / length2, 0.0), 1.0)
-    return math.hypot(wx - t * ux, wy - t * uy)
-
-
-@numba.njit(cache=True)
 def _segment_segment(
     x0: float, y0: float, x1: float, y1: float, ax: float, ay: float, bx: float, by: float
 ) -> float:
@@ -249,8 +226,8 @@ def _segment_segment(
     if side_a * side_b < 0.0 and side_0 * side_1 < 0.0:
         return 0.0
     return min(
-        min(_point_segment(x0, y0, ax, ay, bx, by), _point_segment(x1, y1, ax, ay, bx, by)),
-        min(_point_segment(ax, ay, x0, y0, x1, y1), _point_segment(bx, by, x0, y0, x1, y1)),
+        min(point_segment(x0, y0, ax, ay, bx, by), point_segment(x1, y1, ax, ay, bx, by)),
+        min(point_segment(ax, ay, x0, y0, x1, y1), point_segment(bx, by, x0, y0, x1, y1)),
     )
 
 
@@ -273,9 +250,10 @@ def _segment_box(
         return 0.0
     near = math.inf
     for px, py in ((x0, y0), (x1, y1)):
-        near = min(near, math.hypot(max(max(bx0 - px, px - bx1), 0.0), max(max(by0 - py, py - by1), 0.0)))
+        ox, oy = max(max(bx0 - px, px - bx1), 0.0), max(max(by0 - py, py - by1), 0.0)
+        near = min(near, math.sqrt(ox * ox + oy * oy))
     for cx, cy in ((bx0, by0), (bx1, by0), (bx1, by1), (bx0, by1)):
-        near = min(near, _point_segment(cx, cy, x0, y0, x1, y1))
+        near = min(near, point_segment(cx, cy, x0, y0, x1, y1))
     return near
 
 
@@ -399,5 +377,4 @@ __all__ = [
     "segment_away",
     "segment_breaks",
     "segment_clearance",
-    "zone_distance",
 ]

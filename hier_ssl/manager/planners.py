@@ -37,7 +37,8 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
-from hier_ssl.game.legal import RowRules, segment_away, zone_distance
+from hier_ssl.game.legal import RowRules, segment_away
+from hier_ssl.game.zones import zone_distance
 from hier_ssl.manager.actions import action_dim, encode_subgoal
 from hier_ssl.manager.candidate_points import candidate_points, candidate_weights
 from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses

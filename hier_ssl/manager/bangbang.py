@@ -14,8 +14,8 @@ the sines), alpha found by bisection so that both axes arrive together, as TIGER
 step of pi/8 halved each round down to 1e-7, as theirs; every element runs all rounds (no early stop),
 which only refines the split further.
 
-Each piece is written once, as a compiled function of one profile (``profile_1d``, ``profile_2d``, the
-ufuncs ``position_1d`` and ``velocity_1d``): the batched functions below loop them over any broadcasting
+Each piece is written once, as a compiled function of one profile (``profile_1d``, ``profile_2d``,
+``state_1d``): the batched functions below loop them over any broadcasting
 leading shape, and the ``trajectory`` planner's compiled path search calls them on one path at a time.
 Times in s, lengths in m.
 """
@@ -47,61 +47,32 @@ def profile_1d(s0: float, s1: float, v0: float, v_max: float, a_max: float) -> t
     return sign, s0, v, acc1, vp, t1, t2, t3, a_max
 
 
-@numba.vectorize(
-    ["float64(float64, float64, float64, float64, float64, float64, float64, float64, float64, float64)"],
-    cache=True,
-)
-def position_1d(
-    t: float,
-    sign: float,
-    s0: float,
-    v0: float,
-    acc1: float,
-    vp: float,
-    t1: float,
-    t2: float,
-    t3: float,
-    a: float,
-) -> float:
-    """A profile's position at time ``t``: at rest on its end after its total time."""
+@numba.njit(cache=True)
+def state_1d(t: float, f: np.ndarray) -> tuple[float, float]:
+    """Position and velocity at time ``t`` of the profile whose fields are ``f`` (9,) (Profile1D's order);
+    at rest on its end after its total time."""
+    sign, s0, v0, acc1, vp, t1, t2, t3, a = f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8]
     t = max(t, 0.0)
     first = min(t, t1)
     cruise = min(max(t - t1, 0.0), t2)
     brake = min(max(t - (t1 + t2), 0.0), t3)
     pos = v0 * first + 0.5 * acc1 * (first * first) + vp * cruise + vp * brake - 0.5 * a * (brake * brake)
-    return s0 + sign * pos
-
-
-@numba.vectorize(
-    ["float64(float64, float64, float64, float64, float64, float64, float64, float64, float64, float64)"],
-    cache=True,
-)
-def velocity_1d(
-    t: float,
-    sign: float,
-    s0: float,
-    v0: float,
-    acc1: float,
-    vp: float,
-    t1: float,
-    t2: float,
-    t3: float,
-    a: float,
-) -> float:
-    """A profile's velocity at time ``t``: zero after its total time."""
-    t = max(t, 0.0)
     if t < t1:
-        return sign * (v0 + acc1 * min(t, t1))
-    if t < t1 + t2:
-        return sign * vp
-    return sign * max(vp - a * min(max(t - (t1 + t2), 0.0), t3), 0.0)
+        vel = v0 + acc1 * first
+    elif t < t1 + t2:
+        vel = vp
+    else:
+        vel = max(vp - a * brake, 0.0)
+    return s0 + sign * pos, sign * vel
 
 
 @numba.njit(cache=True)
-def state_at(t: float, f: np.ndarray) -> tuple[float, float]:
-    """Position and velocity at time ``t`` of the profile whose fields are ``f`` (9,)."""
-    position = position_1d(t, f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8])
-    return position, velocity_1d(t, f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8])
+def _states(t: np.ndarray, fields: np.ndarray) -> np.ndarray:
+    """(2, P) ``state_1d`` at times (P,) of profiles (P, 9)."""
+    out = np.empty((2, t.shape[0]))
+    for i in range(t.shape[0]):
+        out[0, i], out[1, i] = state_1d(t[i], fields[i])
+    return out
 
 
 @numba.njit(cache=True)
@@ -154,7 +125,13 @@ class Profile1D:
     def at(self, t: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity at time ``t`` (broadcast against the profiles); at rest on the end after
         the total time."""
-        return position_1d(t, *self.fields), velocity_1d(t, *self.fields)
+        fields = np.stack(self.fields, axis=-1)
+        shape = np.broadcast_shapes(np.shape(t), fields.shape[:-1])
+        out = _states(
+            np.ascontiguousarray(np.broadcast_to(np.asarray(t, np.float64), shape)).reshape(-1),
+            np.ascontiguousarray(np.broadcast_to(fields, shape + (FIELDS,))).reshape(-1, FIELDS),
+        )
+        return out[0].reshape(shape), out[1].reshape(shape)
 
 
 @numba.njit(cache=True)
@@ -245,9 +222,7 @@ __all__ = [
     "Profile2D",
     "bang_bang_1d",
     "bang_bang_2d",
-    "position_1d",
     "profile_1d",
     "profile_2d",
-    "state_at",
-    "velocity_1d",
+    "state_1d",
 ]

@@ -55,7 +55,7 @@ import numpy as np
 from hier_ssl.game.legal import RowRules, distances, nearest_legal, segment_breaks
 from hier_ssl.game.zones import Zones
 from hier_ssl.manager.actions import action_dim
-from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d, position_1d, profile_2d, state_at
+from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d, profile_2d, state_1d
 from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec
@@ -243,7 +243,7 @@ def _search(
     checked = kind.shape[1] > 0
     rows, subs, switches = valid.shape[0], valid.shape[1], switch.shape[0]
     best, found = np.zeros(rows, np.int64), np.zeros(rows, np.bool_)
-    positions, times = np.empty(64, np.complex128), np.empty(64)
+    positions, times, then = np.empty(64, np.complex128), np.empty(64), np.empty((2, 9))
     for r in range(rows):
         row_zones = (kind[r], shape[r], clearance[r], leaving[r])
         now, end = abs(vel[r]), goal[r]
@@ -256,9 +256,11 @@ def _search(
                 w = switch[j]
                 if not w < first_total[r, s]:
                     break  # the switches come in order: no later one is on the sub-path
-                at_x, going_x = state_at(w, fx)
-                at_y, going_y = state_at(w, fy)
+                at_x, going_x = state_1d(w, fx)
+                at_y, going_y = state_1d(w, fy)
                 _, tx, ty = profile_2d(at_x, at_y, end.real, end.imag, going_x, going_y, speed[r], accel)
+                for f in range(9):
+                    then[0, f], then[1, f] = tx[f], ty[f]
                 total = w + max(tx[5] + tx[6] + tx[7], ty[5] + ty[6] + ty[7])
                 n = 0
                 while offset + n * step < total:
@@ -267,11 +269,9 @@ def _search(
                         times = np.concatenate((times, np.empty(n)))
                     t = offset + n * step
                     if t < w:
-                        x = position_1d(t, fx[0], fx[1], fx[2], fx[3], fx[4], fx[5], fx[6], fx[7], fx[8])
-                        y = position_1d(t, fy[0], fy[1], fy[2], fy[3], fy[4], fy[5], fy[6], fy[7], fy[8])
+                        x, y = state_1d(t, fx)[0], state_1d(t, fy)[0]
                     else:
-                        x = position_1d(t - w, tx[0], tx[1], tx[2], tx[3], tx[4], tx[5], tx[6], tx[7], tx[8])
-                        y = position_1d(t - w, ty[0], ty[1], ty[2], ty[3], ty[4], ty[5], ty[6], ty[7], ty[8])
+                        x, y = state_1d(t - w, then[0])[0], state_1d(t - w, then[1])[0]
                     positions[n], times[n] = complex(x, y), t
                     n += 1
                 judge = (True, w, end, threshold_time, now, brake, brake_offset)
@@ -322,54 +322,27 @@ def check_times(total: np.ndarray, params: TrajectoryParams, checked: bool = Tru
     return np.array([offset + k * step for k in range(max(count, 0))], dtype=float)
 
 
-def collisions(
-    positions: np.ndarray,
-    times: np.ndarray,
-    start: np.ndarray,
-    total: np.ndarray,
-    obstacles: tuple[np.ndarray, np.ndarray, np.ndarray],
-    radius: float,
-    params: TrajectoryParams,
-    zones: tuple[Zones, np.ndarray] | None = None,
-) -> Collisions:
-    """``first_collisions`` of paths whose positions at the check ``times`` (C,) are given, (C, *shape),
-    their starts (shape) complex."""
-    n = total.shape[0] if total.ndim else 1
-    p = total.size
-    row = np.arange(p) // max(p // max(n, 1), 1)
-    q, u, still = (np.ascontiguousarray(x) for x in obstacles)
+def _zone_arrays(zones: tuple[Zones, np.ndarray] | None, rows: int) -> tuple[np.ndarray, ...]:
+    """The compiled walks' zones: kind, shape, clearance and which the robot breaks, (rows, S) each
+    (shape (rows, S, 4)), contiguous; S = 0 without ``zones``."""
     if zones is None:
-        kind, shape = np.zeros((max(n, 1), 0), np.int64), np.zeros((max(n, 1), 0, 4))
-        clearance, leaving = np.zeros((max(n, 1), 0)), np.zeros((max(n, 1), 0), bool)
-    else:
-        rule, leaving = zones
-        kind, shape, clearance = rule.kind, rule.shape, rule.clearance
-    out = _walk_paths(
-        np.ascontiguousarray(
-            np.broadcast_to(positions, (len(times),) + total.shape).reshape(len(times), p).T
-        ),
-        np.asarray(times, float),
-        np.ascontiguousarray(np.broadcast_to(start, total.shape), complex).reshape(p),
-        np.ascontiguousarray(total, float).reshape(p),
-        row,
-        q,
-        u,
-        still,
-        radius,
-        params.t_max,
-        np.ascontiguousarray(kind, np.int64),
-        np.ascontiguousarray(shape, float),
-        np.ascontiguousarray(clearance, float),
+        return (
+            np.zeros((rows, 0), np.int64),
+            np.zeros((rows, 0, 4)),
+            np.zeros((rows, 0)),
+            np.zeros((rows, 0), bool),
+        )
+    rule, leaving = zones
+    return (
+        np.ascontiguousarray(rule.kind, np.int64),
+        np.ascontiguousarray(rule.shape, float),
+        np.ascontiguousarray(rule.clearance, float),
         np.ascontiguousarray(leaving, bool),
-    ).reshape((9,) + total.shape)
-    hits = Collisions(out[0], out[1] + 1j * out[2], out[3], out[4] + 1j * out[5])
-    if zones is None:
-        return hits
-    return dataclasses.replace(hits, zone_time=out[6], zone_pos=out[7] + 1j * out[8])
+    )
 
 
 def first_collisions(
-    path_at: Callable[[float], np.ndarray],
+    path_at: Callable[[float], np.ndarray] | tuple[np.ndarray, np.ndarray],
     total: np.ndarray,
     obstacles: tuple[np.ndarray, np.ndarray, np.ndarray],
     radius: float,
@@ -386,13 +359,34 @@ def first_collisions(
     ``zones``: the rules' zones (arrays (N, S)) and which of them each robot already breaks (N, S), as
     still obstacles of any shape: each check's step, a straight line from the previous check's position
     (the path's start for the first), must keep clear of every zone the robot does not already break (it
-    is leaving those)."""
+    is leaving those).
+
+    ``path_at`` may instead be the paths' positions at ``check_times(total, ...)`` (C, *shape) and at
+    their start (shape), complex: a planner computes them at once."""
     total = np.asarray(total, float)
     times = check_times(total, params, bool(obstacles[0].shape[-1]) or zones is not None)
-    positions = [np.broadcast_to(path_at(t), total.shape) for t in times]
-    positions = np.stack(positions) if positions else np.zeros((0,) + total.shape, complex)
-    start = path_at(0.0) if zones is not None else np.zeros(total.shape, complex)
-    return collisions(positions, times, start, total, obstacles, radius, params, zones)
+    if callable(path_at):
+        positions = [np.broadcast_to(path_at(t), total.shape) for t in times]
+        positions = np.stack(positions) if positions else np.zeros((0,) + total.shape, complex)
+        start = path_at(0.0) if zones is not None else np.zeros(total.shape, complex)
+    else:
+        positions, start = path_at
+    n, p = (total.shape[0] if total.ndim else 1), total.size
+    out = _walk_paths(
+        np.ascontiguousarray(np.broadcast_to(positions, times.shape + total.shape).reshape(len(times), p).T),
+        times,
+        np.ascontiguousarray(np.broadcast_to(start, total.shape), complex).reshape(p),
+        np.ascontiguousarray(total).reshape(p),
+        np.arange(p) // max(p // max(n, 1), 1),  # each path's row of the obstacles and zones
+        *(np.ascontiguousarray(x) for x in obstacles),
+        radius,
+        params.t_max,
+        *_zone_arrays(zones, max(n, 1)),
+    ).reshape((9,) + total.shape)
+    hits = Collisions(out[0], out[1] + 1j * out[2], out[3], out[4] + 1j * out[5])
+    if zones is None:
+        return hits
+    return dataclasses.replace(hits, zone_time=out[6], zone_pos=out[7] + 1j * out[8])
 
 
 @numba.vectorize(["boolean(float64, complex128, complex128, complex128, float64)"], cache=True)
@@ -505,8 +499,8 @@ class TrajectoryPlanner:
         draws = self.draw(len(pos))
         direct = bang_bang_2d(pos, goal, vel, speed, accel)
         times = check_times(direct.total_time, self.params, bool(q.shape[1]) or zones is not None)
-        positions = direct.at(times[:, None])[0]
-        hits = collisions(positions, times, pos, direct.total_time, obstacles, radius, self.params, zones)
+        path = (direct.at(times[:, None])[0], pos)
+        hits = first_collisions(path, direct.total_time, obstacles, radius, self.params, zones)
         brake = self.brake_accel or accel
         still_ok, moving_ok = accepted(hits, pos, goal, np.abs(vel), brake, self.params)
         chosen, winner = goal.copy(), np.full(len(pos), np.nan + 0j)
@@ -578,12 +572,6 @@ class TrajectoryPlanner:
         last_switch = float(first.total_time.max(initial=0.0))
         count = max(math.ceil((last_switch - p.initial_time_offset) / p.step_size_on_sub_path) - 1, 1)
         switch = np.array([p.initial_time_offset + p.step_size_on_sub_path * j for j in range(1, count + 1)])
-        if zones is None:
-            kind, shape = np.zeros((len(pos), 0), np.int64), np.zeros((len(pos), 0, 4))
-            clearance, leaving = np.zeros((len(pos), 0)), np.zeros((len(pos), 0), bool)
-        else:
-            (rule, leaving), kind, shape = zones, zones[0].kind, zones[0].shape
-            clearance = rule.clearance
         best, found = _search(
             pos,
             vel,
@@ -600,12 +588,7 @@ class TrajectoryPlanner:
             radius,
             (p.initial_time_offset, p.collision_check_step, p.t_max, p.threshold_max_collision_time),
             p.brake_time_offset,
-            (
-                np.ascontiguousarray(kind, np.int64),
-                np.ascontiguousarray(shape, float),
-                np.ascontiguousarray(clearance, float),
-                np.ascontiguousarray(leaving, bool),
-            ),
+            _zone_arrays(zones, len(pos)),
         )
         index = np.maximum(best - 1, 0) // count
         via = found & (best > 0)

@@ -197,7 +197,8 @@ def test_segment_breaks_is_the_measured_clearance_below_zero() -> None:
         for _ in range(400):
             x0, y0 = rng.uniform(-1.5, 1.5, 2)
             x1, y1 = np.array([x0, y0]) + rng.normal(0.0, 0.2, 2)
-            clearance = rng.choice([0.0, 0.29, 0.59, segment_away(x0, y0, x1, y1, kind, *shape)])
+            away = segment_away(x0, y0, x1, y1, kind, *shape)
+            clearance = rng.choice([0.0, 0.29, 0.59, away if math.isfinite(away) else 0.0])
             want = segment_away(x0, y0, x1, y1, kind, *shape) - clearance < 0.0
             assert segment_breaks(x0, y0, x1, y1, kind, shape, clearance) == want
             count += want

@@ -245,7 +245,8 @@ class SamplingPlanner:
     instructions, each until it arrives; a choice (``plan``) ends a row's rollouts the step after a
     candidate arrives clear, every other being later. About 0.04 ms per field and call (1000 fields, one
     obstacle, 50 candidates: 36 ms of CPU; 255 ms as numpy arrays before); a team of 11 in STOP, 114
-    candidates each, 1.4 ms (``benchmarks/team_decision.py``).
+    candidates each, 1.2 ms, 1.7-1.8 ms under the rules (13-21 and 15-16 ms before;
+    ``benchmarks/team_decision.py``).
     """
 
     field: Field

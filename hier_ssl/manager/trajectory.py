@@ -39,8 +39,8 @@ target, as Immortals' planner hands its controller an intermediate point.
 Compiled: the bang-bang profiles (``hier_ssl.manager.bangbang``), the collision checks of a path
 (``_walk``) and the search of steps 2 and 3 (``_search``), which, as TIGERs' path finder, tries one
 robot's paths in order and stops at the first acceptable one, and walks a path only as far as it can
-still win or be a fallback. A team of 11 in STOP: 0.6 ms a decision, 1.4 ms under the rules (21 and 72 ms
-as numpy arrays before; ``benchmarks/team_decision.py``).
+still win or be a fallback. A team of 11 in STOP: 0.6-1.0 ms a decision, 1.5-1.8 ms under the rules (21-24
+and 66-68 ms as numpy arrays before; ``benchmarks/team_decision.py``).
 
 Memory: the winning sub-destination (relative to the robot-target line, as TIGERs keeps it) of every
 robot. ``play`` resets it at the start of each evaluation (``forget``) and says which robots the rows of

@@ -1,4 +1,4 @@
-"""``trajectory``: the league's reference path finder as a scripted manager, batched over fields in numpy.
+"""``trajectory``: the league's reference path finder as a scripted manager, batched over fields.
 
 The algorithm is TIGERs Mannheim's (Sumatra, ``modules/sumatra-pathfinder``: ``PathFinder``,
 ``SubDestRndGenerator``, ``SubPathCollisionChecker``, ``PathCollisionChecker``, the acceptors
@@ -36,6 +36,12 @@ The sub-goal is the point in force at the decision: the sub-destination of a pat
 comes at ``initial_time_offset`` + ``step_size_on_sub_path`` s or later, after any control step), else the
 target, as Immortals' planner hands its controller an intermediate point.
 
+Compiled: the bang-bang profiles (``hier_ssl.manager.bangbang``), the collision checks of a path
+(``_walk``) and the search of steps 2 and 3 (``_search``), which, as TIGERs' path finder, tries one
+robot's paths in order and stops at the first acceptable one, and walks a path only as far as it can
+still win or be a fallback. A team of 11 in STOP: 0.6-1.0 ms a decision, 1.5-1.8 ms under the rules (21-24
+and 66-68 ms as numpy arrays before; ``benchmarks/team_decision.py``).
+
 Memory: the winning sub-destination (relative to the robot-target line, as TIGERs keeps it) of every
 robot. ``play`` resets it at the start of each evaluation (``forget``) and says which robots the rows of
 each call are (``rows``); called without rows, a planner remembers nothing. The random draws come from a
@@ -49,12 +55,13 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from hier_ssl.game.legal import RowRules, distances, nearest_legal, path_clearance
+from hier_ssl.game.legal import RowRules, distances, nearest_legal, segment_breaks
 from hier_ssl.game.zones import Zones
 from hier_ssl.manager.actions import action_dim
-from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d
+from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d, profile_2d, state_1d
 from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec
@@ -109,8 +116,239 @@ class Collisions:
     zone_pos: np.ndarray | None = None  # the position at that check
 
 
+@numba.njit(cache=True)
+def _walk(
+    positions: np.ndarray,
+    times: np.ndarray,
+    start: complex,
+    total: float,
+    q: np.ndarray,
+    u: np.ndarray,
+    still: np.ndarray,
+    radius: float,
+    t_max: float,
+    zones: tuple,
+    judge: tuple = (False, 0.0, 0j, 0.0, 0.0, 0.0, 0.0),
+) -> tuple:
+    """The first collisions of one path (``first_collisions``): its ``positions`` (C,) complex at the
+    check ``times`` (C,), from ``start``, lasting ``total`` s, against obstacles (K,) and the rules' zones
+    (kind (S,), shape (S, 4), clearance (S,), which the robot already breaks (S,): S = 0 unchecked).
+    Returns still time and position, moving time and position, zone time and position (inf, 0: none).
+
+    ``judge``: (on, the switch time, the goal, threshold_max_collision_time, the robot's speed, its
+    braking, brake_time_offset): on, the walk stops as soon as the path can neither win nor be a fallback
+    of ``_search``: a still collision the still acceptor refuses, a step into a zone before the switch, or
+    after it with a collision the moving acceptor refuses."""
+    kind, shape, clearance, leaving = zones
+    judged, switch, goal, threshold_time, speed, brake, brake_offset = judge
+    still_t = still_x = still_y = moving_x = moving_y = zone_x = zone_y = 0.0
+    still_t = moving_t = zone_t = math.inf
+    last_x, last_y = start.real, start.imag
+    for c in range(positions.shape[0]):
+        t = times[c]
+        if not t < total:  # the checks come in order: none later is on the path
+            break
+        px, py = positions[c].real, positions[c].imag
+        seen = min(t, t_max)
+        hit_still = hit_moving = False
+        for k in range(q.shape[0]):
+            if still[k] and not math.isinf(still_t) or not still[k] and not math.isinf(moving_t):
+                continue  # its kind's first collision is found
+            nx, ny = px - (q[k].real + u[k].real * seen), py - (q[k].imag + u[k].imag * seen)
+            hit = math.hypot(nx, ny) < radius
+            if c > 0 and not hit:  # the closest approach on the straight stretch from the previous check
+                before = min(times[c - 1], t_max)
+                bx = positions[c - 1].real - (q[k].real + u[k].real * before)
+                by = positions[c - 1].imag - (q[k].imag + u[k].imag * before)
+                mx, my = nx - bx, ny - by
+                # No point of the stretch is nearer than its nearer end less half its length: only a
+                # stretch that may come within the radius is measured (the slack covers the rounding).
+                reach = radius * (1.0 + 1e-9) + 0.5 * (abs(mx) + abs(my))
+                if min(nx * nx + ny * ny, bx * bx + by * by) <= reach * reach:
+                    move = math.hypot(mx, my)
+                    along = min(max(-(bx * mx + by * my) / max(move * move, 1e-12), 0.0), 1.0)
+                    hit = math.hypot(bx + along * mx, by + along * my) < radius
+            hit_still |= hit and still[k]
+            hit_moving |= hit and not still[k]
+        broken = False
+        if math.isinf(zone_t):
+            for z in range(kind.shape[0]):
+                broken |= not leaving[z] and segment_breaks(
+                    last_x, last_y, px, py, kind[z], shape[z], clearance[z]
+                )
+        last_x, last_y = px, py
+        if hit_still and math.isinf(still_t):
+            still_t, still_x, still_y = t, px, py
+        if hit_moving and math.isinf(moving_t):
+            moving_t, moving_x, moving_y = t, px, py
+        if broken and math.isinf(zone_t):
+            zone_t, zone_x, zone_y = t, px, py
+        if not (math.isinf(still_t) or math.isinf(moving_t) or (kind.shape[0] > 0 and math.isinf(zone_t))):
+            break  # every first collision found: the later checks change nothing
+        if judged and (
+            (hit_still and not still_accepts(still_t, complex(still_x, still_y), start, goal, threshold_time))
+            or (broken and zone_t <= switch)
+            or (
+                (broken or hit_moving)
+                and not math.isinf(zone_t)
+                and not moving_accepts(moving_t, speed, brake, brake_offset)
+            )
+        ):
+            break
+    return still_t, still_x, still_y, moving_t, moving_x, moving_y, zone_t, zone_x, zone_y
+
+
+@numba.njit(cache=True)
+def _walk_paths(
+    positions, times, start, total, row, q, u, still, radius, t_max, kind, shape, clearance, leaving
+):
+    """``_walk`` of paths (P,): positions (P, C), starts and totals (P,), each path's row (P,) of the
+    obstacles (N, K) and zones (N, S). Returns (9, P)."""
+    out = np.empty((9, total.shape[0]))
+    for p in range(total.shape[0]):
+        i = row[p]
+        zones = (kind[i], shape[i], clearance[i], leaving[i])
+        hits = _walk(positions[p], times, start[p], total[p], q[i], u[i], still[i], radius, t_max, zones)
+        for j in range(9):
+            out[j, p] = hits[j]
+    return out
+
+
+@numba.njit(cache=True)
+def _search(
+    pos,
+    vel,
+    goal,
+    speed,
+    accel,
+    brake,
+    first,
+    first_total,
+    valid,
+    switch,
+    direct_miss,
+    q,
+    u,
+    still,
+    radius,
+    checks,
+    brake_offset,
+    zones,
+):
+    """Steps 2 and 3 (``TrajectoryPlanner.detour``) for R robots, one at a time: the flat index (R,) of
+    the winning path, 0 the direct one, 1 + s J + j the sub-destination s switching at ``switch[j]`` (J,),
+    and whether one was found (R,). The paths are tried in order and the first acceptable wins, so the
+    rest are never walked; failing all, the closest miss (ties to the first, the direct path's
+    ``direct_miss`` first of all), then under the rules the closest step into a zone.
+
+    ``first``: the sub-paths' fields (R, S, 2, 9) (``Profile2D.packed``), their durations and validity
+    (R, S); ``checks``: initial_time_offset, collision_check_step, t_max, threshold_max_collision_time;
+    ``zones`` as ``_walk``'s with a leading R."""
+    offset, step, t_max, threshold_time = checks
+    kind, shape, clearance, leaving = zones
+    checked = kind.shape[1] > 0
+    rows, subs, switches = valid.shape[0], valid.shape[1], switch.shape[0]
+    best, found = np.zeros(rows, np.int64), np.zeros(rows, np.bool_)
+    positions, times, then = np.empty(64, np.complex128), np.empty(64), np.empty((2, 9))
+    for r in range(rows):
+        row_zones = (kind[r], shape[r], clearance[r], leaving[r])
+        now, end = abs(vel[r]), goal[r]
+        miss, miss_at, near, near_at, good = direct_miss[r], 0, math.inf, -1, -1
+        for s in range(subs):
+            if not valid[r, s]:
+                continue
+            fx, fy = first[r, s, 0], first[r, s, 1]
+            for j in range(switches):
+                w = switch[j]
+                if not w < first_total[r, s]:
+                    break  # the switches come in order: no later one is on the sub-path
+                at_x, going_x = state_1d(w, fx)
+                at_y, going_y = state_1d(w, fy)
+                _, tx, ty = profile_2d(at_x, at_y, end.real, end.imag, going_x, going_y, speed[r], accel)
+                for f in range(9):
+                    then[0, f], then[1, f] = tx[f], ty[f]
+                total = w + max(tx[5] + tx[6] + tx[7], ty[5] + ty[6] + ty[7])
+                n = 0
+                while offset + n * step < total:
+                    if n == positions.shape[0]:
+                        positions = np.concatenate((positions, np.empty(n, np.complex128)))
+                        times = np.concatenate((times, np.empty(n)))
+                    t = offset + n * step
+                    if t < w:
+                        x, y = state_1d(t, fx)[0], state_1d(t, fy)[0]
+                    else:
+                        x, y = state_1d(t - w, then[0])[0], state_1d(t - w, then[1])[0]
+                    positions[n], times[n] = complex(x, y), t
+                    n += 1
+                judge = (True, w, end, threshold_time, now, brake, brake_offset)
+                hits = _walk(
+                    positions[:n],
+                    times[:n],
+                    pos[r],
+                    total,
+                    q[r],
+                    u[r],
+                    still[r],
+                    radius,
+                    t_max,
+                    row_zones,
+                    judge,
+                )
+                free = still_accepts(hits[0], complex(hits[1], hits[2]), pos[r], end, threshold_time)
+                still_ok = free and math.isinf(hits[6])
+                moving_ok = moving_accepts(hits[3], now, brake, brake_offset)
+                flat = 1 + s * switches + j
+                if still_ok and moving_ok:
+                    good = flat
+                    break
+                if still_ok:
+                    gap = abs(complex(hits[4], hits[5]) - end)
+                    if gap * gap < miss:
+                        miss, miss_at = gap * gap, flat
+                if checked and free and moving_ok and hits[6] > w:
+                    gap = abs(complex(hits[7], hits[8]) - end)
+                    if gap < near:
+                        near, near_at = gap, flat
+            if good >= 0:
+                break
+        if good >= 0:
+            best[r], found[r] = good, True
+        elif math.isfinite(miss):
+            best[r], found[r] = miss_at, True
+        elif checked and near_at >= 0:
+            best[r], found[r] = near_at, True
+    return best, found
+
+
+def check_times(total: np.ndarray, params: TrajectoryParams, checked: bool = True) -> np.ndarray:
+    """(C,) the times of the collision checks of paths lasting ``total`` (s): from ``initial_time_offset``
+    every ``collision_check_step``, while any path lasts; none where nothing is ``checked``."""
+    offset, step = params.initial_time_offset, params.collision_check_step
+    count = math.ceil((float(total.max(initial=0.0)) - offset) / step) if checked else 0
+    return np.array([offset + k * step for k in range(max(count, 0))], dtype=float)
+
+
+def _zone_arrays(zones: tuple[Zones, np.ndarray] | None, rows: int) -> tuple[np.ndarray, ...]:
+    """The compiled walks' zones: kind, shape, clearance and which the robot breaks, (rows, S) each
+    (shape (rows, S, 4)), contiguous; S = 0 without ``zones``."""
+    if zones is None:
+        return (
+            np.zeros((rows, 0), np.int64),
+            np.zeros((rows, 0, 4)),
+            np.zeros((rows, 0)),
+            np.zeros((rows, 0), bool),
+        )
+    rule, leaving = zones
+    return (
+        np.ascontiguousarray(rule.kind, np.int64),
+        np.ascontiguousarray(rule.shape, float),
+        np.ascontiguousarray(rule.clearance, float),
+        np.ascontiguousarray(leaving, bool),
+    )
+
+
 def first_collisions(
-    path_at: Callable[[float], np.ndarray],
+    path_at: Callable[[float], np.ndarray] | tuple[np.ndarray, np.ndarray],
     total: np.ndarray,
     obstacles: tuple[np.ndarray, np.ndarray, np.ndarray],
     radius: float,
@@ -127,49 +365,50 @@ def first_collisions(
     ``zones``: the rules' zones (arrays (N, S)) and which of them each robot already breaks (N, S), as
     still obstacles of any shape: each check's step, a straight line from the previous check's position
     (the path's start for the first), must keep clear of every zone the robot does not already break (it
-    is leaving those)."""
+    is leaving those).
 
-    def per_path(x: np.ndarray, tail: int = 1) -> np.ndarray:  # (N, ...) -> (N, 1, ..., 1, ...)
-        return x.reshape(x.shape[:1] + (1,) * (total.ndim - 1) + x.shape[x.ndim - tail :])
+    ``path_at`` may instead be the paths' positions at ``check_times(total, ...)`` (C, *shape) and at
+    their start (shape), complex: a planner computes them at once."""
+    total = np.asarray(total, float)
+    times = check_times(total, params, bool(obstacles[0].shape[-1]) or zones is not None)
+    if callable(path_at):
+        positions = [np.broadcast_to(path_at(t), total.shape) for t in times]
+        positions = np.stack(positions) if positions else np.zeros((0,) + total.shape, complex)
+        start = path_at(0.0) if zones is not None else np.zeros(total.shape, complex)
+    else:
+        positions, start = path_at
+    n, p = (total.shape[0] if total.ndim else 1), total.size
+    out = _walk_paths(
+        np.ascontiguousarray(np.broadcast_to(positions, times.shape + total.shape).reshape(len(times), p).T),
+        times,
+        np.ascontiguousarray(np.broadcast_to(start, total.shape), complex).reshape(p),
+        np.ascontiguousarray(total).reshape(p),
+        np.arange(p) // max(p // max(n, 1), 1),  # each path's row of the obstacles and zones
+        *(np.ascontiguousarray(x) for x in obstacles),
+        radius,
+        params.t_max,
+        *_zone_arrays(zones, max(n, 1)),
+    ).reshape((9,) + total.shape)
+    hits = Collisions(out[0], out[1] + 1j * out[2], out[3], out[4] + 1j * out[5])
+    if zones is None:
+        return hits
+    return dataclasses.replace(hits, zone_time=out[6], zone_pos=out[7] + 1j * out[8])
 
-    q, u, still = (per_path(x) for x in obstacles)
-    inf = np.full(total.shape, np.inf)
-    out = Collisions(inf.copy(), np.zeros(total.shape, complex), inf.copy(), np.zeros(total.shape, complex))
-    offset, step = params.initial_time_offset, params.collision_check_step
-    checked = q.shape[-1] or zones is not None
-    count = math.ceil((float(total.max(initial=0.0)) - offset) / step) if checked else 0
-    if zones is not None:
-        rule, leaving = zones
-        rule = Zones(per_path(rule.kind), per_path(rule.shape, 2), per_path(rule.clearance))
-        leaving, last = per_path(leaving), path_at(0.0)
-        out = dataclasses.replace(out, zone_time=inf.copy(), zone_pos=np.zeros(total.shape, complex))
-    before = None
-    for k in range(max(count, 0)):
-        t = offset + k * step
-        pos = path_at(t)
-        now = pos[..., None] - (q + u * min(t, params.t_max))  # robot relative to each obstacle
-        hit = np.abs(now) < radius
-        if before is not None:
-            move = now - before
-            along = -(before.real * move.real + before.imag * move.imag) / np.maximum(
-                np.abs(move) ** 2, 1e-12
-            )
-            hit |= np.abs(before + np.clip(along, 0.0, 1.0) * move) < radius
-        before = now
-        on = t < total
-        if zones is not None:
-            broken = ((path_clearance(rule, last, pos) < 0.0) & ~leaving).any(-1)
-            last = pos
-            new = broken & on & np.isinf(out.zone_time)
-            out.zone_time[new], out.zone_pos[new] = t, pos[new]
-        for hits, times, where in (
-            ((hit & still).any(-1), out.still_time, out.still_pos),
-            ((hit & ~still).any(-1), out.moving_time, out.moving_pos),
-        ):
-            new = hits & on & np.isinf(times)
-            times[new] = t
-            where[new] = pos[new]
-    return out
+
+@numba.vectorize(["boolean(float64, complex128, complex128, complex128, float64)"], cache=True)
+def still_accepts(time: float, where: complex, start: complex, goal: complex, threshold_time: float) -> bool:
+    """TIGERs' motionless acceptor: no collision with a still obstacle, or its first (at ``time`` s,
+    ``where``) nearer the path's end than ``time`` / ``threshold_time`` of the start's distance."""
+    if math.isinf(time):
+        return True
+    return abs(where - goal) / max(abs(start - goal), 1e-9) < min(max(time / threshold_time, 0.0), 1.0)
+
+
+@numba.vectorize(["boolean(float64, float64, float64, float64)"], cache=True)
+def moving_accepts(time: float, speed: float, accel: float, offset: float) -> bool:
+    """TIGERs' moving acceptor: the first collision with a moving obstacle comes later than the time to
+    brake from ``speed`` at ``accel``, plus ``offset`` s."""
+    return time > speed / accel + offset
 
 
 def accepted(
@@ -182,13 +421,10 @@ def accepted(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(still obstacles accept, moving ones accept), each of the paths' shape; ``start``, ``goal`` and
     ``speed`` (the robot's) broadcast against it."""
-    threshold = np.clip(hits.still_time / p.threshold_max_collision_time, 0.0, 1.0)
-    relative = np.abs(hits.still_pos - goal) / np.maximum(np.abs(start - goal), 1e-9)
-    still_ok = np.isinf(hits.still_time) | (relative < threshold)
+    still_ok = still_accepts(hits.still_time, hits.still_pos, start, goal, p.threshold_max_collision_time)
     if hits.zone_time is not None:  # no leniency near the end: the target was made legal, the path must be
         still_ok &= np.isinf(hits.zone_time)
-    moving_ok = hits.moving_time > speed / accel + p.brake_time_offset
-    return still_ok, moving_ok
+    return still_ok, moving_accepts(hits.moving_time, speed, accel, p.brake_time_offset)
 
 
 @dataclass
@@ -268,9 +504,9 @@ class TrajectoryPlanner:
             zones = (rules.zones, distances(rules.zones, scene.robot_pos) < 0.0)
         draws = self.draw(len(pos))
         direct = bang_bang_2d(pos, goal, vel, speed, accel)
-        hits = first_collisions(
-            lambda t: direct.at(t)[0], direct.total_time, obstacles, radius, self.params, zones
-        )
+        times = check_times(direct.total_time, self.params, bool(q.shape[1]) or zones is not None)
+        path = (direct.at(times[:, None])[0], pos)
+        hits = first_collisions(path, direct.total_time, obstacles, radius, self.params, zones)
         brake = self.brake_accel or accel
         still_ok, moving_ok = accepted(hits, pos, goal, np.abs(vel), brake, self.params)
         chosen, winner = goal.copy(), np.full(len(pos), np.nan + 0j)
@@ -281,9 +517,7 @@ class TrajectoryPlanner:
             normal = np.concatenate([last[rows, None], draws[rows]], axis=1)
             ruled = None
             if zones is not None:
-                z = zones[0]
-                sub = Zones(z.kind[rows], z.shape[rows], z.clearance[rows])
-                ruled = (sub, zones[1][rows], np.asarray(speed)[rows])
+                ruled = (zones[0].take(rows), zones[1][rows], np.broadcast_to(speed, pos.shape)[rows])
             picked, won = self.detour(
                 pos[rows],
                 vel[rows],
@@ -323,7 +557,8 @@ class TrajectoryPlanner:
         p, (speed, accel) = self.params, self.limits
         zones = None
         if rules is not None:
-            zones, speed = rules[:2], rules[2][:, None, None]
+            zones, speed = rules[:2], rules[2]
+        speed = np.broadcast_to(np.asarray(speed, float), pos.shape)
         radius = self.collision_distance + p.obstacle_margin
         order = np.argsort(
             np.where(np.isnan(normal), np.inf, np.abs(np.angle(normal))), axis=1, kind="stable"
@@ -335,44 +570,32 @@ class TrajectoryPlanner:
         half_l, half_w = self.field.half_length, self.field.half_width
         sub = np.clip(sub.real, -half_l, half_l) + 1j * np.clip(sub.imag, -half_w, half_w)
         if zones is not None:  # a sub-destination inside a zone is no candidate
-            z = zones[0]
-            inside = distances(
-                Zones(z.kind[:, None], z.shape[:, None], z.clearance[:, None]),
-                np.stack([sub.real, sub.imag], axis=-1),
-            )
+            inside = distances(zones[0].take(np.s_[:, None]), np.stack([sub.real, sub.imag], axis=-1))
             valid &= (inside >= 0.0).all(-1)
-        # Sub-paths (R, S, 1), switch times (J,), paths (R, S, J): the sub-path, then the target.
-        first = bang_bang_2d(pos[:, None, None], sub[:, :, None], vel[:, None, None], speed, accel)
+        # Sub-paths (R, S); the switch times (J,) of every path through a sub-destination, the sub-path
+        # until the switch, then the target: tried in the order of TIGERs, the first acceptable wins.
+        first = bang_bang_2d(pos[:, None], sub, vel[:, None], speed[:, None], accel)
         last_switch = float(first.total_time.max(initial=0.0))
         count = max(math.ceil((last_switch - p.initial_time_offset) / p.step_size_on_sub_path) - 1, 1)
-        switch = p.initial_time_offset + p.step_size_on_sub_path * np.arange(1, count + 1)
-        at, going = first.at(switch)
-        then = bang_bang_2d(at, goal[:, None, None], going, speed, accel)
-        hits = first_collisions(
-            lambda t: composite(first, then, switch, t), switch + then.total_time, obstacles, radius, p, zones
+        switch = np.array([p.initial_time_offset + p.step_size_on_sub_path * j for j in range(1, count + 1)])
+        best, found = _search(
+            pos,
+            vel,
+            goal,
+            np.ascontiguousarray(speed),
+            accel,
+            self.brake_accel or accel,
+            np.ascontiguousarray(first.packed()),
+            np.ascontiguousarray(first.total_time),
+            valid,
+            switch,
+            direct_miss,
+            *(np.ascontiguousarray(x) for x in obstacles),
+            radius,
+            (p.initial_time_offset, p.collision_check_step, p.t_max, p.threshold_max_collision_time),
+            p.brake_time_offset,
+            _zone_arrays(zones, len(pos)),
         )
-        valid = valid[:, :, None] & (switch < first.total_time)
-        start, end, now = pos[:, None, None], goal[:, None, None], np.abs(vel)[:, None, None]
-        brake = self.brake_accel or accel
-        still_ok, moving_ok = accepted(hits, start, end, now, brake, p)
-        good = (valid & still_ok & moving_ok).reshape(len(pos), -1)
-        miss = np.where(valid & still_ok, np.abs(hits.moving_pos - end) ** 2, np.inf).reshape(len(pos), -1)
-        # Column 0: the direct path (rejected); then the sub-paths in the order they are tried.
-        score = np.concatenate([direct_miss[:, None], np.where(good, -np.inf, miss)], axis=1)
-        best = np.argmin(score, axis=1)  # the first acceptable (-inf), else the closest miss
-        found = np.isfinite(score[np.arange(len(pos)), best]) | good.any(axis=1)
-        if zones is not None:
-            # Every path rejected, zones among the reasons (a target behind the ball, out of reach of one
-            # sub-path): of the paths clear of them until their switch and accepted by the obstacles
-            # otherwise, the one whose step into a zone lies closest to the target (as the moving
-            # obstacles' fallback). The robot heads for its sub-destination and goes round over the next
-            # decisions, as ``sampling`` does.
-            free_ok, _ = accepted(dataclasses.replace(hits, zone_time=None), start, end, now, brake, p)
-            near = valid & free_ok & moving_ok & (hits.zone_time > switch)
-            near = np.where(near, np.abs(hits.zone_pos - end), np.inf).reshape(len(pos), -1)
-            round_zones = ~found & np.isfinite(near.min(axis=1, initial=np.inf))
-            best = np.where(round_zones, np.argmin(near, axis=1) + 1, best)
-            found |= round_zones
         index = np.maximum(best - 1, 0) // count
         via = found & (best > 0)
         stop = pos

@@ -30,17 +30,15 @@ sub-goal inside a zone is never handed. A robot in HALT (limit 0) is handed its 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
 
-from hier_ssl.game.legal import RowRules, segment_away
-from hier_ssl.game.zones import zone_distance
+from hier_ssl.game.legal import RowRules
 from hier_ssl.manager.actions import action_dim, encode_subgoal
 from hier_ssl.manager.candidate_points import candidate_points, candidate_weights
+from hier_ssl.manager.sampling_rollouts import rollouts, zone_detours
 from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
 from hier_ssl.manager.trajectory import TrajectoryParams, TrajectoryPlanner
 from hier_ssl.world.field import Field, get_field
@@ -87,133 +85,6 @@ class DirectPlanner:
         )
 
 
-@numba.njit(cache=True)
-def _least(a: float, b: float) -> float:
-    """min(a, b) as one select, which a loop of them can run as vector instructions (no NaN here)."""
-    return a if a < b else b
-
-
-@numba.njit(cache=True)
-def _most(a: float, b: float) -> float:
-    """max(a, b) as one select."""
-    return a if a > b else b
-
-
-@numba.njit(cache=True)
-def _rollouts(pos, vel, goal, cand, speed, q, u, choosable, prune, timing, motion, safety) -> np.ndarray:
-    """``SamplingPlanner.rollout`` compiled: (4, N, M) arrival, clearance, hard, near. Positions and
-    velocities (N, 2), candidates (N, M, 2), obstacles (N, K, 2). ``timing``: dt, horizon, hold,
-    switch_radius, arrive_radius; ``motion``: the speed change a step, twice the braking; ``safety``:
-    collision distance + margin, margin_growth, predict_horizon.
-
-    A row's candidates step together, one loop over them a step with no branch, so that it runs as
-    vector instructions; a candidate that arrived keeps moving there, its figures no longer counted. Under
-    ``prune``, the row stops the step after a choosable candidate arrived clear of the growing safety
-    distance: every candidate still on its way arrives later, and is dropped (arrival +inf, clearances
-    -inf). Lengths are sqrt(x^2 + y^2), a few times faster than libm's hypot (which guards against
-    overflows metres never reach), both within a unit in the last place of numpy's abs."""
-    dt, horizon, hold, switch_radius, arrive_radius = timing
-    step, two_brake = motion
-    distance, growth, predict = safety
-    n, m, k = cand.shape[0], cand.shape[1], q.shape[1]
-    steps = math.ceil(horizon / dt)
-    out = np.empty((4, n, m))
-    px, py, vx, vy = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
-    via, moving = np.empty(m, np.bool_), np.empty(m, np.bool_)
-    ox, oy, gap = np.empty(k), np.empty(k), np.empty(m)
-    for r in range(n):
-        gx, gy, top = goal[r, 0], goal[r, 1], speed[r]
-        cx, cy = cand[r, :, 0].copy(), cand[r, :, 1].copy()
-        arrival, clearance, hard, near = out[0, r], out[1, r], out[2, r], out[3, r]
-        px[:], py[:], vx[:], vy[:] = pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1]
-        moving[:], arrival[:], clearance[:], hard[:], near[:] = True, math.inf, math.inf, math.inf, math.inf
-        for j in range(m):
-            # Heading for the sub-goal rather than the target: every candidate but the target itself, until
-            # the sub-goal is no longer held and the robot is within switch_radius of it.
-            away = math.sqrt((cx[j] - px[j]) ** 2 + (cy[j] - py[j]) ** 2) > switch_radius
-            via[j] = (cx[j] != gx or cy[j] != gy) and (hold > 0.0 or away)
-        for i in range(1, steps + 1):
-            t = i * dt
-            seen = min(t, predict)
-            margin, held, window = growth * seen**1.5, t < hold, t <= predict
-            for o in range(k):
-                ox[o], oy[o] = q[r, o, 0] + u[r, o, 0] * seen, q[r, o, 1] + u[r, o, 1] * seen
-            for j in range(m):
-                # Bang-bang towards the current goal: braking curve, speed cap, land on it in the last step.
-                dx = (cx[j] if via[j] else gx) - px[j]
-                dy = (cy[j] if via[j] else gy) - py[j]
-                dist = math.sqrt(dx * dx + dy * dy)
-                want = _least(_least(math.sqrt(two_brake * dist), top), dist / dt) / _most(dist, 1e-9)
-                ex, ey = dx * want - vx[j], dy * want - vy[j]
-                scale = _least(1.0, step / _most(math.sqrt(ex * ex + ey * ey), 1e-12))
-                vx[j], vy[j] = vx[j] + ex * scale, vy[j] + ey * scale
-                px[j], py[j] = px[j] + vx[j] * dt, py[j] + vy[j] * dt
-                # The worker drives to the sub-goal for as long as it is held.
-                sx, sy = cx[j] - px[j], cy[j] - py[j]
-                via[j] = via[j] and (held or math.sqrt(sx * sx + sy * sy) > switch_radius)
-                gap[j] = math.inf
-            for o in range(k):
-                for j in range(m):
-                    sx, sy = px[j] - ox[o], py[j] - oy[o]
-                    gap[j] = _least(gap[j], math.sqrt(sx * sx + sy * sy))
-            for j in range(m):
-                g = gap[j] - distance if moving[j] else math.inf
-                hard[j] = _least(hard[j], g)
-                near[j] = _least(near[j], g if window else math.inf)
-                clearance[j] = _least(clearance[j], g - margin)
-                sx, sy = gx - px[j], gy - py[j]
-                there = moving[j] and not via[j] and math.sqrt(sx * sx + sy * sy) < arrive_radius
-                arrival[j] = t if there else arrival[j]
-                moving[j] = moving[j] and not there
-            left, clear = 0, False
-            for j in range(m):
-                left += moving[j]
-                clear |= arrival[j] == t and clearance[j] >= 0.0 and choosable[r, j]
-            if not left:
-                break
-            if prune and clear:  # every candidate still on its way arrives later than this one
-                for j in range(m):
-                    if moving[j]:
-                        moving[j] = False
-                        arrival[j], clearance[j], hard[j], near[j] = math.inf, -math.inf, -math.inf, -math.inf
-                break
-        for j in range(m):
-            if moving[j]:
-                arrival[j] = horizon + math.sqrt((gx - px[j]) ** 2 + (gy - py[j]) ** 2) / top
-    return out
-
-
-@numba.njit(cache=True)
-def _zone_detours(robot, goal, cand, kind, shape, clearance) -> tuple[np.ndarray, np.ndarray]:
-    """``SamplingPlanner.zone_detour`` compiled: robots and targets (N,), candidates (N, M) complex, the
-    rows' zones (N, S)."""
-    n, m, s = cand.shape[0], cand.shape[1], kind.shape[1]
-    clear, detour = np.empty((n, m), np.bool_), np.empty((n, m))
-    for r in range(n):
-        x0, y0, gx, gy = robot[r].real, robot[r].imag, goal[r].real, goal[r].imag
-        leaving = np.array(
-            [zone_distance(x0, y0, kind[r, z], shape[r, z], clearance[r, z]) < 0.0 for z in range(s)]
-        )
-        any_first = False
-        for j in range(m):
-            x, y = cand[r, j].real, cand[r, j].imag
-            first, second = True, math.inf
-            for z in range(s):
-                a = shape[r, z]
-                legal = zone_distance(x, y, kind[r, z], a, clearance[r, z]) >= 0.0
-                leg = segment_away(x0, y0, x, y, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
-                first = first and legal and (leg >= 0.0 or leaving[z])
-                second = min(
-                    second, segment_away(x, y, gx, gy, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
-                )
-            clear[r, j] = first and second >= 0.0
-            detour[r, j] = second if first else -math.inf
-            any_first |= first
-        if not any_first:  # column 0, the target, is legal
-            detour[r, 0] = 0.0
-    return clear, detour
-
-
 @dataclass(frozen=True)
 class SamplingPlanner:
     """Sample sub-goals, roll out each "robot -> sub-goal -> target" bang-bang trajectory against
@@ -241,12 +112,12 @@ class SamplingPlanner:
     (a fraction 0.1-0.9 of the way, up to ``across`` metres to the side); a ring of radius ``escape``
     around the robot. All are clipped to the field, where a sub-goal can be.
 
-    The rollouts are one compiled loop (``_rollouts``): a row's candidates step together, as vector
-    instructions, each until it arrives; a choice (``plan``) ends a row's rollouts the step after a
-    candidate arrives clear, every other being later. About 0.04 ms per field and call (1000 fields, one
-    obstacle, 50 candidates: 36 ms of CPU; 255 ms as numpy arrays before); a team of 11 in STOP, 114
-    candidates each, 1.2 ms, 1.7-1.8 ms under the rules (13-21 and 15-16 ms before;
-    ``benchmarks/team_decision.py``).
+    The rollouts are one compiled loop (``hier_ssl.manager.sampling_rollouts.rollouts``): a row's
+    candidates step together, as vector instructions, each until it arrives; a choice (``plan``) ends a
+    row's rollouts the step after a candidate arrives clear, every other being later. About 0.04 ms per
+    field and call (1000 fields, one obstacle, 50 candidates: 36 ms of CPU; 255 ms as numpy arrays
+    before); a team of 11 in STOP, 114 candidates each, 1.2 ms, 1.7-1.8 ms under the rules (13-21 and
+    15-16 ms before; ``benchmarks/team_decision.py``).
     """
 
     field: Field
@@ -326,7 +197,7 @@ class SamplingPlanner:
         clear of the growing safety distance so far, which it can no longer beat."""
         n, m = cand.shape
         limit = np.full(n, self.speed) if speed is None else np.minimum(self.speed, speed)
-        out = _rollouts(
+        out = rollouts(
             np.ascontiguousarray(scene.robot_pos, float),
             np.ascontiguousarray(scene.robot_vel, float),
             np.ascontiguousarray(scene.target[:, 0:2], float),
@@ -378,7 +249,7 @@ class SamplingPlanner:
         the target, legal (``ruled_scene``). A zone the robot already breaks does not bar its first leg:
         it is leaving it."""
         zones = rules.zones
-        clear, detour = _zone_detours(
+        clear, detour = zone_detours(
             scene.robot_pos @ np.array([1.0, 1j]),
             scene.target[:, 0:2] @ np.array([1.0, 1j]),
             np.ascontiguousarray(cand, complex),

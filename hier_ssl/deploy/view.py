@@ -32,7 +32,6 @@ from hier_ssl.envs import make_scenario, task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.game.legal import RowRules, cap_speed, nearest_legal
-from hier_ssl.game.zones import Zones
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.world.field import get_field
@@ -216,10 +215,7 @@ class DeployView:
             obs = self.core.observe(state=state)
             action = np.zeros((self.n, self.m, self.core.act_dim))
             if self.planner and rules is not None:
-                zones = rules.zones
-                live_rules = RowRules(
-                    Zones(zones.kind[rows], zones.shape[rows], zones.clearance[rows]), rules.speed[rows]
-                )
+                live_rules = RowRules(rules.zones.take(rows), rules.speed[rows])
                 action[live] = self.policy(obs[live], rules=live_rules)
             else:
                 action[live] = self.policy(obs[live])
@@ -228,9 +224,7 @@ class DeployView:
             self.subgoal[live] = self.exported(exported_rows(self.target, state, self.m)[rows])
         if rules is not None:
             subgoal = self.subgoal.reshape(-1, 5)  # a view: written through to the core's array
-            zones = rules.zones
-            live_zones = Zones(zones.kind[rows], zones.shape[rows], zones.clearance[rows])
-            subgoal[rows, 0:2] = nearest_legal(live_zones, subgoal[rows, 0:2])
+            subgoal[rows, 0:2] = nearest_legal(rules.zones.take(rows), subgoal[rows, 0:2])
             subgoal[rows, 3:5] = cap_speed(subgoal[rows, 3:5], rules.speed[rows])
 
     def commanded(self, state: RobotState, sent: np.ndarray) -> RobotState:

@@ -18,7 +18,9 @@ despite rounding (``violates`` is False there).
 The nearest legal point and a path's clearance are numba loops, one robot (one path) at a time: a planner
 asks for them at every decision and, in ``trajectory``, at every collision check of every path, where
 numpy's temporaries over (robots, paths, checks, zones) cost more than the arithmetic (a team of 11 in
-STOP: a decision of ``direct`` from 16 ms to 0.2 ms, ``benchmarks/team_decision.py``).
+STOP: a decision of ``direct`` from 16 ms to 0.1 ms, ``benchmarks/team_decision.py``). The compiled
+planners call the one-zone pieces (``segment_away``, ``segment_breaks``, and ``zones.zone_distance``)
+directly.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from hier_ssl.game.zones import BOX, CAPSULE, KEEP_IN, Zones, signed_distance
+from hier_ssl.game.zones import BOX, CAPSULE, KEEP_IN, Zones, point_segment, signed_distance, zone_distance
 
 SLACK = 1e-9  # m a projected point keeps beyond the clearance: the rounding of a projection is ~1e-16 m
 
@@ -65,20 +67,6 @@ def distances(zones: Zones, points: np.ndarray) -> np.ndarray:
         np.broadcast_to(zones.clearance, lead + (s,)).reshape(1, flat, s),
     )
     return signed_distance(z, np.broadcast_to(points, lead + (2,)).reshape(1, flat, 2)).reshape(lead + (s,))
-
-
-@numba.njit(cache=True)
-def _zone_distance(x: float, y: float, kind: int, shape: np.ndarray, clearance: float) -> float:
-    """``signed_distance`` of the point (x, y) from one zone (its ``shape`` (4,)); +inf for an empty slot."""
-    x0, y0, x1, y1 = shape[0], shape[1], shape[2], shape[3]
-    if kind == CAPSULE:
-        return _point_segment(x, y, x0, y0, x1, y1) - clearance
-    if kind == BOX or kind == KEEP_IN:
-        qx = abs(x - (x0 + x1) / 2) - (x1 - x0) / 2
-        qy = abs(y - (y0 + y1) / 2) - (y1 - y0) / 2
-        box = math.hypot(max(qx, 0.0), max(qy, 0.0)) + min(max(qx, qy), 0.0)
-        return (box if kind == BOX else -box) - clearance
-    return math.inf
 
 
 @numba.njit(cache=True)
@@ -184,7 +172,7 @@ def _nearest_legal_row(
             continue
         worst = math.inf
         for k in range(s):
-            worst = min(worst, _zone_distance(x, y, kind[k], shape[k], clearance[k]))
+            worst = min(worst, zone_distance(x, y, kind[k], shape[k], clearance[k]))
         if worst >= 0.0:
             best, best_far = c, far
         elif best < 0 and worst > least_worst:
@@ -229,15 +217,6 @@ def nearest_legal(zones: Zones, points: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
-    """Distance of the point p from the segment a -> b; a point segment is a point."""
-    ux, uy, wx, wy = bx - ax, by - ay, px - ax, py - ay
-    length2 = ux * ux + uy * uy
-    t = 0.0 if length2 <= 0.0 else min(max((wx * ux + wy * uy) / length2, 0.0), 1.0)
-    return math.hypot(wx - t * ux, wy - t * uy)
-
-
-@numba.njit(cache=True)
 def _segment_segment(
     x0: float, y0: float, x1: float, y1: float, ax: float, ay: float, bx: float, by: float
 ) -> float:
@@ -249,8 +228,8 @@ def _segment_segment(
     if side_a * side_b < 0.0 and side_0 * side_1 < 0.0:
         return 0.0
     return min(
-        min(_point_segment(x0, y0, ax, ay, bx, by), _point_segment(x1, y1, ax, ay, bx, by)),
-        min(_point_segment(ax, ay, x0, y0, x1, y1), _point_segment(bx, by, x0, y0, x1, y1)),
+        min(point_segment(x0, y0, ax, ay, bx, by), point_segment(x1, y1, ax, ay, bx, by)),
+        min(point_segment(ax, ay, x0, y0, x1, y1), point_segment(bx, by, x0, y0, x1, y1)),
     )
 
 
@@ -273,10 +252,45 @@ def _segment_box(
         return 0.0
     near = math.inf
     for px, py in ((x0, y0), (x1, y1)):
-        near = min(near, math.hypot(max(max(bx0 - px, px - bx1), 0.0), max(max(by0 - py, py - by1), 0.0)))
+        ox, oy = max(max(bx0 - px, px - bx1), 0.0), max(max(by0 - py, py - by1), 0.0)
+        near = min(near, math.sqrt(ox * ox + oy * oy))
     for cx, cy in ((bx0, by0), (bx1, by0), (bx1, by1), (bx0, by1)):
-        near = min(near, _point_segment(cx, cy, x0, y0, x1, y1))
+        near = min(near, point_segment(cx, cy, x0, y0, x1, y1))
     return near
+
+
+@numba.njit(cache=True)
+def segment_away(
+    x0: float, y0: float, x1: float, y1: float, kind: int, ax: float, ay: float, bx: float, by: float
+) -> float:
+    """How far the straight path (x0, y0) -> (x1, y1) keeps from one zone's shape (``kind``, (ax, ay, bx,
+    by)), before its clearance (``segment_clearance`` less the clearance); +inf for an empty slot."""
+    if kind == CAPSULE:
+        return _segment_segment(x0, y0, x1, y1, ax, ay, bx, by)
+    if kind == BOX:
+        return _segment_box(x0, y0, x1, y1, ax, ay, bx, by)
+    if kind == KEEP_IN:  # convex: the worse end
+        return min(
+            min(min(x0 - ax, bx - x0), min(y0 - ay, by - y0)),
+            min(min(x1 - ax, bx - x1), min(y1 - ay, by - y1)),
+        )
+    return math.inf
+
+
+@numba.njit(cache=True)
+def segment_breaks(
+    x0: float, y0: float, x1: float, y1: float, kind: int, shape: np.ndarray, clearance: float
+) -> bool:
+    """Whether the straight path (x0, y0) -> (x1, y1) breaks one zone (``segment_away`` less the
+    clearance below 0): a path whose bounding box keeps farther than the clearance from the shape's,
+    along x or y, is not measured (no point of it is nearer; the slack covers the rounding)."""
+    ax, ay, bx, by = shape[0], shape[1], shape[2], shape[3]
+    if kind == CAPSULE or kind == BOX:
+        gap_x = max(min(ax, bx) - max(x0, x1), min(x0, x1) - max(ax, bx))
+        gap_y = max(min(ay, by) - max(y0, y1), min(y0, y1) - max(ay, by))
+        if max(gap_x, gap_y) > clearance + 1e-9:
+            return False
+    return segment_away(x0, y0, x1, y1, kind, ax, ay, bx, by) - clearance < 0.0
 
 
 @numba.njit(cache=True)
@@ -284,29 +298,17 @@ def _rows_path_clearance(
     kind: np.ndarray, shape: np.ndarray, clearance: np.ndarray, start: np.ndarray, end: np.ndarray
 ) -> np.ndarray:
     """(N, P, S) ``path_clearance`` of the paths start -> end (N, P) complex against their row's zones:
-    kind (N, S), shape (N, S, 4), clearance (N, S). One pass, no temporaries: the planners call it on every
-    collision check."""
+    kind (N, S), shape (N, S, 4), clearance (N, S). One pass, no temporaries."""
     n, p, s = start.shape[0], start.shape[1], kind.shape[1]
     out = np.empty((n, p, s))
     for i in range(n):
         for j in range(p):
             x0, y0, x1, y1 = start[i, j].real, start[i, j].imag, end[i, j].real, end[i, j].imag
             for k in range(s):
-                z = kind[i, k]
-                ax, ay, bx, by = shape[i, k, 0], shape[i, k, 1], shape[i, k, 2], shape[i, k, 3]
-                if z == CAPSULE:
-                    away = _segment_segment(x0, y0, x1, y1, ax, ay, bx, by)
-                elif z == BOX:
-                    away = _segment_box(x0, y0, x1, y1, ax, ay, bx, by)
-                elif z == KEEP_IN:  # convex: the worse end
-                    away = min(
-                        min(min(x0 - ax, bx - x0), min(y0 - ay, by - y0)),
-                        min(min(x1 - ax, bx - x1), min(y1 - ay, by - y1)),
-                    )
-                else:
-                    out[i, j, k] = math.inf
-                    continue
-                out[i, j, k] = away - clearance[i, k]
+                z = shape[i, k]
+                out[i, j, k] = (
+                    segment_away(x0, y0, x1, y1, kind[i, k], z[0], z[1], z[2], z[3]) - clearance[i, k]
+                )
     return out
 
 
@@ -374,5 +376,7 @@ __all__ = [
     "nearest_legal",
     "path_clearance",
     "row_rules",
+    "segment_away",
+    "segment_breaks",
     "segment_clearance",
 ]

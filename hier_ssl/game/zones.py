@@ -17,8 +17,10 @@ do these shapes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from hier_ssl.game.referee import (
@@ -56,6 +58,11 @@ class Zones:
     kind: np.ndarray
     shape: np.ndarray
     clearance: np.ndarray
+
+    def take(self, index: object) -> Zones:
+        """The zones of the robots ``index`` picks on the leading axes (any numpy index: rows, a mask,
+        ``np.s_[:, None]`` for an axis more), every slot kept."""
+        return Zones(self.kind[index], self.shape[index], self.clearance[index])
 
 
 def defense_box(field: Field, side: np.ndarray) -> np.ndarray:
@@ -123,30 +130,55 @@ def speed_limit(referee: RefereeState) -> np.ndarray:
     return np.where(command == HALT, 0.0, np.where(command == STOP, STOP_SPEED, np.inf))
 
 
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance of points ``p`` (..., 2) from the segments a -> b (..., 2); a point segment is a point."""
-    ab, ap = b - a, p - a
-    length2 = np.sum(ab * ab, axis=-1)
-    t = np.clip(np.sum(ap * ab, axis=-1) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
-    return np.linalg.norm(ap - t[..., None] * ab, axis=-1)
+@numba.njit(cache=True)
+def point_segment(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
+    """Distance of the point p from the segment a -> b; a point segment is a point. Lengths here are
+    sqrt(x^2 + y^2), as ``np.linalg.norm`` computes them."""
+    ux, uy, wx, wy = bx - ax, by - ay, px - ax, py - ay
+    length2 = ux * ux + uy * uy
+    t = 0.0 if length2 <= 0.0 else min(max((wx * ux + wy * uy) / length2, 0.0), 1.0)
+    dx, dy = wx - t * ux, wy - t * uy
+    return math.sqrt(dx * dx + dy * dy)
 
 
-def _box_distance(p: np.ndarray, box: np.ndarray) -> np.ndarray:
-    """Signed distance of ``p`` (..., 2) from the boxes (..., 4): positive outside, negative inside."""
-    centre, half = (box[..., :2] + box[..., 2:]) / 2, (box[..., 2:] - box[..., :2]) / 2
-    q = np.abs(p - centre) - half
-    outside = np.linalg.norm(np.maximum(q, 0.0), axis=-1)
-    return outside + np.minimum(np.max(q, axis=-1), 0.0)
+@numba.njit(cache=True)
+def zone_distance(x: float, y: float, kind: int, shape: np.ndarray, clearance: float) -> float:
+    """How far the point (x, y) is from breaking one zone (``kind``, its ``shape`` (4,), ``clearance``):
+    positive while it keeps the clearance, +inf for an empty slot."""
+    x0, y0, x1, y1 = shape[0], shape[1], shape[2], shape[3]
+    if kind == CAPSULE:
+        return point_segment(x, y, x0, y0, x1, y1) - clearance
+    if kind == BOX or kind == KEEP_IN:
+        qx = abs(x - (x0 + x1) / 2) - (x1 - x0) / 2
+        qy = abs(y - (y0 + y1) / 2) - (y1 - y0) / 2
+        ox, oy = max(qx, 0.0), max(qy, 0.0)
+        box = math.sqrt(ox * ox + oy * oy) + min(max(qx, qy), 0.0)
+        return (box if kind == BOX else -box) - clearance
+    return math.inf
+
+
+@numba.njit(cache=True)
+def _distances(points: np.ndarray, kind: np.ndarray, shape: np.ndarray, clearance: np.ndarray) -> np.ndarray:
+    """(P, S) ``zone_distance`` of points (P, 2) from their zones (P, S)."""
+    out = np.empty(kind.shape)
+    for i in range(kind.shape[0]):
+        for k in range(kind.shape[1]):
+            out[i, k] = zone_distance(points[i, 0], points[i, 1], kind[i, k], shape[i, k], clearance[i, k])
+    return out
 
 
 def signed_distance(zones: Zones, points: np.ndarray) -> np.ndarray:
     """(N, M, S) how far each robot centre ``points`` (N, M, 2) is from breaking each of its zones, m:
     positive while it keeps the clearance, negative by how much it breaks it, +inf for an empty slot."""
-    p = np.broadcast_to(points[:, :, None, :], zones.shape.shape[:-1] + (2,))
-    capsule = _segment_distance(p, zones.shape[..., :2], zones.shape[..., 2:])
-    box = _box_distance(p, zones.shape)
-    away = np.select([zones.kind == CAPSULE, zones.kind == BOX, zones.kind == KEEP_IN], [capsule, box, -box])
-    return np.where(zones.kind == NONE, np.inf, away - zones.clearance)
+    lead, s = zones.kind.shape[:-1], zones.kind.shape[-1]
+    flat = int(np.prod(lead, dtype=np.int64))
+    out = _distances(
+        np.ascontiguousarray(np.broadcast_to(points, lead + (2,)), np.float64).reshape(flat, 2),
+        np.ascontiguousarray(zones.kind, np.int64).reshape(flat, s),
+        np.ascontiguousarray(zones.shape, np.float64).reshape(flat, s, 4),
+        np.ascontiguousarray(zones.clearance, np.float64).reshape(flat, s),
+    )
+    return out.reshape(lead + (s,))
 
 
 def violates(zones: Zones, points: np.ndarray) -> np.ndarray:

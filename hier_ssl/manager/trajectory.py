@@ -1,4 +1,4 @@
-"""``trajectory``: the league's reference path finder as a scripted manager, batched over fields in numpy.
+"""``trajectory``: the league's reference path finder as a scripted manager, batched over fields.
 
 The algorithm is TIGERs Mannheim's (Sumatra, ``modules/sumatra-pathfinder``: ``PathFinder``,
 ``SubDestRndGenerator``, ``SubPathCollisionChecker``, ``PathCollisionChecker``, the acceptors
@@ -36,6 +36,12 @@ The sub-goal is the point in force at the decision: the sub-destination of a pat
 comes at ``initial_time_offset`` + ``step_size_on_sub_path`` s or later, after any control step), else the
 target, as Immortals' planner hands its controller an intermediate point.
 
+Compiled: the bang-bang profiles (``hier_ssl.manager.bangbang``), and in ``hier_ssl.manager.path_search``
+the collision checks of a path (``walk``) and the search of steps 2 and 3 (``search``), which, as TIGERs'
+path finder, tries one robot's paths in order and stops at the first acceptable one, and walks a path only
+as far as it can still win or be a fallback. A team of 11 in STOP: 0.6-1.0 ms a decision, 1.5-1.8 ms under
+the rules (21-24 and 66-68 ms as numpy arrays before; ``benchmarks/team_decision.py``).
+
 Memory: the winning sub-destination (relative to the robot-target line, as TIGERs keeps it) of every
 robot. ``play`` resets it at the start of each evaluation (``forget``) and says which robots the rows of
 each call are (``rows``); called without rows, a planner remembers nothing. The random draws come from a
@@ -51,10 +57,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hier_ssl.game.legal import RowRules, distances, nearest_legal, path_clearance
+from hier_ssl.game.legal import RowRules, distances, nearest_legal
 from hier_ssl.game.zones import Zones
 from hier_ssl.manager.actions import action_dim
 from hier_ssl.manager.bangbang import Profile2D, bang_bang_2d
+from hier_ssl.manager.path_search import moving_accepts, search, still_accepts, walk_paths
 from hier_ssl.manager.scene import Scene, halted, read_scene, ruled_scene, scene_action, subgoal_poses
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec
@@ -109,8 +116,35 @@ class Collisions:
     zone_pos: np.ndarray | None = None  # the position at that check
 
 
+def check_times(total: np.ndarray, params: TrajectoryParams, checked: bool = True) -> np.ndarray:
+    """(C,) the times of the collision checks of paths lasting ``total`` (s): from ``initial_time_offset``
+    every ``collision_check_step``, while any path lasts; none where nothing is ``checked``."""
+    offset, step = params.initial_time_offset, params.collision_check_step
+    count = math.ceil((float(total.max(initial=0.0)) - offset) / step) if checked else 0
+    return np.array([offset + k * step for k in range(max(count, 0))], dtype=float)
+
+
+def _zone_arrays(zones: tuple[Zones, np.ndarray] | None, rows: int) -> tuple[np.ndarray, ...]:
+    """The compiled walks' zones: kind, shape, clearance and which the robot breaks, (rows, S) each
+    (shape (rows, S, 4)), contiguous; S = 0 without ``zones``."""
+    if zones is None:
+        return (
+            np.zeros((rows, 0), np.int64),
+            np.zeros((rows, 0, 4)),
+            np.zeros((rows, 0)),
+            np.zeros((rows, 0), bool),
+        )
+    rule, leaving = zones
+    return (
+        np.ascontiguousarray(rule.kind, np.int64),
+        np.ascontiguousarray(rule.shape, float),
+        np.ascontiguousarray(rule.clearance, float),
+        np.ascontiguousarray(leaving, bool),
+    )
+
+
 def first_collisions(
-    path_at: Callable[[float], np.ndarray],
+    path_at: Callable[[float], np.ndarray] | tuple[np.ndarray, np.ndarray],
     total: np.ndarray,
     obstacles: tuple[np.ndarray, np.ndarray, np.ndarray],
     radius: float,
@@ -127,49 +161,34 @@ def first_collisions(
     ``zones``: the rules' zones (arrays (N, S)) and which of them each robot already breaks (N, S), as
     still obstacles of any shape: each check's step, a straight line from the previous check's position
     (the path's start for the first), must keep clear of every zone the robot does not already break (it
-    is leaving those)."""
+    is leaving those).
 
-    def per_path(x: np.ndarray, tail: int = 1) -> np.ndarray:  # (N, ...) -> (N, 1, ..., 1, ...)
-        return x.reshape(x.shape[:1] + (1,) * (total.ndim - 1) + x.shape[x.ndim - tail :])
-
-    q, u, still = (per_path(x) for x in obstacles)
-    inf = np.full(total.shape, np.inf)
-    out = Collisions(inf.copy(), np.zeros(total.shape, complex), inf.copy(), np.zeros(total.shape, complex))
-    offset, step = params.initial_time_offset, params.collision_check_step
-    checked = q.shape[-1] or zones is not None
-    count = math.ceil((float(total.max(initial=0.0)) - offset) / step) if checked else 0
-    if zones is not None:
-        rule, leaving = zones
-        rule = Zones(per_path(rule.kind), per_path(rule.shape, 2), per_path(rule.clearance))
-        leaving, last = per_path(leaving), path_at(0.0)
-        out = dataclasses.replace(out, zone_time=inf.copy(), zone_pos=np.zeros(total.shape, complex))
-    before = None
-    for k in range(max(count, 0)):
-        t = offset + k * step
-        pos = path_at(t)
-        now = pos[..., None] - (q + u * min(t, params.t_max))  # robot relative to each obstacle
-        hit = np.abs(now) < radius
-        if before is not None:
-            move = now - before
-            along = -(before.real * move.real + before.imag * move.imag) / np.maximum(
-                np.abs(move) ** 2, 1e-12
-            )
-            hit |= np.abs(before + np.clip(along, 0.0, 1.0) * move) < radius
-        before = now
-        on = t < total
-        if zones is not None:
-            broken = ((path_clearance(rule, last, pos) < 0.0) & ~leaving).any(-1)
-            last = pos
-            new = broken & on & np.isinf(out.zone_time)
-            out.zone_time[new], out.zone_pos[new] = t, pos[new]
-        for hits, times, where in (
-            ((hit & still).any(-1), out.still_time, out.still_pos),
-            ((hit & ~still).any(-1), out.moving_time, out.moving_pos),
-        ):
-            new = hits & on & np.isinf(times)
-            times[new] = t
-            where[new] = pos[new]
-    return out
+    ``path_at`` may instead be the paths' positions at ``check_times(total, ...)`` (C, *shape) and at
+    their start (shape), complex: a planner computes them at once."""
+    total = np.asarray(total, float)
+    times = check_times(total, params, bool(obstacles[0].shape[-1]) or zones is not None)
+    if callable(path_at):
+        positions = [np.broadcast_to(path_at(t), total.shape) for t in times]
+        positions = np.stack(positions) if positions else np.zeros((0,) + total.shape, complex)
+        start = path_at(0.0) if zones is not None else np.zeros(total.shape, complex)
+    else:
+        positions, start = path_at
+    n, p = (total.shape[0] if total.ndim else 1), total.size
+    out = walk_paths(
+        np.ascontiguousarray(np.broadcast_to(positions, times.shape + total.shape).reshape(len(times), p).T),
+        times,
+        np.ascontiguousarray(np.broadcast_to(start, total.shape), complex).reshape(p),
+        np.ascontiguousarray(total).reshape(p),
+        np.arange(p) // max(p // max(n, 1), 1),  # each path's row of the obstacles and zones
+        *(np.ascontiguousarray(x) for x in obstacles),
+        radius,
+        params.t_max,
+        *_zone_arrays(zones, max(n, 1)),
+    ).reshape((9,) + total.shape)
+    hits = Collisions(out[0], out[1] + 1j * out[2], out[3], out[4] + 1j * out[5])
+    if zones is None:
+        return hits
+    return dataclasses.replace(hits, zone_time=out[6], zone_pos=out[7] + 1j * out[8])
 
 
 def accepted(
@@ -182,13 +201,10 @@ def accepted(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(still obstacles accept, moving ones accept), each of the paths' shape; ``start``, ``goal`` and
     ``speed`` (the robot's) broadcast against it."""
-    threshold = np.clip(hits.still_time / p.threshold_max_collision_time, 0.0, 1.0)
-    relative = np.abs(hits.still_pos - goal) / np.maximum(np.abs(start - goal), 1e-9)
-    still_ok = np.isinf(hits.still_time) | (relative < threshold)
+    still_ok = still_accepts(hits.still_time, hits.still_pos, start, goal, p.threshold_max_collision_time)
     if hits.zone_time is not None:  # no leniency near the end: the target was made legal, the path must be
         still_ok &= np.isinf(hits.zone_time)
-    moving_ok = hits.moving_time > speed / accel + p.brake_time_offset
-    return still_ok, moving_ok
+    return still_ok, moving_accepts(hits.moving_time, speed, accel, p.brake_time_offset)
 
 
 @dataclass
@@ -268,9 +284,9 @@ class TrajectoryPlanner:
             zones = (rules.zones, distances(rules.zones, scene.robot_pos) < 0.0)
         draws = self.draw(len(pos))
         direct = bang_bang_2d(pos, goal, vel, speed, accel)
-        hits = first_collisions(
-            lambda t: direct.at(t)[0], direct.total_time, obstacles, radius, self.params, zones
-        )
+        times = check_times(direct.total_time, self.params, bool(q.shape[1]) or zones is not None)
+        path = (direct.at(times[:, None])[0], pos)
+        hits = first_collisions(path, direct.total_time, obstacles, radius, self.params, zones)
         brake = self.brake_accel or accel
         still_ok, moving_ok = accepted(hits, pos, goal, np.abs(vel), brake, self.params)
         chosen, winner = goal.copy(), np.full(len(pos), np.nan + 0j)
@@ -281,9 +297,7 @@ class TrajectoryPlanner:
             normal = np.concatenate([last[rows, None], draws[rows]], axis=1)
             ruled = None
             if zones is not None:
-                z = zones[0]
-                sub = Zones(z.kind[rows], z.shape[rows], z.clearance[rows])
-                ruled = (sub, zones[1][rows], np.asarray(speed)[rows])
+                ruled = (zones[0].take(rows), zones[1][rows], np.broadcast_to(speed, pos.shape)[rows])
             picked, won = self.detour(
                 pos[rows],
                 vel[rows],
@@ -323,7 +337,8 @@ class TrajectoryPlanner:
         p, (speed, accel) = self.params, self.limits
         zones = None
         if rules is not None:
-            zones, speed = rules[:2], rules[2][:, None, None]
+            zones, speed = rules[:2], rules[2]
+        speed = np.broadcast_to(np.asarray(speed, float), pos.shape)
         radius = self.collision_distance + p.obstacle_margin
         order = np.argsort(
             np.where(np.isnan(normal), np.inf, np.abs(np.angle(normal))), axis=1, kind="stable"
@@ -335,44 +350,32 @@ class TrajectoryPlanner:
         half_l, half_w = self.field.half_length, self.field.half_width
         sub = np.clip(sub.real, -half_l, half_l) + 1j * np.clip(sub.imag, -half_w, half_w)
         if zones is not None:  # a sub-destination inside a zone is no candidate
-            z = zones[0]
-            inside = distances(
-                Zones(z.kind[:, None], z.shape[:, None], z.clearance[:, None]),
-                np.stack([sub.real, sub.imag], axis=-1),
-            )
+            inside = distances(zones[0].take(np.s_[:, None]), np.stack([sub.real, sub.imag], axis=-1))
             valid &= (inside >= 0.0).all(-1)
-        # Sub-paths (R, S, 1), switch times (J,), paths (R, S, J): the sub-path, then the target.
-        first = bang_bang_2d(pos[:, None, None], sub[:, :, None], vel[:, None, None], speed, accel)
+        # Sub-paths (R, S); the switch times (J,) of every path through a sub-destination, the sub-path
+        # until the switch, then the target: tried in the order of TIGERs, the first acceptable wins.
+        first = bang_bang_2d(pos[:, None], sub, vel[:, None], speed[:, None], accel)
         last_switch = float(first.total_time.max(initial=0.0))
         count = max(math.ceil((last_switch - p.initial_time_offset) / p.step_size_on_sub_path) - 1, 1)
-        switch = p.initial_time_offset + p.step_size_on_sub_path * np.arange(1, count + 1)
-        at, going = first.at(switch)
-        then = bang_bang_2d(at, goal[:, None, None], going, speed, accel)
-        hits = first_collisions(
-            lambda t: composite(first, then, switch, t), switch + then.total_time, obstacles, radius, p, zones
+        switch = np.array([p.initial_time_offset + p.step_size_on_sub_path * j for j in range(1, count + 1)])
+        best, found = search(
+            pos,
+            vel,
+            goal,
+            np.ascontiguousarray(speed),
+            accel,
+            self.brake_accel or accel,
+            np.ascontiguousarray(first.packed()),
+            np.ascontiguousarray(first.total_time),
+            valid,
+            switch,
+            direct_miss,
+            *(np.ascontiguousarray(x) for x in obstacles),
+            radius,
+            (p.initial_time_offset, p.collision_check_step, p.t_max, p.threshold_max_collision_time),
+            p.brake_time_offset,
+            _zone_arrays(zones, len(pos)),
         )
-        valid = valid[:, :, None] & (switch < first.total_time)
-        start, end, now = pos[:, None, None], goal[:, None, None], np.abs(vel)[:, None, None]
-        brake = self.brake_accel or accel
-        still_ok, moving_ok = accepted(hits, start, end, now, brake, p)
-        good = (valid & still_ok & moving_ok).reshape(len(pos), -1)
-        miss = np.where(valid & still_ok, np.abs(hits.moving_pos - end) ** 2, np.inf).reshape(len(pos), -1)
-        # Column 0: the direct path (rejected); then the sub-paths in the order they are tried.
-        score = np.concatenate([direct_miss[:, None], np.where(good, -np.inf, miss)], axis=1)
-        best = np.argmin(score, axis=1)  # the first acceptable (-inf), else the closest miss
-        found = np.isfinite(score[np.arange(len(pos)), best]) | good.any(axis=1)
-        if zones is not None:
-            # Every path rejected, zones among the reasons (a target behind the ball, out of reach of one
-            # sub-path): of the paths clear of them until their switch and accepted by the obstacles
-            # otherwise, the one whose step into a zone lies closest to the target (as the moving
-            # obstacles' fallback). The robot heads for its sub-destination and goes round over the next
-            # decisions, as ``sampling`` does.
-            free_ok, _ = accepted(dataclasses.replace(hits, zone_time=None), start, end, now, brake, p)
-            near = valid & free_ok & moving_ok & (hits.zone_time > switch)
-            near = np.where(near, np.abs(hits.zone_pos - end), np.inf).reshape(len(pos), -1)
-            round_zones = ~found & np.isfinite(near.min(axis=1, initial=np.inf))
-            best = np.where(round_zones, np.argmin(near, axis=1) + 1, best)
-            found |= round_zones
         index = np.maximum(best - 1, 0) // count
         via = found & (best > 0)
         stop = pos

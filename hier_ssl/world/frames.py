@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 _FLOAT, _COMPLEX = np.dtype(np.float64), np.dtype(np.complex128)
-_PI, _TWO_PI, _ONE = np.array(np.pi), np.array(2 * np.pi), np.array(1.0)
+_PI, _TWO_PI = np.array(np.pi), np.array(2 * np.pi)
 _FEW = 32
 
 
@@ -51,15 +51,6 @@ def all_finite(values: np.ndarray) -> bool:
     flat = values.ravel()
     total = sum(flat.tolist()) if flat.size <= _FEW else flat.sum()
     return math.isfinite(total) or bool(np.isfinite(flat).all())
-
-
-def cap_speed(vel: np.ndarray, max_speed: np.ndarray) -> np.ndarray:
-    """Velocities ``vel`` (...) complex scaled down to ``max_speed`` (0-d) where faster, direction kept.
-    Most calls find none too fast and return ``vel`` itself, without the division."""
-    speed = np.abs(vel)
-    if not np.count_nonzero(speed > max_speed):
-        return vel
-    return vel / np.maximum(speed / max_speed, _ONE).astype(_COMPLEX)
 
 
 def as_complex(xy: np.ndarray) -> np.ndarray:

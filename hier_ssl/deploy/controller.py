@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hier_ssl.deploy.game import game_rules
+from hier_ssl.deploy.game import game_rules, labelled_lineup
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
@@ -89,6 +89,7 @@ class Controller:
         self.view, self.tracker, self.team = view, tracker, team
         self.robots, self.max_age = list(robots), max_age
         self.keys = [(team, robot) for robot in robots]
+        self.players = labelled_lineup(self.keys)  # the rules' lineup of the controlled robots
         self.has_target = np.zeros(len(robots), dtype=bool)
         self.was_live = np.zeros(len(robots), dtype=bool)
         self.since_decision = 0
@@ -166,7 +167,7 @@ class Controller:
         ball = self.tracker.ball if fresh else None
         referee, held_ball, _ = self._rules
         if referee is not self.referee or held_ball != ball:
-            rules = game_rules(self.referee, self.view.field, self.team, self.robots, ball)
+            rules = game_rules(self.referee, self.view.field, self.players, ball)
             # A new command: decide under it now; a ball that moved: the next decision plans round it.
             self.decide_now = self.decide_now or referee is not self.referee
             self._rules = (self.referee, ball, rules)

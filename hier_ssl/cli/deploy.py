@@ -188,6 +188,26 @@ def add_field(subparsers: argparse._SubParsersAction) -> None:
         help="step the world once per command period, waiting for the commands (at most 100 ms), instead "
         "of every 25 ms of wall-clock time; the controller runs with deploy --lockstep",
     )
+    field.add_argument(
+        "--referee-script",
+        default=None,
+        metavar="SCRIPT",
+        help="play referee: TIME:COMMAND entries of each episode's time, comma-separated, a ball placement "
+        "with its position (m), e.g. 2.0:STOP,5.0:FORCE_START,8.0:BALL_PLACEMENT_YELLOW@1.0,-0.5; the "
+        "game runs before the first; fouls are counted per robot and kind",
+    )
+    field.add_argument(
+        "--referee-port",
+        type=int,
+        default=10003,
+        help="send the Referee messages to 127.0.0.1:PORT (deploy --referee 127.0.0.1:PORT)",
+    )
+    field.add_argument(
+        "--ball",
+        default=None,
+        metavar="X,Y",
+        help="a ball lying still there, m (default: none; with a referee script, the centre spot)",
+    )
     field.set_defaults(func=_field)
 
 
@@ -195,8 +215,14 @@ def _field(args: argparse.Namespace) -> int:
     import math
 
     from hier_ssl.deploy.field import Cameras, FieldServer
+    from hier_ssl.deploy.referee_script import parse_script, parse_xy
     from hier_ssl.envs import task_config
+    from hier_ssl.world.field import get_field
 
+    config = task_config(args.task)
+    referee = None
+    if args.referee_script is not None:
+        referee = parse_script(args.referee_script, get_field(config.field))
     cameras = Cameras(
         args.cameras,
         rate=args.rate,
@@ -206,7 +232,7 @@ def _field(args: argparse.Namespace) -> int:
         latency=args.latency_ms / 1000,
     )
     server = FieldServer(
-        task_config(args.task),
+        config,
         args.vision_port,
         args.team,
         cameras,
@@ -215,13 +241,19 @@ def _field(args: argparse.Namespace) -> int:
         args.control,
         args.seed,
         lockstep=args.lockstep,
+        referee=referee,
+        referee_port=args.referee_port,
+        ball=None if args.ball is None else parse_xy(args.ball, "ball"),
     )
     ports = {"vision_port": args.vision_port, "grsim_port": server.grsim_port}
+    ports["referee_port"] = args.referee_port if referee is not None else None
     print(json.dumps({"task": args.task, **ports, "simulation_port": server.simulation_port}), flush=True)
     try:
         server.run(args.episodes, _stop_on_signals(), lambda record: print(json.dumps(record), flush=True))
     finally:
         server.close()
+    if referee is not None:
+        print(json.dumps({"fouls": server.foul_counts()}), flush=True)
     return 0
 
 

@@ -22,6 +22,15 @@ controller's ticks) let one command act for no step or for two; in lockstep each
 in ``hier-ssl eval``, so the through-the-wire episodes follow the directly played ones. The controller
 ticks on the frames (``hier-ssl deploy --lockstep``). grSim and a real field run on their own clocks: the
 free-running mode is the one that stands in for them.
+
+Referee (``referee``, a script of ``hier_ssl.deploy.referee_script``): the field server plays the game
+controller too. Each time the world's clock moves on a period it sends the ``Referee`` message of the
+command the script has in force at the episode's time to 127.0.0.1:``referee_port`` (before the period's
+frames, so that the controller's tick on them is under it), and after each world step it calls the fouls
+of the step with the rules' functions the environments call (``hier_ssl.game.fouls.step_fouls``), for
+every robot of both teams: counted by robot and kind in each episode's records and in ``fouls`` over the
+run. The ball is not simulated: it lies at ``ball`` (the centre spot unless given), in the cameras' frames
+and in the rules.
 """
 
 from __future__ import annotations
@@ -40,7 +49,9 @@ from typing import Any
 import numpy as np
 
 from hier_ssl.config import TaskConfig
+from hier_ssl.deploy.game import labelled_lineup
 from hier_ssl.deploy.net import LOOPBACK, receive
+from hier_ssl.deploy.referee_script import Call, ScriptedReferee
 from hier_ssl.deploy.wire import (
     TEAMS,
     Detection,
@@ -53,9 +64,11 @@ from hier_ssl.deploy.wire import (
     parse_simulation,
 )
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.game.fouls import KINDS, Motion, new_clocks, step_fouls
 
 STEP = 0.025  # s
 COMMAND_TIMEOUT = 0.1  # s
+REFEREE_PORT = 10003  # the game controller's port in the league (its multicast group's)
 
 
 @dataclass(frozen=True)
@@ -97,9 +110,11 @@ def camera_frames(
     strips: np.ndarray,
     t_capture: float,
     rng: np.random.Generator,
+    ball: tuple[float, float] | None = None,
 ) -> list[DetectionFrame]:
     """One frame per camera of robots at ``pos`` (R, 2) m, ``angle`` (R,) labelled ``teams``: each camera
-    reports the robots inside its strip, with noise and drops. Shapes of the outputs: a tuple per frame."""
+    reports the robots inside its strip, with noise and drops, and the ``ball`` (m; None: none) where it
+    lies inside the strip, as it is. Shapes of the outputs: a tuple per frame."""
     frames = []
     for c, (low, high) in enumerate(strips):
         inside = (pos[:, 0] >= low) & (pos[:, 0] <= high) & (rng.random(len(pos)) >= cameras.drop)
@@ -110,13 +125,17 @@ def camera_frames(
             for i, (team, robot) in enumerate(teams)
             if inside[i]
         )
-        frames.append(DetectionFrame(t_capture, t_capture + cameras.latency, c, seen))
+        sees_ball = ball is not None and low <= ball[0] <= high
+        frames.append(
+            DetectionFrame(t_capture, t_capture + cameras.latency, c, seen, ball if sees_ball else None)
+        )
     return frames
 
 
 class FieldServer:
-    """Serves one field of ``config`` over 127.0.0.1 (module docstring), free-running or in ``lockstep``.
-    Ports 0 pick free ones, read back as ``grsim_port`` and ``simulation_port``."""
+    """Serves one field of ``config`` over 127.0.0.1 (module docstring), free-running or in ``lockstep``,
+    playing ``referee`` (a parsed script; None: no referee, no fouls called). Ports 0 pick free ones, read
+    back as ``grsim_port`` and ``simulation_port``."""
 
     def __init__(
         self,
@@ -130,6 +149,9 @@ class FieldServer:
         seed: int = 0,
         settle: float = 0.15,
         lockstep: bool = False,
+        referee: tuple[Call, ...] | None = None,
+        referee_port: int = REFEREE_PORT,
+        ball: tuple[float, float] | None = None,
     ) -> None:
         if team not in TEAMS:
             raise ValueError(f"team {team!r}: expected one of {TEAMS}")
@@ -164,6 +186,11 @@ class FieldServer:
         self.commanded = np.full(self.m, -np.inf)
         self.dropped = self.frames_sent = 0
         self.capture_time = time.time()
+        self.referee = None if referee is None else ScriptedReferee(referee, fld)
+        self.referee_to = (LOOPBACK, referee_port)
+        self.ball = (0.0, 0.0) if ball is None and referee is not None else ball
+        self.players = labelled_lineup(self.labels)
+        self.fouls = np.zeros((self.m + self.k, len(KINDS)), dtype=np.int64)  # by robot and kind, the run's
 
     @staticmethod
     def _listen(port: int) -> socket.socket:
@@ -229,6 +256,7 @@ class FieldServer:
                 continue
             next_step += STEP
             self.capture_time = time.time()  # the world as it stands now: stepped below, or still
+            self._call()
             if sent is None and now - start >= self.settle:
                 self._send_targets(control)
                 self._read_grsim()  # commands sent before the targets were taken: not the first ones
@@ -278,6 +306,7 @@ class FieldServer:
         camera's frames whose capture falls in the step's period at the camera's rate (one or two at 60
         Hz, always at least one: the controller ticks on them); the next frame number."""
         self.capture_time = epoch + step * STEP
+        self._call()
         t0, t1 = (round(k * STEP * self.cameras.rate, 9) for k in (step, step + 1))
         pending: list[tuple[float, int, bytes]] = []
         for _ in range(math.ceil(t1) - math.ceil(t0)):
@@ -293,11 +322,60 @@ class FieldServer:
         self.command[:] = 0.0
         self.outcome = {"success": np.zeros(self.m, bool), "collision": np.zeros(self.m, bool)}
         self.length = np.zeros(self.m, dtype=np.int64)
+        if self.referee is not None:
+            self.referee.restart()
+            self.clocks, self.episode_fouls = new_clocks(1, self.m + self.k), np.zeros_like(self.fouls)
+            self.touching = np.zeros_like(self.core.world.robot_contacts)
         return np.ones((1, self.m), dtype=bool)
+
+    def _call(self) -> None:
+        """The referee's message at the episode's time, sent now (without a referee, nothing)."""
+        if self.referee is None:
+            return
+        wall = time.time()
+        self.rules = self.referee.at(self.core.steps[0] * STEP, wall)
+        self.out.sendto(self.referee.packet(wall), self.referee_to)
+
+    def _motion(self) -> Motion:
+        state = self.core.world.state
+        return Motion(state.pos.copy(), state.vel.copy())
+
+    def _call_fouls(self, before: Motion) -> None:
+        """The fouls of the world step from ``before`` (``step_fouls``), added to the episode's and the
+        run's counts; a contact is a crash's only in the step it begins."""
+        touching = np.triu(self.core.world.robot_contacts, 1)
+        began = np.argwhere(touching & ~self.touching)
+        self.touching = touching
+        self.clocks, report = step_fouls(
+            self.clocks,
+            self.rules,
+            self.players,
+            self.core.field,
+            before,
+            self._motion(),
+            np.array([self.ball], dtype=float),
+            began,
+            STEP,
+        )
+        self.episode_fouls += report.by_robot[0]
+        self.fouls += report.by_robot[0]
+
+    def foul_counts(self, fouls: np.ndarray | None = None) -> dict[str, dict[str, int]]:
+        """``fouls`` (robots, kinds; default the run's) by robot ("blue 0") and kind, robots without any
+        left out."""
+        fouls = self.fouls if fouls is None else fouls
+        return {
+            f"{team} {robot}": {kind: int(n) for kind, n in zip(KINDS, row, strict=True) if n}
+            for (team, robot), row in zip(self.labels, fouls, strict=True)
+            if row.any()
+        }
 
     def _step(self, live: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
         command = np.where((now - self.commanded <= COMMAND_TIMEOUT)[:, None], self.command, 0.0)
+        before = self._motion() if self.referee is not None else None
         _, success, hit = self.core.control_step(live, worker_action=(command / self.scale)[None])
+        if before is not None:
+            self._call_fouls(before)
         self.length += live[0]
         self.outcome["success"] |= success[0]
         self.outcome["collision"] |= hit[0]
@@ -306,7 +384,8 @@ class FieldServer:
         return live, bool(timeout or not live.any())
 
     def _records(self, episode: int) -> list[dict[str, Any]]:
-        return [
+        """One record per controlled robot; with a referee, its fouls of the episode by kind."""
+        records = [
             {
                 "episode": episode,
                 "robot": i,
@@ -316,13 +395,25 @@ class FieldServer:
             }
             for i in range(self.m)
         ]
+        if self.referee is not None:
+            fouls = self.foul_counts(self.episode_fouls)
+            for i, record in enumerate(records):
+                record["fouls"] = fouls.get(f"{self.team} {i}", {})
+        return records
 
     def _capture(self, frame: int, pending: list, now: float) -> int:
         """Every camera's frame of the world as it stands, queued in ``pending`` to go out ``latency`` s
         after ``now``; a geometry packet with every ``rate``-th round of frames; the next frame number."""
         s = self.core.world.state
         frames = camera_frames(
-            s.pos[0], s.angle[0], self.labels, self.cameras, self.strips, self.capture_time, self.rng
+            s.pos[0],
+            s.angle[0],
+            self.labels,
+            self.cameras,
+            self.strips,
+            self.capture_time,
+            self.rng,
+            self.ball,
         )
         send_at = now + self.cameras.latency
         for camera in frames:

@@ -269,20 +269,33 @@ def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
     bench.add_argument(
         "--rows",
         default="tracking,latency,task",
-        help="which rows, comma-separated: tracking, latency, task (default all)",
+        help="which rows, comma-separated: tracking, latency, task, game (game_stop under the field server's "
+        "referee; default tracking,latency,task)",
+    )
+    bench.add_argument(
+        "--robots",
+        default="1,6",
+        help="the latency rows' robot counts, comma-separated: 1 (obstacle), 6 (formation), 11 (formation on "
+        "the Division A field) (default 1,6)",
     )
     bench.set_defaults(func=_bench_deploy)
 
 
 def _bench_deploy(args: argparse.Namespace) -> int:
-    from hier_ssl.deploy.bench import ROWS, deploy_rows
+    from hier_ssl.deploy.bench import LATENCY_TASKS, ROWS, deploy_rows
 
     rows = tuple(args.rows.split(","))
     if not set(rows) <= set(ROWS):
         raise ValueError(f"rows {args.rows!r}: expected a comma-separated choice of {', '.join(ROWS)}")
+    counts = tuple(args.robots.split(","))
+    if not set(counts) <= {str(k) for k in LATENCY_TASKS}:
+        raise ValueError(
+            f"robots {args.robots!r}: expected a comma-separated choice of {sorted(LATENCY_TASKS)}"
+        )
     _one_thread()
     noise = (args.noise_mm, args.noise_deg)
-    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority, noise, rows):
+    robots = tuple(map(int, counts))
+    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority, noise, rows, robots):
         print(
             json.dumps(row) if args.json else "  " + ", ".join(f"{k} {v}" for k, v in row.items()), flush=True
         )

@@ -82,7 +82,8 @@ def _raise_priority(priority: int) -> tuple[str, Callable[[], None]]:
 class LoopStats:
     """What the loop saw: camera frames and geometry packets accepted, datagrams dropped by reason,
     ticks, commands that move a robot, the latencies (s) from a frame's arrival to the command sent on it
-    (after ``WARMUP_TICKS``), the field size from geometry, the simulator's errors, the scheduling the
+    and the controller's compute time (s) of each tick that decided (both after ``WARMUP_TICKS``), the
+    field size from geometry, the simulator's errors, the scheduling the
     loop's thread ran under (``_raise_priority``)."""
 
     frames: int = 0
@@ -91,6 +92,7 @@ class LoopStats:
     ticks: int = 0
     moving_commands: int = 0
     latencies: list[float] = field(default_factory=list)
+    decisions: list[float] = field(default_factory=list)
     field_size: FieldGeometry | None = None
     simulator_errors: Counter = field(default_factory=Counter)  # by message: bounded, unlike a list of each
     scheduling: str = ""
@@ -224,7 +226,11 @@ class DeployLoop:
         """Send the controller's commands of monotonic time ``now``; keep the latency from ``arrival``."""
         if self.referee is not None:
             self.controller.referee = self.referee.current(self.clock())
-        self._send(self.controller.tick(now))
+        start = self.clock()
+        commands = self.controller.tick(now)
+        if self.controller.since_decision == 1 and self.stats.ticks >= WARMUP_TICKS:  # it decided
+            self.stats.decisions.append(self.clock() - start)
+        self._send(commands)
         if arrival is not None and self.stats.ticks >= WARMUP_TICKS:
             self.stats.latencies.append(self.clock() - arrival)
         self.stats.ticks += 1

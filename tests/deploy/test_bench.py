@@ -9,13 +9,23 @@ import numpy as np
 import pytest
 
 from hier_ssl.cli import build_parser, main
-from hier_ssl.deploy.bench import EXPORT_FORMATS, direct_episodes, latency_row, task_row, untrained_export
+from hier_ssl.deploy.bench import (
+    EXPORT_FORMATS,
+    GAME_TASK,
+    direct_episodes,
+    latency_row,
+    latency_task,
+    task_row,
+    untrained_export,
+)
 from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.loop import PRIORITY
-from hier_ssl.deploy.view import manager_task
+from hier_ssl.deploy.view import DeployView, manager_task
+from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
+from hier_ssl.envs.scenarios import SCENARIOS
 
 
 def test_a_latency_row_times_frames_to_commands() -> None:
@@ -71,3 +81,32 @@ def test_the_latency_rows_time_the_exported_network_in_each_format_it_runs(tmp_p
     assert [f.suffix for f in files] == [".pt", ".onnx"]
     row = latency_row(str(files[1]), "network (untrained, onnx)", 1, seconds=3.0)
     assert row["samples"] > 0 and 0 < row["p50_ms"] <= row["p99_ms"]
+
+
+def test_the_11_robot_latency_row_decides_for_all_of_them_in_one_batched_call(tmp_path: Path) -> None:
+    task = latency_task(11, tmp_path)
+    config = task_config(task)
+    assert (config.scenario_name, config.field, config.num_agents, config.num_obstacles) == (
+        "formation",
+        "division_a",
+        11,
+        11,
+    )
+    view = DeployView("direct", 11, manager_task("direct", task))
+    assert (view.n, view.m) == (1, 11)  # one field of 11: one call decides for all
+    row = latency_row("direct", "direct", 11, seconds=2.0, task=task)
+    assert row["robots"] == 11 and row["field"] == "formation" and row["samples"] > 10
+    assert row["decisions"] > 0 and 0 < row["decision_p50_ms"] <= row["decision_p99_ms"] < 1000
+    with pytest.raises(ValueError, match=r"latency rows of 7 robots: expected one of \[1, 6, 11\]"):
+        latency_task(7, tmp_path)
+    assert main(["bench", "deploy", "--rows", "latency", "--robots", "1,7"]) == 1
+
+
+def test_a_game_row_compares_the_wire_under_the_field_servers_referee_with_the_direct_loop() -> None:
+    # game_stop (issue 53) is the row's scenario; any scenario shows the comparison and the fouls.
+    row = task_row("direct", "direct", "crowd", episodes=1, seed=2, noise=(0.0, 0.0), script="0.5:STOP")
+    assert row["bench"] == "deploy game" and row["referee_script"] == "0.5:STOP"
+    assert row["robot_samples"] == 1 and 0.0 <= row["wire_fouls"] <= 1.0 and row["eval_fouls"] is None
+    assert row["wire_success"] in (0.0, 1.0) and row["eval_success"] in (0.0, 1.0)
+    if GAME_TASK not in SCENARIOS:
+        assert main(["bench", "deploy", "--rows", "game"]) == 1  # said plainly, not skipped

@@ -86,7 +86,7 @@ class HierarchicalSSLEnv(ParallelEnv):
         for agent in self.obstacle_agents:
             self._obs_spaces[agent] = box(-1.2, 1.2, (OBSTACLE_AGENT_OBS_DIM,))
             self._act_spaces[agent] = box(-1.0, 1.0, (3,))
-        self.state_space = box(-CLIP, CLIP, (state_dim(m, k),))
+        self.state_space = box(-CLIP, CLIP, (state_dim(m, k, self.core.world.num_balls),))
         self._act_shapes = {a: space.shape for a, space in self._act_spaces.items()}
         self.agents: list[str] = []
         self._started = False  # reset() was called: an empty ``agents`` means the episode is over
@@ -222,6 +222,8 @@ class HierarchicalSSLEnv(ParallelEnv):
             trails=[trail[:, i] for i in range(m)],
             team=[0] * m + [1] * k,
             extra=functools.partial(self.core.scenario.extra_render, field_index=0),
+            balls=None if self.core.world.ball is None else self.core.world.ball.pos,
+            ball=self.core.world.ball_spec,
         )
         if self.render_mode == "human":
             self._show(frame)

@@ -4,7 +4,8 @@ velocity, every controlled robot's target and held sub-goal, and whether it is s
 Normalised like the manager observations (``hier_ssl.manager.observation``): positions / max_pos,
 velocities / max_v, angular velocities / max_w, angles as sin and cos, every value clipped to +-1.2;
 float32. Field frame. With R = M + K robots, controlled robots (``manager_i``) first, then obstacles
-(``obstacle_j``), the D = 7 R + 13 M columns are:
+(``obstacle_j``), and B balls (none unless the scenario's world holds some), the D = 7 R + 13 M + 4 B
+columns are:
 
 ======================  =================================================================================
 columns                 values
@@ -15,11 +16,12 @@ columns                 values
                         first decision)
 7 R + 13 i + 12         1.0 while it is in its episode, 0.0 once it has left (reached its target or
                         collided; it then holds still where it is)
+7 R + 13 M + 4 b + 0..3 ball b: x, y, vx, vy (b = 0 .. B - 1)
 ======================  =================================================================================
 
 ``state_columns`` names them (``manager_0_x`` ... ``obstacle_0_omega``, ``manager_0_target_x`` ...,
-``manager_0_subgoal_x`` ..., ``manager_0_active``). The PettingZoo view returns one field's row from
-``state()``; the arrays here are batched over the core's N fields.
+``manager_0_subgoal_x`` ..., ``manager_0_active``, ``ball_0_x`` ...). The PettingZoo view returns one
+field's row from ``state()``; the arrays here are batched over the core's N fields.
 """
 
 from __future__ import annotations
@@ -33,15 +35,17 @@ if TYPE_CHECKING:
 
 ROBOT_COLUMNS = ("x", "y", "sin", "cos", "vx", "vy", "omega")
 POSE_COLUMNS = ("x", "y", "sin", "cos", "vx", "vy")
+BALL_COLUMNS = ("x", "y", "vx", "vy")
 CLIP = 1.2
 
 
-def state_dim(num_agents: int, num_obstacles: int) -> int:
-    """D: columns of the state of a field with M controlled robots and K obstacles."""
-    return len(ROBOT_COLUMNS) * (num_agents + num_obstacles) + (2 * len(POSE_COLUMNS) + 1) * num_agents
+def state_dim(num_agents: int, num_obstacles: int, num_balls: int = 0) -> int:
+    """D: columns of the state of a field with M controlled robots, K obstacles and B balls."""
+    robots = len(ROBOT_COLUMNS) * (num_agents + num_obstacles) + (2 * len(POSE_COLUMNS) + 1) * num_agents
+    return robots + len(BALL_COLUMNS) * num_balls
 
 
-def state_columns(num_agents: int, num_obstacles: int) -> list[str]:
+def state_columns(num_agents: int, num_obstacles: int, num_balls: int = 0) -> list[str]:
     """The D column names, in order."""
     robots = [f"manager_{i}" for i in range(num_agents)] + [f"obstacle_{j}" for j in range(num_obstacles)]
     names = [f"{robot}_{c}" for robot in robots for c in ROBOT_COLUMNS]
@@ -49,7 +53,7 @@ def state_columns(num_agents: int, num_obstacles: int) -> list[str]:
         names += [f"manager_{i}_target_{c}" for c in POSE_COLUMNS]
         names += [f"manager_{i}_subgoal_{c}" for c in POSE_COLUMNS]
         names.append(f"manager_{i}_active")
-    return names
+    return names + [f"ball_{b}_{c}" for b in range(num_balls) for c in BALL_COLUMNS]
 
 
 def _pose(pose: np.ndarray, max_pos: float, max_v: float) -> np.ndarray:
@@ -83,8 +87,20 @@ def global_state(core: HierarchicalCore) -> np.ndarray:
         ],
         axis=-1,
     )
-    state = np.concatenate([robots.reshape(n, -1), agents.reshape(n, -1)], axis=1)
+    parts = [robots.reshape(n, -1), agents.reshape(n, -1)]
+    ball = core.world.ball
+    if ball is not None:
+        parts.append(np.concatenate([ball.pos / max_pos, ball.vel / max_v], axis=-1).reshape(n, -1))
+    state = np.concatenate(parts, axis=1)
     return np.clip(state, -CLIP, CLIP).astype(np.float32)
 
 
-__all__ = ["CLIP", "POSE_COLUMNS", "ROBOT_COLUMNS", "global_state", "state_columns", "state_dim"]
+__all__ = [
+    "BALL_COLUMNS",
+    "CLIP",
+    "POSE_COLUMNS",
+    "ROBOT_COLUMNS",
+    "global_state",
+    "state_columns",
+    "state_dim",
+]

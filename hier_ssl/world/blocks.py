@@ -17,11 +17,14 @@ import numpy as np
 import pymunk
 import pymunk.batch as pb
 
+from hier_ssl.world.ball import BallSpec
 from hier_ssl.world.field import Field
+from hier_ssl.world.goals import box_corners, goal_boxes
 from hier_ssl.world.robot import RobotSpec
 from hier_ssl.world.space import FastSpace
 
-ROBOT, WALL = 1, 2
+# Collision types: goal walls are WALL too, so that a robot's contact with a goal is a wall contact.
+ROBOT, WALL, BALL = 1, 2, 3
 # Fields per pymunk space: a block's bodies and joints stay in a core's cache through the solver's sweeps.
 FIELDS_PER_SPACE = 64
 # Wall segments are centred this far outside the wall line, so their surface lies on it.
@@ -33,8 +36,10 @@ _PREPARED = {
     "_controls_at",
     "fast",
     "robot_rows",
+    "ball_rows",
     "write_velocity",
     "read_rows",
+    "ball_read",
 }
 Handler = Callable[[pymunk.Arbiter, pymunk.Space, object], None]
 
@@ -62,6 +67,10 @@ class FieldBlock:
     for walls; ``joints`` lists the block's joints. After ``fast.read()``, ``robot_rows`` (C, R, 6) holds
     each robot's x, y, angle, vx, vy, w. ``step`` writes the velocity rows the World gave ``bind``, at the
     rows ``body_rows()`` names, and reads into its read rows; ``place`` sets a field's bodies.
+
+    With ``num_balls`` balls in every field (of ``ball``'s spec), every field also gets its two goals
+    (``hier_ssl.world.goals``) and its balls, whose rows ``ball_rows`` (C, B, 6) are read like the
+    robots'; ``handlers`` then has a third entry, called on robot-ball contacts.
     """
 
     def __init__(
@@ -74,10 +83,13 @@ class FieldBlock:
         sub_dt: float,
         iterations: int,
         parked: np.ndarray,
-        handlers: tuple[Handler, Handler],
+        handlers: tuple[Handler, ...],
+        num_balls: int = 0,
+        ball: BallSpec | None = None,
     ) -> None:
         self.start, self.stop = bounds
         self.fields, self.num_robots = slice(self.start, self.stop), num_robots
+        self.num_balls = num_balls
         self.space = pymunk.Space()
         self.space.iterations = iterations
         # Units are metres: pymunk's default slop (0.1) would allow 10 cm of overlap.
@@ -87,10 +99,13 @@ class FieldBlock:
         self.owners: dict[pymunk.Shape, tuple[int, int]] = {}
         self.joints: list[pymunk.Constraint] = []
         self._bodies = self._build(offsets, field, robot, parked)
+        self._balls = self._build_balls(offsets, field, ball or BallSpec(), parked) if num_balls else []
         # pymunk.batch lists the space's static body once the space has stepped.
         self.space.step(sub_dt)
         self.space.on_collision(ROBOT, ROBOT, pre_solve=handlers[0])
         self.space.on_collision(ROBOT, WALL, pre_solve=handlers[1])
+        if num_balls:
+            self.space.on_collision(ROBOT, BALL, pre_solve=handlers[2])
         self._prepare()
 
     def _build(
@@ -116,7 +131,9 @@ class FieldBlock:
         gears = [pymunk.GearJoint(c, b, 0.0, 1.0) for c, b in zip(controls, robots, strict=True)]
         for k, f in enumerate(fields):
             for wall in walls[4 * k : 4 * k + 4]:
-                wall.collision_type, wall.friction, wall.elasticity = WALL, 0.2, 0.0
+                # Elasticity 1: a contact's restitution is the product of its shapes', the robots' 0 and the
+                # ball's own (``_build_balls``).
+                wall.collision_type, wall.friction, wall.elasticity = WALL, 0.2, 1.0
                 self.space.add(wall)
                 self.owners[wall] = (f, -1)
             for i in range(self.num_robots):
@@ -134,15 +151,43 @@ class FieldBlock:
                 self.owners[disc] = (f, i)
         return robots, controls
 
+    def _build_balls(
+        self, offsets: np.ndarray, field: Field, spec: BallSpec, parked: np.ndarray
+    ) -> list[pymunk.Body]:
+        """Each field's goals and balls, added after every robot: pymunk.batch then lists the balls (dynamic)
+        right after the robots, so that both are strided views of its rows."""
+        boxes = goal_boxes(field)
+        # Until the first reset the balls wait on the centre line, clear of the parked robots.
+        spots = np.stack([np.zeros(self.num_balls), 4 * spec.radius * np.arange(self.num_balls)], axis=-1)
+        spots[:, 1] += parked[:, 1].max() + 0.5
+        balls = []
+        for f in range(self.start, self.stop):
+            for box in boxes:
+                goal = pymunk.Poly(self.space.static_body, [tuple(offsets[f] + c) for c in box_corners(box)])
+                goal.collision_type, goal.friction, goal.elasticity = WALL, 0.2, 1.0
+                self.space.add(goal)
+                self.owners[goal] = (f, -1)
+            for b in range(self.num_balls):
+                # No rotation: a rolling disc whose spin nothing reads, with frictionless contacts.
+                body = pymunk.Body(spec.mass, float("inf"))
+                body.position = tuple(offsets[f] + spots[b])
+                disc = pymunk.Circle(body, spec.radius)
+                disc.collision_type, disc.friction, disc.elasticity = BALL, 0.0, spec.restitution_wall
+                self.space.add(body, disc)
+                self.owners[disc] = (f, b)
+                balls.append(body)
+        return balls
+
     def _body_order(self) -> int:
         """The row of the first control body. pymunk.batch lists the robots (dynamic) in insertion order,
-        then the static bodies: the space's own (first once a wall is added, last in a copy) and the control
-        bodies in insertion order. Checked whenever the views are made, so that every per-step access is a
-        strided view instead of a gather through index arrays."""
+        then the balls (dynamic too), then the static bodies: the space's own (first once a wall is added,
+        last in a copy) and the control bodies in insertion order. Checked whenever the views are made, so
+        that every per-step access is a strided view instead of a gather through index arrays."""
         ids = pb.Buffer()
         pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, ids)
         order = np.frombuffer(ids.int_buf(), dtype=np.uintp).tolist()
         robots, controls = ([body.id for body in group] for group in self._bodies)
+        robots += [body.id for body in self._balls]
         static, n = self.space.static_body.id, len(robots)
         if order[:n] != robots or order[n:] not in ([static, *controls], [*controls, static]):
             raise RuntimeError(
@@ -151,16 +196,18 @@ class FieldBlock:
             )
         return n + 1 if order[n] == static else n
 
-    def _pairs(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(rows, W) body rows as two (C, R, W) views: the robots' and their control bodies'."""
-        c, r, w = self.stop - self.start, self.num_robots, rows.shape[-1]
+    def _pairs(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, W) body rows as three views: the robots' and their control bodies' (C, R, W), the balls'
+        (C, B, W)."""
+        c, r, b, w = self.stop - self.start, self.num_robots, self.num_balls, rows.shape[-1]
         at = self._controls_at
-        return rows[: c * r].reshape(c, r, w), rows[at : at + c * r].reshape(c, r, w)
+        robots, controls = rows[: c * r].reshape(c, r, w), rows[at : at + c * r].reshape(c, r, w)
+        return robots, controls, rows[c * r : c * (r + b)].reshape(c, b, w)
 
     def _prepare(self) -> None:
         self._controls_at = self._body_order()
         self.fast = FastSpace(self.space, _STATE, 6)
-        self.robot_rows = self._pairs(self.fast.rows)[0]
+        self.robot_rows, _, self.ball_rows = self._pairs(self.fast.rows)
 
     def __getstate__(self) -> dict[str, object]:
         # pymunk pickles the space, contact cache and handlers included.
@@ -170,19 +217,21 @@ class FieldBlock:
         self.__dict__.update(state)
         self._prepare()
 
-    def body_rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """The rows (C, R) int64 of the robots and of their control bodies among the block's bodies."""
+    def body_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The rows among the block's bodies, int64, of the robots and of their control bodies (C, R), and
+        of the balls (C, B)."""
         rows = np.arange(len(self.fast.rows), dtype=np.int64)[:, None]
-        robots, controls = self._pairs(rows)
-        return robots[..., 0], controls[..., 0]
+        robots, controls, balls = self._pairs(rows)
+        return robots[..., 0], controls[..., 0], balls[..., 0]
 
-    def bind(self, velocity: np.ndarray, read: np.ndarray) -> None:
+    def bind(self, velocity: np.ndarray, read: np.ndarray, ball_read: np.ndarray) -> None:
         """Make ``step`` write ``velocity`` (bodies, 3) float64, C-contiguous, (vx, vy, w) a body
         (``body_rows`` says whose), into the block's bodies and read each robot's x, y, angle, vx, vy, w
-        back into ``read`` (C, R, 6). The World fills the velocity rows in place, one compiled loop for all
-        blocks. The static body's row must stay zero: a velocity written there throws robots out of
-        their fields."""
+        back into ``read`` (C, R, 6), each ball's into ``ball_read`` (C, B, 6). The World fills the velocity
+        rows in place, one compiled loop for all blocks. The static body's row must stay zero: a velocity
+        written there throws robots out of their fields."""
         self.write_velocity, self.read_rows = self.fast.writer(_VELOCITY, velocity), read
+        self.ball_read = ball_read
 
     def step(self, dt: float, substeps: int) -> None:
         """Write the bound velocity rows, step ``substeps`` times ``dt`` and read the robots back right
@@ -192,9 +241,11 @@ class FieldBlock:
         self.read()
 
     def read(self) -> None:
-        """Copy each robot's x, y, angle, vx, vy, w into the bound read rows."""
+        """Copy each robot's and each ball's x, y, angle, vx, vy, w into the bound read rows."""
         self.fast.read()
         self.read_rows[...] = self.robot_rows
+        if self.num_balls:
+            self.ball_read[...] = self.ball_rows
 
     def place(self, field: int, rows: np.ndarray) -> np.ndarray:
         """Write ``rows`` (R, 6), x, y, angle, vx, vy, w, into the robots and control bodies of the World's
@@ -215,4 +266,18 @@ class FieldBlock:
             position, velocity = lib.cpBodyGetPosition(robot), lib.cpBodyGetVelocity(robot)
             spin = lib.cpBodyGetAngularVelocity(robot)
             out[i] = position.x, position.y, lib.cpBodyGetAngle(robot), velocity.x, velocity.y, spin
+        return out
+
+    def place_balls(self, field: int, rows: np.ndarray) -> np.ndarray:
+        """Write ``rows`` (B, 4), x, y, vx, vy, into the balls of the World's ``field`` (one of this block's),
+        ball by ball as ``place`` does; their rows (B, 6) as pymunk reads them back."""
+        first = (field - self.start) * self.num_balls
+        out = np.zeros((self.num_balls, 6))
+        lib = pb.lib
+        for b, (x, y, vx, vy) in enumerate(rows.tolist()):
+            body = self._balls[first + b]._body
+            lib.cpBodySetPosition(body, (x, y))
+            lib.cpBodySetVelocity(body, (vx, vy))
+            position, velocity = lib.cpBodyGetPosition(body), lib.cpBodyGetVelocity(body)
+            out[b, [0, 1, 3, 4]] = position.x, position.y, velocity.x, velocity.y
         return out

@@ -1,4 +1,4 @@
-"""What a world's fields hold, by entity kind: robots now, the ball next.
+"""What a world's fields hold, by entity kind: robots and balls.
 
 A scenario adds its entities in groups (``Entities.add``): each group is ``count`` entities of one kind,
 and takes the next rows of that kind's state arrays, whose leading axes are (fields, entities of the
@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-# The kinds a World simulates, each with its state class: "robot", ``hier_ssl.world.robot.RobotState``.
-KINDS = ("robot",)
+# The kinds a World simulates, each with its state class: "robot", ``hier_ssl.world.robot.RobotState``;
+# "ball", ``hier_ssl.world.ball.BallState``.
+KINDS = ("robot", "ball")
 
 
 @dataclass(frozen=True)

@@ -80,4 +80,104 @@ def unpack_rows(
             vel[f, i, 0], vel[f, i, 1], ang_vel[f, i] = row[3], row[4], row[5]
 
 
-__all__ = ["unpack_rows", "velocity_rows"]
+@numba.njit(cache=True)
+def _first_hit(
+    px: float, py: float, vx: float, vy: float, time: float, limits: np.ndarray, boxes: np.ndarray
+):
+    """When (s, at most ``time``) a ball at (px, py) moving at (vx, vy) first meets a wall or a goal wall,
+    and along which axis (0 x, 1 y; -1 for none). The walls hold its centre within the reach ``limits[2:4]``;
+    ``boxes`` (G, 4) are the goal walls grown by the ball's radius (their corners square, not round)."""
+    first, axis = time, -1
+    for a in range(2):
+        p, v, reach = (px, vx, limits[2]) if a == 0 else (py, vy, limits[3])
+        if v != 0.0:
+            # Moving towards the wall it faces; at or past it already, it turns back at once.
+            t = max(((reach if v > 0 else -reach) - p) / v, 0.0)
+            if t < first:
+                first, axis = t, a
+    for g in range(boxes.shape[0]):
+        enter, leave, enter_axis = -np.inf, np.inf, -1
+        for a in range(2):
+            p, v = (px, vx) if a == 0 else (py, vy)
+            lo, hi = boxes[g, 2 * a], boxes[g, 2 * a + 1]
+            if v == 0.0:
+                if not lo < p < hi:
+                    enter = np.inf
+                continue
+            t0, t1 = (lo - p) / v, (hi - p) / v
+            t0, t1 = min(t0, t1), max(t0, t1)
+            if t0 > enter:
+                enter, enter_axis = t0, a
+            leave = min(leave, t1)
+        # Entering from outside (a ball already inside was pushed there and is left to pymunk).
+        if 0.0 <= enter < leave and enter < first:
+            first, axis = enter, enter_axis
+    return first, axis
+
+
+@numba.njit(cache=True)
+def ball_rows(
+    pos: np.ndarray,
+    vel: np.ndarray,
+    limits: np.ndarray,
+    boxes: np.ndarray,
+    at: np.ndarray,
+    out: np.ndarray,
+    delta: np.ndarray,
+) -> None:
+    """What a step writes into pymunk for the balls: at row ``at[f, b]`` of ``out`` (rows, 3) ball b of
+    field f's (vx, vy, 0), and into ``delta`` (N, B, 2) what to add to the velocity pymunk gives back.
+
+    A ball at ``pos`` (N, B, 2) rolling at ``vel`` (N, B, 2) slows down by ``limits[0]`` m/s^2 over the
+    period ``limits[1]`` s: pymunk carries it at the period's mean velocity, so that it travels exactly
+    what the constant deceleration gives (v^2 / (2 a) to a stop), and the period's last velocity is that
+    mean plus ``delta``. Its straight path is also swept against the walls and ``boxes`` (G, 4), the goal
+    walls grown by its radius: each bounce turns back the normal velocity times the restitution
+    ``limits[4]``, and pymunk carries the ball to where the bounces leave it. Chipmunk would only see a
+    wall once the ball overlaps it, and at 6.5 m/s a ball crosses a goal wall within a substep.
+    """
+    decel, dt, restitution = limits[0], limits[1], limits[4]
+    for f in range(pos.shape[0]):
+        for b in range(pos.shape[1]):
+            vx, vy = vel[f, b, 0], vel[f, b, 1]
+            speed = math.hypot(vx, vy)
+            if speed >= decel * dt:
+                mean, last = (speed - 0.5 * decel * dt) / speed, (speed - decel * dt) / speed
+            else:  # it stops within the period, after speed^2 / (2 decel)
+                mean, last = speed / (2.0 * decel * dt), 0.0
+            mx, my, ex, ey = vx * mean, vy * mean, vx * last, vy * last
+            px, py, left = pos[f, b, 0], pos[f, b, 1], dt
+            for _ in range(4):  # a ball in a corner meets two walls within one period
+                t, axis = _first_hit(px, py, mx, my, left, limits, boxes)
+                px, py, left = px + mx * t, py + my * t, left - t
+                if axis == 0:
+                    mx, ex = -restitution * mx, -restitution * ex
+                elif axis == 1:
+                    my, ey = -restitution * my, -restitution * ey
+                else:
+                    break
+            row = out[at[f, b]]
+            row[0], row[1], row[2] = (px - pos[f, b, 0]) / dt, (py - pos[f, b, 1]) / dt, 0.0
+            delta[f, b, 0], delta[f, b, 1] = ex - row[0], ey - row[1]
+
+
+@numba.njit(cache=True)
+def unpack_balls(
+    rows: np.ndarray,
+    offsets: np.ndarray,
+    delta: np.ndarray,
+    fields: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+) -> None:
+    """The read-back ``rows`` (N, B, 6) of the balls of ``fields`` (F,) ints written into a ball state's
+    field-frame ``pos`` (N, B, 2) and ``vel`` (N, B, 2): pymunk's velocity plus ``delta`` (N, B, 2), what
+    ``ball_rows`` left out of it; other fields' entries are left as they are."""
+    for f in fields:
+        for b in range(rows.shape[1]):
+            row = rows[f, b]
+            pos[f, b, 0], pos[f, b, 1] = row[0] - offsets[f, 0], row[1] - offsets[f, 1]
+            vel[f, b, 0], vel[f, b, 1] = row[3] + delta[f, b, 0], row[4] + delta[f, b, 1]
+
+
+__all__ = ["ball_rows", "unpack_balls", "unpack_rows", "velocity_rows"]

@@ -22,17 +22,23 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pymunk
 
-from hier_ssl.world.blocks import ROBOT, FieldBlock, block_bounds
+from hier_ssl.world.ball import BallSpec, BallState
+from hier_ssl.world.blocks import BALL, ROBOT, FieldBlock, block_bounds
 from hier_ssl.world.entities import Entities, robots
-from hier_ssl.world.exchange import unpack_rows, velocity_rows
+from hier_ssl.world.exchange import ball_rows, unpack_balls, unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
 from hier_ssl.world.frames import _COMPLEX, all_finite, as_float
+from hier_ssl.world.goals import goal_boxes
 from hier_ssl.world.robot import RobotSpec, RobotState
 from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
 # What ``World._prepare`` makes: buffers, constants and the threads, made again for a copy.
 _PREPARED = {
     "_read_rows",
+    "_ball_read",
+    "_ball_at",
+    "_ball_limits",
+    "_goal_boxes",
     "_velocity_rows",
     "_velocity_at",
     "_all_fields",
@@ -49,10 +55,16 @@ class World:
 
     Fields are laid out on a grid, far enough apart that nothing crosses from one to another. Each kind's
     state has a leading (fields, entities of the kind) pair of axes: ``states["robot"]``, also ``state``,
-    the robots' (``num_robots`` of them). Which robots are controlled and which are obstacles is the
-    groups' business, not the world's. A state is replaced, never modified, by ``step`` and ``set_state``:
-    a state a caller keeps stays as it was. Bodies must not be added to or removed from the ``blocks``'
-    spaces.
+    the robots' (``num_robots`` of them), and ``states["ball"]``, also ``ball``, the balls'
+    (``num_balls``, ``hier_ssl.world.ball``) where the entities hold any. Which robots are controlled and
+    which are obstacles is the groups' business, not the world's. A state is replaced, never modified, by
+    ``step``, ``set_state`` and ``set_balls``: a state a caller keeps stays as it was. Bodies must not be
+    added to or removed from the ``blocks``' spaces.
+
+    With balls, every field also has its two goals (``hier_ssl.world.goals``): robots collide with them
+    as with the walls, and the balls roll (a constant deceleration, ``BallSpec.deceleration``), bounce off
+    walls, goals and robots, and are pushed by robots. Without balls, neither goals nor balls exist and a
+    step is what it was before the ball.
 
     A world pickles and copies: the copy has the same bodies, contacts and joint impulses and steps bit
     for bit as the original while no robot touches two bodies at once. When one does, Chipmunk's broad
@@ -67,6 +79,7 @@ class World:
         field: Field | str = "hardware_challenge",
         robot: RobotSpec | None = None,
         dt: float = 0.025,
+        ball: BallSpec | None = None,
         substeps: int = 2,
         iterations: int = 5,
     ) -> None:
@@ -85,8 +98,10 @@ class World:
             raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
         self.field = get_field(field) if isinstance(field, str) else field
         self.robot = robot or RobotSpec()
+        self.ball_spec = ball or BallSpec()
         self.entities = entities
         self.num_fields, self.num_robots = int(num_fields), num_robots
+        self.num_balls = entities.count("ball")
         self.dt, self.substeps = float(dt), substeps
         self._sub_dt = self.dt / substeps
 
@@ -96,7 +111,7 @@ class World:
         idx = np.arange(self.num_fields)
         self.offsets = np.stack([(idx % cols) * pitch, (idx // cols) * pitch], axis=-1).astype(np.float64)
 
-        handlers = (self._on_robot_contact, self._on_wall_contact)
+        handlers = (self._on_robot_contact, self._on_wall_contact, self._on_ball_contact)
         parked = self._parking_spots()
         self.blocks = [
             FieldBlock(
@@ -109,6 +124,8 @@ class World:
                 iterations,
                 parked,
                 handlers,
+                self.num_balls,
+                self.ball_spec,
             )
             for b in block_bounds(self.num_fields)
         ]
@@ -121,7 +138,11 @@ class World:
         self.robot_contacts = np.zeros((n, r, r), dtype=bool)
         self.robot_touch = np.zeros((n, r), dtype=bool)  # robot_contacts.any(axis=2), kept by the callback
         self.wall_contacts = np.zeros((n, r), dtype=bool)
+        self.ball_touch = np.zeros((n, r), dtype=bool)
         self._contacts_set = False  # whether a callback has written a contact since the last clearing
+        # What a ball's next read-back velocity lacks (``exchange.ball_rows``): nothing before a step.
+        self._ball_delta = np.zeros((n, self.num_balls, 2))
+        self.ball: BallState | None = None
         self.state = self._read_state()
 
     # -- construction -------------------------------------------------------------------------------------
@@ -138,6 +159,8 @@ class World:
         """The read and write buffers of the hot path and its constants, made once."""
         n, r, spec = self.num_fields, self.num_robots, self.robot
         self._read_rows = np.zeros((n, r, 6))
+        self._ball_read = np.zeros((n, self.num_balls, 6))
+        self._ball_at = np.empty((n, self.num_balls), dtype=np.int64)
         self._all_fields, self._shapes = np.arange(n), ((n, r), (n, r, 2))
         self._block_of = [k for k, block in enumerate(self.blocks) for _ in range(block.start, block.stop)]
         # Every block's velocity rows, one after another, and where each robot's (field, robot, 0) and its
@@ -147,12 +170,19 @@ class World:
         self._velocity_at = np.empty((n, r, 2), dtype=np.int64)
         first = 0
         for block, size in zip(self.blocks, sizes, strict=True):
-            block.bind(self._velocity_rows[first : first + size], self._read_rows[block.fields])
-            for k, rows in enumerate(block.body_rows()):
-                self._velocity_at[block.fields, :, k] = first + rows
+            reads = self._read_rows[block.fields], self._ball_read[block.fields]
+            block.bind(self._velocity_rows[first : first + size], *reads)
+            robot_rows, control_rows, ball_rows_ = block.body_rows()
+            self._velocity_at[block.fields, :, 0] = first + robot_rows
+            self._velocity_at[block.fields, :, 1] = first + control_rows
+            self._ball_at[block.fields] = first + ball_rows_
             first += size
         reach = (hx - spec.radius, hy - spec.radius)
         self._limits = np.array([spec.max_speed, spec.max_ang_speed, self.dt, *reach])
+        ball = self.ball_spec
+        ball_reach = (hx - ball.radius, hy - ball.radius)
+        self._ball_limits = np.array([ball.deceleration, self.dt, *ball_reach, ball.restitution_wall])
+        self._goal_boxes = goal_boxes(self.field) + np.array([-1, 1, -1, 1]) * ball.radius
         self._pool = ThreadPoolExecutor(self.threads - 1) if self.threads > 1 else None
 
     def use_threads(self, count: int) -> None:
@@ -190,6 +220,14 @@ class World:
         self.robot_touch[f, i] = self.robot_touch[f, j] = True
         self._contacts_set = True
 
+    def _on_ball_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
+        a, b = arbiter.shapes
+        f, i = self._shape_owner[b] if a.collision_type == BALL else self._shape_owner[a]
+        self.ball_touch[f, i] = True
+        # Without this the contact's restitution would be the product of the robot's 0 and the ball's own.
+        arbiter.restitution = self.ball_spec.restitution_robot
+        self._contacts_set = True
+
     def _on_wall_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: object) -> None:
         a, b = arbiter.shapes
         f, i = self._shape_owner[a] if a.collision_type == ROBOT else self._shape_owner[b]
@@ -199,14 +237,32 @@ class World:
     # -- state --------------------------------------------------------------------------------------------
 
     @property
-    def states(self) -> dict[str, RobotState]:
-        """Every kind's state, by kind."""
-        return {"robot": self.state}
+    def states(self) -> dict[str, RobotState | BallState]:
+        """Every kind's state, by kind: "robot", and "ball" where the world holds balls."""
+        if self.ball is None:
+            return {"robot": self.state}
+        return {"robot": self.state, "ball": self.ball}
 
     def _read_state(self) -> RobotState:
         for block in self.blocks:
             block.read()
+        if self.num_balls:
+            self.ball = self._balls_of_rows()
         return self._state_of_rows()
+
+    def _balls_of_rows(self, fields: np.ndarray | None = None) -> BallState:
+        """A new ball state from the rows of the last read, of every field or of ``fields`` (F,) ints and
+        the current ball state's other fields (as ``_state_of_rows``)."""
+        if fields is None:
+            fields = self._all_fields
+            pos, vel = (
+                np.empty((self.num_fields, self.num_balls, 2)),
+                np.empty((self.num_fields, self.num_balls, 2)),
+            )
+        else:
+            pos, vel = self.ball.pos.copy(), self.ball.vel.copy()
+        unpack_balls(self._ball_read, self.offsets, self._ball_delta, fields, pos, vel)
+        return BallState(pos, vel)
 
     def _state_of_rows(self, fields: np.ndarray | None = None) -> RobotState:
         """A new state from the rows of the last read (a state is replaced, never changed): of every field,
@@ -234,11 +290,8 @@ class World:
 
         Shapes: fields (M,) ints; pos (M, R, 2); angle (M, R); vel (M, R, 2) and ang_vel (M, R), zero if None.
         """
-        fields = np.asarray(fields, dtype=np.int64).reshape(-1)
+        fields = self._checked_fields(fields)
         m, r = len(fields), self.num_robots
-        if m and (fields.min() < 0 or fields.max() >= self.num_fields):
-            bad = fields[(fields < 0) | (fields >= self.num_fields)]
-            raise ValueError(f"field index {bad.tolist()} out of range [0, {self.num_fields})")
         vel = np.zeros((m, r, 2)) if vel is None else vel
         ang_vel = np.zeros((m, r)) if ang_vel is None else ang_vel
         arrays = {
@@ -247,22 +300,8 @@ class World:
             "vel": (vel, (m, r, 2)),
             "ang_vel": (ang_vel, (m, r)),
         }
-        checked = {}
-        for name, (value, shape) in arrays.items():
-            value = np.asarray(value, dtype=np.float64)
-            if value.shape != shape:
-                raise ValueError(f"set_state: {name} has shape {value.shape}, expected {shape}")
-            if not all_finite(value):
-                raise ValueError(f"set_state: {name} holds NaN or infinite values")
-            checked[name] = value
-        reach = self._limits[3:5]
-        outside = (np.abs(checked["pos"]) > reach).any(axis=-1)
-        if np.count_nonzero(outside):
-            f, i = np.argwhere(outside)[0]
-            raise ValueError(
-                f"set_state: robot {i} of field {fields[f]} at {checked['pos'][f, i].tolist()} is not inside "
-                f"the walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
-            )
+        checked = _checked_arrays("set_state", arrays)
+        _check_inside("set_state", "robot", fields, checked["pos"], self._limits[3:5])
         if m == 0:
             return
         packed = np.concatenate(
@@ -280,7 +319,36 @@ class World:
         self.robot_contacts[fields] = False
         self.robot_touch[fields] = False
         self.wall_contacts[fields] = False
+        self.ball_touch[fields] = False
         self.state = self._state_of_rows(fields)
+
+    def set_balls(
+        self, fields: np.ndarray | list[int], pos: np.ndarray, vel: np.ndarray | None = None
+    ) -> None:
+        """Place every ball of the given fields; balls of other fields are untouched.
+
+        Shapes: fields (F,) ints; pos (F, B, 2) m and vel (F, B, 2) m/s, field frame, at rest if None.
+        """
+        if self.ball is None:
+            raise ValueError("set_balls: this world holds no balls (its entities add none)")
+        fields = self._checked_fields(fields)
+        shape = (len(fields), self.num_balls, 2)
+        vel = np.zeros(shape) if vel is None else vel
+        checked = _checked_arrays("set_balls", {"pos": (pos, shape), "vel": (vel, shape)})
+        _check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
+        rows = np.concatenate([checked["pos"] + self.offsets[fields, None, :], checked["vel"]], axis=-1)
+        for f, field_rows in zip(fields.tolist(), rows, strict=True):
+            self._ball_read[f] = self.blocks[self._block_of[f]].place_balls(f, field_rows)
+        self._ball_delta[fields] = 0.0
+        self.ball = self._balls_of_rows(fields)
+
+    def _checked_fields(self, fields: np.ndarray | list[int]) -> np.ndarray:
+        """``fields`` as (F,) int64, each one of this world's."""
+        fields = np.asarray(fields, dtype=np.int64).reshape(-1)
+        if len(fields) and (fields.min() < 0 or fields.max() >= self.num_fields):
+            bad = fields[(fields < 0) | (fields >= self.num_fields)]
+            raise ValueError(f"field index {bad.tolist()} out of range [0, {self.num_fields})")
+        return fields
 
     # -- stepping -----------------------------------------------------------------------------------------
 
@@ -303,10 +371,16 @@ class World:
         state = self.state
         at, rows = self._velocity_at, self._velocity_rows
         velocity_rows(command, state.heading, state.pos, state.vel, state.ang_vel, self._limits, at, rows)
+        if self.ball is not None:
+            ball = self.ball
+            ball_rows(
+                ball.pos, ball.vel, self._ball_limits, self._goal_boxes, self._ball_at, rows, self._ball_delta
+            )
         if self._contacts_set:
             self.robot_contacts.fill(False)
             self.robot_touch.fill(False)
             self.wall_contacts.fill(False)
+            self.ball_touch.fill(False)
             self._contacts_set = False
         if self._pool is None:
             self._advance(self.blocks)
@@ -319,9 +393,37 @@ class World:
             for other in others:
                 other.result()
         self.state = self._state_of_rows()
+        if self.ball is not None:
+            self.ball = self._balls_of_rows()
         return self.state
 
     def _advance(self, blocks: list[FieldBlock]) -> None:
         """Write the velocity rows into ``blocks``, step them and read them back, one after another."""
         for block in blocks:
             block.step(self._sub_dt, self.substeps)
+
+
+def _checked_arrays(method: str, arrays: dict[str, tuple[object, tuple[int, ...]]]) -> dict[str, np.ndarray]:
+    """Each of ``arrays`` (name: (value, expected shape)) as float64 of its shape and finite; a ValueError
+    naming ``method`` and the array otherwise."""
+    checked = {}
+    for name, (value, shape) in arrays.items():
+        value = np.asarray(value, dtype=np.float64)
+        if value.shape != shape:
+            raise ValueError(f"{method}: {name} has shape {value.shape}, expected {shape}")
+        if not all_finite(value):
+            f, i = np.argwhere(~np.isfinite(value.reshape(*shape[:2], -1)).all(axis=-1))[0]
+            raise ValueError(f"{method}: {name} holds NaN or infinite values ({name}[{f}, {i}])")
+        checked[name] = value
+    return checked
+
+
+def _check_inside(method: str, kind: str, fields: np.ndarray, pos: np.ndarray, reach: np.ndarray) -> None:
+    """A ValueError naming the first entity of ``pos`` (F, E, 2) whose centre is beyond ``reach`` (x, y)."""
+    outside = (np.abs(pos) > reach).any(axis=-1)
+    if np.count_nonzero(outside):
+        f, i = np.argwhere(outside)[0]
+        raise ValueError(
+            f"{method}: {kind} {i} of field {fields[f]} at {pos[f, i].tolist()} is not inside "
+            f"the walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
+        )

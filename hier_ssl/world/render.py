@@ -1,5 +1,5 @@
-"""One field of a World as an RGB image: field markings, walls, robots with headings, targets, sub-goals
-and trails, drawn with matplotlib's Agg canvas (headless, no pyplot state)."""
+"""One field of a World as an RGB image: field markings, walls, goals, robots with headings, balls,
+targets, sub-goals and trails, drawn with matplotlib's Agg canvas (headless, no pyplot state)."""
 
 from __future__ import annotations
 
@@ -12,10 +12,12 @@ from matplotlib.collections import LineCollection, PatchCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
+from hier_ssl.world.ball import BallSpec
 from hier_ssl.world.field import Field
+from hier_ssl.world.goals import goal_boxes
 from hier_ssl.world.physics import RobotSpec, RobotState
 
-CARPET, LINE, WALL, GOAL = "#2e7d3b", "#f4f4f4", "#3a3a3a", "#111111"
+CARPET, LINE, WALL, GOAL, BALL = "#2e7d3b", "#f4f4f4", "#3a3a3a", "#111111", "#ff6d00"
 # Team 0: the controlled robots (SSL blue), team 1: obstacles (SSL yellow); further teams cycle.
 TEAM_COLORS = ("#1d4ed8", "#f5c400", "#d9480f", "#7048e8")
 # With several controlled robots in a field each has its own colour, shared by its path, target and
@@ -46,6 +48,8 @@ def render_fields(
     collisions: np.ndarray | None = None,
     collision_robot: Sequence[int] | None = None,
     extra: Callable[[Axes], None] | None = None,
+    balls: np.ndarray | None = None,
+    ball: BallSpec | None = None,
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
@@ -61,7 +65,9 @@ def render_fields(
     points of this field where controlled robots hit another robot, marked with a cross above everything
     else in the colour of the robot ``collision_robot[c]`` (an index among the controlled ones; default 0).
     ``extra`` draws on the axes (field frame, m) what a scenario adds, above the field's lines and under
-    everything else.
+    everything else. ``balls`` (N, B, 2), every field's ball positions (a ``BallState``'s ``pos``), are
+    drawn orange above the robots, at ``ball``'s radius (default: ``BallSpec()``) but never smaller than a
+    field line is wide, so that a ball stays visible in a small image.
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -99,6 +105,8 @@ def render_fields(
     )
     ax.add_collection(discs)
     ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
+    if balls is not None:
+        _draw_balls(ax, _per_field(balls, field_index, "balls"), (ball or BallSpec()).radius, line_pt)
     if collisions is not None:
         _draw_collisions(ax, collisions, collision_robot, [colors[i] for i in controlled], line_pt)
     canvas.draw()
@@ -106,6 +114,20 @@ def render_fields(
     if image.shape != (height, width, 3):
         raise RuntimeError(f"matplotlib drew {image.shape}, expected {(height, width, 3)}")
     return image
+
+
+def _draw_balls(ax: Axes, points: np.ndarray, radius: float, line_pt: float) -> None:
+    """Balls (B, 2) as orange discs with a dark edge, above the robots."""
+    radius = max(radius, _LINE_WIDTH_M)
+    ax.add_collection(
+        PatchCollection(
+            [Circle(tuple(p), radius) for p in points[:, :2]],
+            facecolors=BALL,
+            edgecolors="#101010",
+            linewidths=0.4 * line_pt,
+            zorder=7,
+        )
+    )
 
 
 def _draw_collisions(
@@ -229,12 +251,6 @@ def _draw_field(ax: object, field: Field, line_pt: float) -> None:
         x_line, x_inner = side * half_l, side * (half_l - field.penalty_area_depth)
         py = field.penalty_area_width / 2
         ax.plot([x_line, x_inner, x_inner, x_line], [-py, -py, py, py], **line)
-        x_back, gy = side * (half_l + field.goal_depth), field.goal_width / 2
-        ax.plot(
-            [x_line, x_back, x_back, x_line],
-            [-gy, -gy, gy, gy],
-            color=GOAL,
-            lw=1.5 * line_pt,
-            zorder=2,
-            solid_joinstyle="miter",
-        )
+    # The goals' walls, as the world's bodies have them where it holds balls.
+    for x0, x1, y0, y1 in goal_boxes(field):
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=GOAL, edgecolor="none", zorder=2))

@@ -20,8 +20,9 @@ def test_groups_take_consecutive_rows_of_their_kind() -> None:
         "controlled",
         "obstacles",
     ]
-    with pytest.raises(ValueError, match="unknown entity kind 'ball'"):
-        entities.add("ball", 1, "ball")
+    assert entities.add("ball", 1, "ball").rows == slice(0, 1) and entities.count("ball") == 1
+    with pytest.raises(ValueError, match="unknown entity kind 'goal'"):
+        entities.add("goal", 1, "goals")
     with pytest.raises(ValueError, match="count of 'some' must be an integer >= 0"):
         entities.add("robot", -1, "some")
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hier_ssl.world.physics import World
-from hier_ssl.world.render import TEAM_COLORS, render_fields
+from hier_ssl.world.render import BALL, GOAL, TEAM_COLORS, render_fields
 
 
 def _rgb(color: str) -> np.ndarray:
@@ -93,3 +93,19 @@ def test_render_marks_collisions_in_the_colliding_robots_colours() -> None:
     assert np.abs(marked[row, col].astype(int) - _rgb("#e03131")).max() < 40  # robot 1's red at the centre
     with pytest.raises(ValueError, match="collision_robot"):
         render_fields(world.field, world.state, team=team, collisions=np.zeros((1, 2)), collision_robot=[2])
+
+
+def test_render_draws_the_balls_in_orange_and_the_goal_walls() -> None:
+    balls = np.array([[[0.5, 0.5], [-2.0, -1.5]], [[0.0, 0.0], [0.0, 0.0]]])
+    world = _world()
+    size, (hx, hy) = (660, 460), world.field.wall_half_extent
+    image = render_fields(world.field, world.state, balls=balls, size=size)
+    bare = render_fields(world.field, world.state, size=size)
+    px_per_m = 1 / max(2 * (hx + 0.05) / size[0], 2 * (hy + 0.05) / size[1])
+    for x, y in balls[0]:
+        pixel = image[round(230 - px_per_m * y), round(330 + px_per_m * x)].astype(int)
+        assert np.abs(pixel - _rgb(BALL)).max() < 40, pixel
+    assert np.count_nonzero((image != bare).any(axis=-1)) < 2 * np.pi * (4 * 0.0215 * px_per_m) ** 2
+    # The back wall of the goal at +x, halfway along it, is drawn in the goals' colour.
+    back = world.field.half_length + world.field.goal_depth + 0.01
+    assert np.abs(image[230, round(330 + px_per_m * back)].astype(int) - _rgb(GOAL)).max() < 40

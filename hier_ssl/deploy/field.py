@@ -29,8 +29,8 @@ command the script has in force at the episode's time to 127.0.0.1:``referee_por
 frames, so that the controller's tick on them is under it), and after each world step it calls the fouls
 of the step with the rules' functions the environments call (``hier_ssl.game.fouls.step_fouls``), for
 every robot of both teams: counted by robot and kind in each episode's records and in ``fouls`` over the
-run. The ball is not simulated: it lies at ``ball`` (the centre spot unless given), in the cameras' frames
-and in the rules.
+run. The ball is the world's where the task's world has one (the game scenarios), otherwise one lying
+still at ``ball`` (the centre spot unless given); either goes into the cameras' frames and the rules.
 """
 
 from __future__ import annotations
@@ -336,6 +336,11 @@ class FieldServer:
         self.rules = self.referee.at(self.core.steps[0] * STEP, wall)
         self.out.sendto(self.referee.packet(wall), self.referee_to)
 
+    def _ball(self) -> tuple[float, float] | None:
+        """Where the ball is: the world's first, where its world has balls, or the still one."""
+        balls = self.core.world.ball
+        return self.ball if balls is None else tuple(balls.pos[0, 0].tolist())
+
     def _motion(self) -> Motion:
         state = self.core.world.state
         return Motion(state.pos.copy(), state.vel.copy())
@@ -353,7 +358,7 @@ class FieldServer:
             self.core.field,
             before,
             self._motion(),
-            np.array([self.ball], dtype=float),
+            np.array([self._ball()], dtype=float),
             began,
             STEP,
         )
@@ -413,7 +418,7 @@ class FieldServer:
             self.strips,
             self.capture_time,
             self.rng,
-            self.ball,
+            self._ball(),
         )
         send_at = now + self.cameras.latency
         for camera in frames:

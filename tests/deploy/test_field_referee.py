@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from hier_ssl.cli import main
+from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.field import STEP, Cameras, FieldServer
 from hier_ssl.deploy.referee import parse_referee
@@ -213,3 +214,23 @@ def test_our_robots_leave_the_opponents_ball_placement_within_2_s_under_the_fiel
     assert gap(game.during(1.0, 2.0)[0]).min() < PLACEMENT_DISTANCE  # some drove into it meanwhile
     assert gap(game.during(1.0 + GRACE)[0]).min() >= PLACEMENT_DISTANCE  # rules 8.4.3: none after 2 s
     assert game.server.foul_counts() == {}  # so no interference either
+
+
+def test_the_cameras_see_the_worlds_ball_where_the_task_has_one_and_the_still_one_otherwise() -> None:
+    game = FieldServer(task_config("game_stop"), vision_port=9, seed=0, team="yellow")
+    still = FieldServer(task_config("proposed"), vision_port=9, seed=0, ball=(0.5, -0.25))
+    try:
+        seen = []
+        for server in (game, still):
+            server._reset(0)
+            pending: list = []
+            server._capture(0, pending, 0.0)
+            frames = [wire.parse_vision(packet) for _, _, packet in pending]
+            seen.append([f.ball for f in frames if isinstance(f, wire.DetectionFrame) and f.ball is not None])
+        rolled = game.core.world.ball.pos[0, 0]
+    finally:
+        game.close()
+        still.close()
+    assert len(seen[0]) >= 1 and len(seen[1]) >= 1
+    np.testing.assert_allclose(seen[0][0], rolled, atol=1e-4)  # mm on the wire, float32
+    np.testing.assert_allclose(seen[1][0], (0.5, -0.25), atol=1e-4)

@@ -51,7 +51,7 @@ import numpy as np
 from hier_ssl.config import TaskConfig
 from hier_ssl.deploy.game import labelled_lineup
 from hier_ssl.deploy.net import LOOPBACK, receive
-from hier_ssl.deploy.referee_script import Call, ScriptedReferee
+from hier_ssl.deploy.referee_script import Call, GameController, ScriptedReferee
 from hier_ssl.deploy.wire import (
     TEAMS,
     Detection,
@@ -64,6 +64,7 @@ from hier_ssl.deploy.wire import (
     parse_simulation,
 )
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.game import FOULED, GameScenario
 from hier_ssl.game.fouls import KINDS, Motion, new_clocks, step_fouls
 
 STEP = 0.025  # s
@@ -186,8 +187,14 @@ class FieldServer:
         self.commanded = np.full(self.m, -np.inf)
         self.dropped = self.frames_sent = 0
         self.capture_time = time.time()
+        self.game = isinstance(self.core.scenario, GameScenario)  # it plays its own referee, calls its fouls
+        if self.game and (referee is not None or team != "yellow"):
+            raise ValueError(
+                f"{self.core.scenario.name}: a game scenario plays its own referee (no referee script) and "
+                f"its controlled robots are the yellow team (team 'yellow'), got team {team!r}"
+            )
         self.referee = None if referee is None else ScriptedReferee(referee, fld)
-        self.referee_to = (LOOPBACK, referee_port)
+        self.game_controller, self.referee_to = GameController(), (LOOPBACK, referee_port)
         self.ball = (0.0, 0.0) if ball is None and referee is not None else ball
         self.players = labelled_lineup(self.labels)
         self.fouls = np.zeros((self.m + self.k, len(KINDS)), dtype=np.int64)  # by robot and kind, the run's
@@ -268,6 +275,7 @@ class FieldServer:
                 running = (self.commanded > sent).all() or now - sent > COMMAND_TIMEOUT
             if running:
                 live, over = self._step(live, now)
+                self._send_new_targets(control)
                 if over:
                     ended(episode)
                     episode += 1
@@ -297,6 +305,7 @@ class FieldServer:
                 while not (self.commanded > published).all() and clock() - published <= COMMAND_TIMEOUT:
                     self._serve(max(0.0, published + COMMAND_TIMEOUT - clock()))
                 live, over = self._step(live, clock())
+                self._send_new_targets(control)
             if over:
                 ended(episode)
                 episode += 1
@@ -322,19 +331,23 @@ class FieldServer:
         self.command[:] = 0.0
         self.outcome = {"success": np.zeros(self.m, bool), "collision": np.zeros(self.m, bool)}
         self.length = np.zeros(self.m, dtype=np.int64)
+        self.game_controller.restart()
         if self.referee is not None:
-            self.referee.restart()
             self.clocks, self.episode_fouls = new_clocks(1, self.m + self.k), np.zeros_like(self.fouls)
             self.touching = np.zeros_like(self.core.world.robot_contacts)
         return np.ones((1, self.m), dtype=bool)
 
     def _call(self) -> None:
-        """The referee's message at the episode's time, sent now (without a referee, nothing)."""
-        if self.referee is None:
+        """The referee's message at the episode's time, sent now: the script's or the game scenario's state
+        (neither: nothing)."""
+        if self.referee is not None:
+            self.rules = self.referee.at(self.core.steps[0] * STEP)
+        elif self.game:
+            self.rules = self.core.scenario.referee_of(None)
+        else:
             return
         wall = time.time()
-        self.rules = self.referee.at(self.core.steps[0] * STEP, wall)
-        self.out.sendto(self.referee.packet(wall), self.referee_to)
+        self.out.sendto(self.game_controller.packet(self.rules, wall), self.referee_to)
 
     def _ball(self) -> tuple[float, float] | None:
         """Where the ball is: the world's first, where its world has balls, or the still one."""
@@ -400,7 +413,13 @@ class FieldServer:
             }
             for i in range(self.m)
         ]
-        if self.referee is not None:
+        if self.game:  # the scenario's own fouls, which end a robot's episode
+            self.episode_fouls = np.zeros_like(self.fouls)
+            self.episode_fouls[: self.m] = self.core.scenario.fouls[0]
+            self.fouls += self.episode_fouls
+            for i, record in enumerate(records):
+                record["foul"] = bool(self.core.scenario.way[0, i] == FOULED)
+        if self.referee is not None or self.game:
             fouls = self.foul_counts(self.episode_fouls)
             for i, record in enumerate(records):
                 record["fouls"] = fouls.get(f"{self.team} {i}", {})
@@ -429,8 +448,14 @@ class FieldServer:
         self.frames_sent += len(frames)
         return frame
 
+    def _send_new_targets(self, control: socket.socket | None) -> None:
+        """The targets again where the task changed them in mid-episode (a game scenario's command)."""
+        if not np.array_equal(self.core.target, self.targets_sent):
+            self._send_targets(control)
+
     def _send_targets(self, control: socket.socket | None) -> None:
         """Each controlled robot's target to the controller; RuntimeError with its answer if refused."""
+        self.targets_sent = self.core.target.copy()
         if control is None:
             return
         for i in range(self.m):

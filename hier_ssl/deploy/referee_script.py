@@ -9,9 +9,9 @@ the game runs (FORCE_START). COMMAND is a command the rules play (``hier_ssl.gam
 or goes back, an unknown command, a ball placement without a position or off the field's playing area, a
 position given to another command.
 
-``ScriptedReferee`` turns it into ``Referee`` messages as the game controller sends them (the command
-counter counts each command issued; both keepers are robot 0, the game controller's default) and into the
-rules' state that the field server calls its fouls under.
+``ScriptedReferee`` turns it into the rules' state at each time (both keepers robot 0, the game
+controller's default; blue on the negative half), and ``GameController`` any such state (a script's, or a
+game scenario's own) into ``Referee`` messages as the game controller sends them.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 from hier_ssl.deploy.referee import BALL_PLACEMENT, RefereeMessage, encode_referee, game_state
-from hier_ssl.game.referee import COMMANDS, RefereeState
+from hier_ssl.game.referee import COMMANDS, TEAM_NAMES, RefereeState
 from hier_ssl.world.field import Field
 
 STAGE = "NORMAL_FIRST_HALF"
@@ -105,12 +105,13 @@ def parse_script(text: str, field: Field) -> tuple[Call, ...]:
     return tuple(calls)
 
 
-def _message(call: Call, counter: int = 0, sent: float = 0.0, issued: float = 0.0) -> RefereeMessage:
+def _message(call: Call) -> RefereeMessage:
+    """``call`` as a message (times and counter 0), read into the rules' state by ``game_state``."""
     return RefereeMessage(
-        sent=sent,
+        sent=0.0,
         command=call.command,
-        counter=counter,
-        issued=issued,
+        counter=0,
+        issued=0.0,
         stage=STAGE,
         keepers=KEEPERS,
         designated=call.placement,
@@ -118,30 +119,52 @@ def _message(call: Call, counter: int = 0, sent: float = 0.0, issued: float = 0.
 
 
 class ScriptedReferee:
-    """The game controller playing ``calls`` (``parse_script``) on ``field``: ``at`` an episode's time,
-    the call in force, its rules' state and its ``Referee`` packet."""
+    """The rules' state that ``calls`` (``parse_script``) have in force on ``field`` at an episode's time."""
 
     def __init__(self, calls: tuple[Call, ...], field: Field) -> None:
         self.calls = (START, *calls)
         self.times = [call.time for call in self.calls]
         self.states = [game_state(_message(call), field) for call in self.calls]
-        self.index = -1  # the call in force (-1: none yet: every call is issued afresh)
+
+    def at(self, time: float) -> RefereeState:
+        """The state in force at episode ``time`` s."""
+        return self.states[bisect.bisect_right(self.times, time) - 1]
+
+
+class GameController:
+    """``Referee`` packets of the rules' states (one field) as the game controller sends them: the command
+    counter counts each command issued (a changed command, or any after ``restart``), ``issued`` its time."""
+
+    def __init__(self) -> None:
+        self.command: int | None = None  # the command in force (None: the next one is issued afresh)
         self.counter, self.issued = 0, 0.0
 
     def restart(self) -> None:
-        """A new episode: the script from its start, each command issued anew (the counter goes on)."""
-        self.index = -1
+        """A new episode: its first command is issued anew (the counter goes on)."""
+        self.command = None
 
-    def at(self, time: float, wall: float) -> RefereeState:
-        """The rules' state at episode ``time`` s (UNIX ``wall``: when a new command is issued)."""
-        index = bisect.bisect_right(self.times, time) - 1
-        if index != self.index:
-            self.index, self.counter, self.issued = index, self.counter + 1, wall
-        return self.states[index]
+    def packet(self, state: RefereeState, wall: float) -> bytes:
+        """``state``'s packet, sent at UNIX ``wall``; a ValueError for a team without a keeper, which the
+        protocol's unsigned keeper id cannot say."""
+        command = int(state.command[0])
+        if command != self.command:
+            self.command, self.counter, self.issued = command, self.counter + 1, wall
+        keeper = state.keeper[0].tolist()
+        if min(keeper) < 0:
+            raise ValueError(f"keepers {keeper} (yellow, blue): a Referee message needs an id for each team")
+        name = COMMANDS[command]
+        return encode_referee(
+            RefereeMessage(
+                sent=wall,
+                command=name,
+                counter=self.counter,
+                issued=self.issued,
+                stage=STAGE,
+                keepers=dict(zip(TEAM_NAMES, keeper, strict=True)),
+                designated=tuple(state.placement[0].tolist()) if name in BALL_PLACEMENT else None,
+                blue_on_positive_half=bool(state.blue_on_positive_half[0]),
+            )
+        )
 
-    def packet(self, wall: float) -> bytes:
-        """The ``Referee`` packet of the call in force, sent at UNIX ``wall``."""
-        return encode_referee(_message(self.calls[self.index], self.counter, wall, self.issued))
 
-
-__all__ = ["START", "Call", "ScriptedReferee", "parse_script", "parse_xy"]
+__all__ = ["START", "Call", "GameController", "ScriptedReferee", "parse_script", "parse_xy"]

@@ -14,10 +14,10 @@ from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.field import STEP, Cameras, FieldServer
 from hier_ssl.deploy.referee import parse_referee
-from hier_ssl.deploy.referee_script import START, Call, ScriptedReferee, parse_script
+from hier_ssl.deploy.referee_script import START, Call, GameController, ScriptedReferee, parse_script
 from hier_ssl.envs import task_config
 from hier_ssl.game.fouls import GRACE
-from hier_ssl.game.referee import FORCE_START, STOP
+from hier_ssl.game.referee import BALL_PLACEMENT_BLUE, FORCE_START, STOP, referee_state
 from hier_ssl.game.zones import BALL_DISTANCE, PLACEMENT_DISTANCE, ROBOT_RADIUS, STOP_SPEED
 from hier_ssl.world.field import get_field
 
@@ -68,24 +68,27 @@ def test_the_field_command_refuses_a_bad_script_naming_the_entry(capsys: pytest.
     assert "'0.5:HALT': time 0.5 s goes back" in capsys.readouterr().err
 
 
-def test_the_scripted_referee_counts_each_command_issued_and_starts_again_each_episode() -> None:
+def test_the_game_controller_counts_each_command_issued_and_issues_anew_each_episode() -> None:
     referee = ScriptedReferee(parse_script("1.0:STOP,2.0:BALL_PLACEMENT_BLUE@1,0.5", DIVISION_B), DIVISION_B)
-    said = []
+    controller, said = GameController(), []
     for t in (0.0, 0.5, 1.0, 1.5, 2.0):
-        state = referee.at(t, wall=1.76e9 + t)
-        said.append((int(state.command[0]), parse_referee(referee.packet(1.76e9 + t + 0.01))))
-    assert [command for command, _ in said] == [FORCE_START, FORCE_START, STOP, STOP, 17]
+        state = referee.at(t)
+        said.append((int(state.command[0]), parse_referee(controller.packet(state, 1.76e9 + t))))
+    assert [command for command, _ in said] == [FORCE_START, FORCE_START, STOP, STOP, BALL_PLACEMENT_BLUE]
     assert [m.counter for _, m in said] == [1, 1, 2, 2, 3]  # one count per command issued
-    assert said[3][1].issued == pytest.approx(1.76e9 + 1.0) and said[3][1].sent == pytest.approx(
-        1.76e9 + 1.51
-    )
-    assert said[4][1].designated == pytest.approx((1.0, 0.5)) and said[2][1].keepers == {
-        "blue": 0,
-        "yellow": 0,
-    }
-    referee.restart()  # a new episode: FORCE_START issued again, with a new count
-    assert int(referee.at(0.0, wall=0.0).command[0]) == FORCE_START and referee.counter == 4
-    assert parse_referee(referee.packet(0.0)).command == START.command
+    assert said[3][1].issued == pytest.approx(1.76e9 + 1.0) and said[3][1].sent == pytest.approx(1.76e9 + 1.5)
+    assert said[4][1].designated == pytest.approx((1.0, 0.5)) and said[2][1].designated is None
+    assert said[2][1].keepers == {"blue": 0, "yellow": 0} and said[2][1].blue_on_positive_half is False
+    controller.restart()  # a new episode: FORCE_START issued again, with a new count
+    again = parse_referee(controller.packet(referee.at(0.0), 0.0))
+    assert (again.command, again.counter) == (START.command, 4)
+    sides = referee_state(STOP, DIVISION_B, keeper=(3, 5), blue_on_positive_half=True)
+    message = parse_referee(controller.packet(sides, 0.0))
+    assert message.keepers == {"yellow": 3, "blue": 5} and message.blue_on_positive_half is True
+    with pytest.raises(
+        ValueError, match=r"keepers \[-1, 5\] \(yellow, blue\): a Referee message needs an id"
+    ):
+        controller.packet(referee_state(STOP, DIVISION_B, keeper=(-1, 5)), 0.0)
 
 
 @pytest.mark.parametrize(("speed", "fouls"), [(1.8, {"stop_speed": 1}), (1.2, {})])

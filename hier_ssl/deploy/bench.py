@@ -16,8 +16,9 @@
   against the same manager played directly by ``hier_ssl.envs.play`` (what ``hier-ssl eval`` runs) on
   the same episodes (``direct_episodes``), and a run's own task for ``run``; ``success_gap_points`` is
   through the wire minus direct.
-- ``game``: the ``task`` row's comparison on ``GAME_TASK`` with the field server playing referee
-  (``GAME_SCRIPT``) and calling the fouls.
+- ``game``: the ``task`` row's comparison on ``GAME_TASK`` (the SSL game's STOP), whose referee the field
+  server plays to the loop (its own schedule: the command at a random time of each episode), with the
+  share of robot-episodes ended by a foul through the wire and directly.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.envs import make_scenario
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.game import GameScenario
 from hier_ssl.envs.play import play
 from hier_ssl.envs.scenarios import SCENARIOS
 from hier_ssl.manager.planners import PLANNERS
@@ -162,8 +164,9 @@ WARM_UP_S = 1.0  # s: the latency rows' untimed first run
 
 class WiredRun:
     """A field server process on ``task`` and the controller loop of ``manager`` here, over 127.0.0.1,
-    both free-running or both in ``lockstep``; with a referee ``script`` the field server plays referee
-    to the loop's referee port (``hier-ssl field --referee-script``)."""
+    both free-running or both in ``lockstep``, the controlled robots of ``team``; with a ``referee`` (a
+    game scenario's own) or a referee ``script`` the field server plays referee to the loop's referee port
+    (``hier-ssl field --referee-script``)."""
 
     def __init__(
         self,
@@ -176,17 +179,22 @@ class WiredRun:
         field_options: tuple[str, ...] = (),
         lockstep: bool = False,
         script: str | None = None,
+        referee: bool = False,
+        team: str = "blue",
     ) -> None:
         settings = DeploySettings(
-            manager, "127.0.0.1:0", "grsim:127.0.0.1:9", "blue", list(range(robots)), {}, control_port=0
+            manager, "127.0.0.1:0", "grsim:127.0.0.1:9", team, list(range(robots)), {}, control_port=0
         )
         settings.priority, settings.lockstep = priority, lockstep
         settings.task = task if _takes_task(manager) else None
-        settings.referee = None if script is None else "127.0.0.1:0"
+        referee = referee or script is not None
+        settings.referee = "127.0.0.1:0" if referee else None
         self.loop = build_loop(settings)
+        field_options = (*field_options, "--team", team)
+        if referee:
+            field_options += ("--referee-port", str(self.loop.referee.sock.getsockname()[1]))
         if script is not None:
-            port = str(self.loop.referee.sock.getsockname()[1])
-            field_options = (*field_options, "--referee-script", script, "--referee-port", port)
+            field_options += ("--referee-script", script)
         command = [
             sys.executable,
             "-m",
@@ -271,15 +279,26 @@ def _outcomes(success: np.ndarray, collision: np.ndarray, length: np.ndarray) ->
 
 
 def direct_episodes(
-    policy: Callable[[np.ndarray], np.ndarray], config: TaskConfig, episodes: int, seed: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Success, collision and length (episodes, M) of ``policy`` played directly (``hier_ssl.envs.play``, as
-    ``hier-ssl eval`` plays) on the field server's episodes: episode e in a one-field core reset with seed
-    ``seed + e``. (A core of ``episodes`` fields draws its starts in one batch from ``seed``: other
-    episodes, and the wire's and the direct loop's figures would differ by the episodes drawn.)"""
+    policy: Callable[[np.ndarray], np.ndarray],
+    config: TaskConfig,
+    episodes: int,
+    seed: int,
+    keys: tuple[str, ...] = ("success", "collision", "length"),
+) -> tuple[np.ndarray, ...]:
+    """Success, collision and length (or other ``keys`` of ``play``'s ends; (episodes, M) each) of
+    ``policy`` played directly (``hier_ssl.envs.play``, as ``hier-ssl eval`` plays) on the field server's
+    episodes: episode e in a one-field core reset with seed ``seed + e``. (A core of ``episodes`` fields
+    draws its starts in one batch from ``seed``: other episodes, and the wire's and the direct loop's figures
+    would differ by the episodes drawn.)"""
     core = HierarchicalCore(config, num_fields=1, autoreset=False)
     ends = [play(core, policy, seed + e) for e in range(episodes)]
-    return tuple(np.concatenate([end[key] for end in ends]) for key in ("success", "collision", "length"))
+    return tuple(np.concatenate([end[key] for end in ends]) for key in keys)
+
+
+def _gap(wired: float, direct: float, samples: int) -> tuple[float, float]:
+    """Wire minus direct, in points, and its standard error with the two as independent samples."""
+    variance = sum(p * (1 - p) for p in (wired, direct)) / samples
+    return round(100 * (wired - direct), 1), round(100 * float(np.sqrt(variance)), 1)
 
 
 def task_row(
@@ -292,25 +311,37 @@ def task_row(
     script: str | None = None,
 ) -> dict[str, Any]:
     """Through the wire (field server in lockstep) against ``direct_episodes``; the field server's vision
-    ``noise`` (mm, deg) and referee ``script`` (None: none). The gap's standard error treats the wire's and
-    the direct loop's robots as independent samples (a chaotic episode's two plays part early); robots of
-    one episode are not. Under a script, ``wire_fouls`` is the share of robot-episodes with a foul the field
-    server called (``eval_fouls``: None, as the direct loop of a scenario without a referee calls none)."""
+    ``noise`` (mm, deg) and referee ``script`` (None: none; a game scenario plays its own referee). The
+    gaps' standard error treats the wire's and the direct loop's robots as independent samples (a chaotic
+    episode's two plays part early); robots of one episode are not. Under a referee, ``wire_fouls``: the
+    share of robot-episodes with a foul (a game scenario's: ended by one, as ``eval_fouls`` counts them;
+    a script's: any the field server called, and ``eval_fouls`` None, as the direct loop has no referee)."""
     config = manager_task(manager, task if _takes_task(manager) else None)
-    robots = make_scenario(config).num_agents
+    scenario = make_scenario(config)
+    robots, game = scenario.num_agents, isinstance(scenario, GameScenario)
     options = ("--noise-mm", str(noise[0]), "--noise-deg", str(noise[1]))
+    team = "yellow" if game else "blue"  # the game scenarios' own team
     wired_run = WiredRun(
-        manager, task, robots, episodes, seed, field_options=options, lockstep=True, script=script
+        manager,
+        task,
+        robots,
+        episodes,
+        seed,
+        lockstep=True,
+        field_options=options,
+        script=script,
+        referee=game,
+        team=team,
     )
     _, records = wired_run.run(None)
     wired = _outcomes(*(np.array([r[k] for r in records]) for k in ("success", "collision", "length")))
-    direct_out = _outcomes(
-        *direct_episodes(DeployView(manager, robots, config).policy, config, episodes, seed)
-    )
+    keys = ("success", "collision", "length") + (("foul",) if game else ())
+    direct = direct_episodes(DeployView(manager, robots, config).policy, config, episodes, seed, keys)
+    direct_out = _outcomes(*direct[:3])
     samples = episodes * robots
-    variance = sum(p * (1 - p) for p in (wired["success"], direct_out["success"])) / samples
+    gap, gap_se = _gap(wired["success"], direct_out["success"], samples)
     row = {
-        "bench": "deploy task" if script is None else "deploy game",
+        "bench": "deploy task" if script is None and not game else "deploy game",
         "manager": label,
         "task": task,
         "episodes": episodes,
@@ -320,23 +351,21 @@ def task_row(
         "noise_deg": noise[1],
         **{f"wire_{k}": round(v, 3) for k, v in wired.items()},
         **{f"eval_{k}": round(v, 3) for k, v in direct_out.items()},
-        "success_gap_points": round(100 * (wired["success"] - direct_out["success"]), 1),
-        "success_gap_se_points": round(100 * float(np.sqrt(variance)), 1),
+        "success_gap_points": gap,
+        "success_gap_se_points": gap_se,
     }
-    if script is not None:
+    if game:
+        fouled, direct_fouled = float(np.mean([r["foul"] for r in records])), float(np.mean(direct[3] > 0))
+        foul_gap, foul_se = _gap(fouled, direct_fouled, samples)
+        row |= {"wire_fouls": round(fouled, 3), "eval_fouls": round(direct_fouled, 3)}
+        row |= {"foul_gap_points": foul_gap, "foul_gap_se_points": foul_se}
+    elif script is not None:
         fouled = float(np.mean([bool(r["fouls"]) for r in records]))
-        row |= {
-            "referee_script": script,
-            "wire_fouls": round(fouled, 3),
-            "wire_fouls_se_points": round(100 * float(np.sqrt(fouled * (1 - fouled) / samples)), 1),
-            "eval_fouls": None,
-        }
+        row |= {"referee_script": script, "wire_fouls": round(fouled, 3), "eval_fouls": None}
     return row
 
 
-# The game row: a scenario and the referee's schedule the field server plays it under. game_stop (issue 53)
-# is the one the row is for; until it is registered the row runs on another multi-robot scenario by name.
-GAME_TASK, GAME_SCRIPT = "game_stop", "2.0:STOP"
+GAME_TASK = "game_stop"  # the game row's scenario: it plays its own referee, the field server sends it
 
 
 ROWS = ("tracking", "latency", "task", "game")
@@ -372,9 +401,7 @@ def deploy_rows(
         if run is not None:
             yield task_row(run, Path(run).name, manager_task(run).scenario_name, episodes, noise=noise)
     if "game" in rows:
-        if GAME_TASK not in SCENARIOS:
-            raise ValueError(f"the game row plays {GAME_TASK!r}, which is not registered yet (issue 53)")
-        yield task_row("sampling", "sampling", GAME_TASK, episodes, noise=noise, script=GAME_SCRIPT)
+        yield task_row("sampling", "sampling", GAME_TASK, episodes, noise=noise)
 
 
 __all__ = [

@@ -144,6 +144,8 @@ class Controller:
         state = view.state(rows, view.fields(rows))
         grid = live.reshape(view.n, view.m)
         if self.decide_now or self.since_decision >= view.frame_skip or (live & ~self.was_live).any():
+            if view.game and self.referee is not None:
+                view.set_game(self.referee, self._ball(now))
             view.decide(state, grid, rules)
             self.since_decision, self.decide_now = 0, False
         self.since_decision += 1
@@ -163,8 +165,7 @@ class Controller:
         referee), the ball where vision saw it within ``BALL_AGE``."""
         if self.referee is None:
             return None
-        fresh = now - self.tracker.ball_seen <= BALL_AGE
-        ball = self.tracker.ball if fresh else None
+        ball = self._ball(now)
         referee, held_ball, _ = self._rules
         if referee is not self.referee or held_ball != ball:
             rules = game_rules(self.referee, self.view.field, self.players, ball)
@@ -172,6 +173,10 @@ class Controller:
             self.decide_now = self.decide_now or referee is not self.referee
             self._rules = (self.referee, ball, rules)
         return self._rules[2]
+
+    def _ball(self, now: float) -> tuple[float, float] | None:
+        """The ball where vision saw it within ``BALL_AGE`` of monotonic ``now`` (None: not known)."""
+        return self.tracker.ball if now - self.tracker.ball_seen <= BALL_AGE else None
 
     def _told(self, commands: list[Command], t: float) -> list[Command]:
         """``commands``, told to the tracker as sent at vision time ``t``: its filters' control input."""

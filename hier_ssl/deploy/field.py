@@ -449,8 +449,10 @@ class FieldServer:
         return frame
 
     def _send_new_targets(self, control: socket.socket | None) -> None:
-        """The targets again where the task changed them in mid-episode (a game scenario's command)."""
+        """The targets again where the task changed them in mid-episode (a game scenario's command): held as
+        the sub-goals, as at the reset, and sent to the controller."""
         if not np.array_equal(self.core.target, self.targets_sent):
+            self.core.hold_subgoal(self.core.target)
             self._send_targets(control)
 
     def _send_targets(self, control: socket.socket | None) -> None:

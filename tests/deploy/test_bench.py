@@ -25,7 +25,6 @@ from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
-from hier_ssl.envs.scenarios import SCENARIOS
 
 
 def test_a_latency_row_times_frames_to_commands() -> None:
@@ -102,11 +101,16 @@ def test_the_11_robot_latency_row_decides_for_all_of_them_in_one_batched_call(tm
     assert main(["bench", "deploy", "--rows", "latency", "--robots", "1,7"]) == 1
 
 
-def test_a_game_row_compares_the_wire_under_the_field_servers_referee_with_the_direct_loop() -> None:
-    # game_stop (issue 53) is the row's scenario; any scenario shows the comparison and the fouls.
+def test_a_row_under_the_field_servers_referee_script_counts_its_fouls_through_the_wire() -> None:
     row = task_row("direct", "direct", "crowd", episodes=1, seed=2, noise=(0.0, 0.0), script="0.5:STOP")
     assert row["bench"] == "deploy game" and row["referee_script"] == "0.5:STOP"
-    assert row["robot_samples"] == 1 and 0.0 <= row["wire_fouls"] <= 1.0 and row["eval_fouls"] is None
+    assert row["robot_samples"] == 1 and row["wire_fouls"] in (0.0, 1.0) and row["eval_fouls"] is None
     assert row["wire_success"] in (0.0, 1.0) and row["eval_success"] in (0.0, 1.0)
-    if GAME_TASK not in SCENARIOS:
-        assert main(["bench", "deploy", "--rows", "game"]) == 1  # said plainly, not skipped
+
+
+def test_the_game_row_plays_game_stop_with_its_own_referee_through_the_wire() -> None:
+    row = task_row("direct", "direct", GAME_TASK, episodes=1, seed=0, noise=(0.0, 0.0))
+    assert (row["bench"], row["task"], row["robot_samples"]) == ("deploy game", "game_stop", 6)
+    assert "referee_script" not in row and 0 <= row["wire_fouls"] <= 1 and 0 <= row["eval_fouls"] <= 1
+    assert row["wire_success"] > 0  # its robots reach the role positions STOP gives them in mid-episode
+    assert abs(row["foul_gap_points"] - 100 * (row["wire_fouls"] - row["eval_fouls"])) < 0.1

@@ -246,13 +246,14 @@ def _field(args: argparse.Namespace) -> int:
         ball=None if args.ball is None else parse_xy(args.ball, "ball"),
     )
     ports = {"vision_port": args.vision_port, "grsim_port": server.grsim_port}
-    ports["referee_port"] = args.referee_port if referee is not None else None
+    refereed = referee is not None or server.game  # a game scenario plays its own referee
+    ports["referee_port"] = args.referee_port if refereed else None
     print(json.dumps({"task": args.task, **ports, "simulation_port": server.simulation_port}), flush=True)
     try:
         server.run(args.episodes, _stop_on_signals(), lambda record: print(json.dumps(record), flush=True))
     finally:
         server.close()
-    if referee is not None:
+    if refereed:
         print(json.dumps({"fouls": server.foul_counts()}), flush=True)
     return 0
 

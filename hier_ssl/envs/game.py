@@ -13,12 +13,12 @@ contact that is no crash stays a collision. The opponents are an ``OpponentTeam`
 in HALT every command is zero.
 
 - ``game_stop`` (Division B, 6 v 6): the game runs with a rolling ball; STOP comes at a random time and our
-  robots take their role positions, legally, for the ball where it is then.
+  robots take their role positions, legally, for the ball where it will come to rest.
 - ``game_free_kick``: the opponent's free kick in our half; our robots take defending positions.
 - ``game_ball_placement``: an opponent carries the ball to the placement position; our robots cross the
   field around the stadium the rules forbid.
-- ``game_match`` (Division A, 11 v 11): the game runs; our robots reposition through 21 other robots and a
-  rolling ball.
+- ``game_match`` (Division A, 11 v 11): the game runs; the ball lost, our robots fall back from the half
+  we attack into ours, through 21 other robots and a rolling ball.
 
 Places are drawn in a frame where our goal is at negative x and mirrored into each field (the side each
 team defends and the field's y are drawn per episode): the boxes below are fractions of the field's half
@@ -63,6 +63,7 @@ from hier_ssl.game.zones import BALL, OPPONENT_DEFENSE, OWN_DEFENSE
 from hier_ssl.manager import HIT_REWARD, SUCCESS_REWARD
 from hier_ssl.manager.game_observation import GAME_OBS_DIM, game_columns
 from hier_ssl.world.entities import Entities
+from hier_ssl.world.field import Field as FieldSpec
 from hier_ssl.world.physics import RobotState, World
 
 COMMAND_NUMBERS = {name: number for number, name in COMMANDS.items()}
@@ -117,6 +118,13 @@ class GamePlacement(Placement):
     blue_on_positive_half: np.ndarray | None = None
     command_step: np.ndarray | None = None
     placement_pos: np.ndarray | None = None
+
+
+def rest_point(pos: np.ndarray, vel: np.ndarray, deceleration: float, field: FieldSpec) -> np.ndarray:
+    """(F, 2) m where balls at ``pos`` (F, 2) rolling at ``vel`` (F, 2) m/s come to rest under a constant
+    ``deceleration`` m/s^2, if nothing stops them first, held inside ``field``'s playing area."""
+    rolled = pos + vel * np.linalg.norm(vel, axis=-1, keepdims=True) / (2 * deceleration)
+    return np.clip(rolled, [-field.half_length, -field.half_width], [field.half_length, field.half_width])
 
 
 def _robots(zones: Zones, robots: slice) -> Zones:
@@ -348,7 +356,7 @@ class GameScenario(FieldScenario):
     # -- each control step ---------------------------------------------------------------------------------
 
     def pre_step(self, core: Any, command: np.ndarray) -> None:
-        """The command comes where its time has (with new role positions for the ball where it is then);
+        """The command comes where its time has (with new role positions for the ball where it will stop);
         the opponents' commands into their rows; HALT stops every robot."""
         steps, playing = core.steps, core.active.any(axis=1)
         came = np.flatnonzero(playing & (steps == self.command_step) & (self.command_step > 0))
@@ -357,7 +365,9 @@ class GameScenario(FieldScenario):
             self.referee.command[came] = self.command
             referee = self.referee_of(came)
             mirror = self._mirror(referee, core.rng)
-            core.set_targets(came, self._targets(core.rng, referee, world.ball.pos[came, 0], mirror))
+            ball = world.ball.fields(came)
+            rest = rest_point(ball.pos[:, 0], ball.vel[:, 0], world.ball_spec.deceleration, self.field)
+            core.set_targets(came, self._targets(core.rng, referee, rest, mirror))
         state = world.state
         theirs = self.team.commands(state, world.ball.pos[:, 0], self.referee, self.lineup, steps, core.rng)
         np.copyto(command[:, self.num_agents :], theirs, where=playing[:, None, None])
@@ -492,7 +502,8 @@ class StopOptions(GameOptions):
 @register_scenario
 class GameStop(GameScenario):
     """Division B, 6 v 6: the game runs with a rolling ball; STOP comes at a random time and our robots take
-    role positions in our half, legally for the ball where it is then, under STOP's speed limit."""
+    role positions in our half, legally for the ball where it will come to rest, under STOP's speed
+    limit."""
 
     name = "game_stop"
     Options = StopOptions
@@ -558,11 +569,15 @@ class MatchOptions(GameOptions):
 
 @register_scenario
 class GameMatch(GameScenario):
-    """Division A, 11 v 11, the game running (FORCE_START): our robots reposition anywhere on the field
-    through the 21 other robots and a rolling ball."""
+    """Division A, 11 v 11, the game running (FORCE_START): the ball lost, our robots fall back from the
+    half we attack to positions in ours, through the 21 other robots and a rolling ball."""
 
     name = "game_match"
     Options = MatchOptions
+    # Short moves within one half were solved by ``sampling`` at 96 % (frame skip 1); falling back across
+    # the field, as a team does after losing the ball, takes every robot through the opponents' lines.
+    start_box = ((0.0, -1.0), (1.0, 1.0))
+    target_box = ((-1.0, -1.0), (0.0, 1.0))
     defaults = GAME_DEFAULTS | {
         "field": "division_a",
         "num_agents": 11,
@@ -582,4 +597,5 @@ __all__ = [
     "GameScenario",
     "GameStop",
     "game_outcome",
+    "rest_point",
 ]

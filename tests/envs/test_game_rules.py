@@ -10,9 +10,10 @@ import pytest
 import hier_ssl
 from hier_ssl.config import ConfigError
 from hier_ssl.envs import HierarchicalCore, Scenario, scenario_config
-from hier_ssl.envs.game import COLLIDED, FOULED, IN_PLAY, SUCCEEDED, game_outcome
+from hier_ssl.envs.game import COLLIDED, FOULED, IN_PLAY, SUCCEEDED, game_outcome, rest_point
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import evaluate
+from hier_ssl.evaluation.figures import label_outcomes, panel_title
 from hier_ssl.evaluation.report import make_record, markdown_table
 from hier_ssl.game import (
     DIRECT_FREE_BLUE,
@@ -124,13 +125,17 @@ def test_stop_comes_at_its_drawn_step_with_new_legal_role_positions() -> None:
     targets = []
     for _ in range(12):
         targets.append(core.target.copy())
+        ball = core.world.ball  # where it is when STOP comes at step 10, and how fast it rolls
         assert scenario.referee.command.tolist() == [FORCE_START if core.steps[0] <= 10 else STOP] * 2
         core.step(np.zeros((2, 2, core.act_dim)))
     assert scenario.referee.command.tolist() == [STOP, STOP]
     assert not np.array_equal(targets[10], targets[11])  # the role positions of the ball where it was
     np.testing.assert_array_equal(targets[0], targets[10])
-    ball = core.world.ball.pos[:, 0]
-    zones = forbidden_zones(scenario.referee, ball, core.field, scenario.ours)
+    # Legal for the ball where it comes to rest: at 0.5 m/s^2 from its position and velocity then.
+    rest = rest_point(ball.pos[:, 0], ball.vel[:, 0], core.world.ball_spec.deceleration, core.field)
+    speed = np.linalg.norm(ball.vel[:, 0], axis=-1)
+    np.testing.assert_allclose(np.linalg.norm(rest - ball.pos[:, 0], axis=-1), speed**2 / 1.0, rtol=1e-12)
+    zones = forbidden_zones(scenario.referee, rest, core.field, scenario.ours)
     clear = signed_distance(zones, core.target[..., 0:2])
     assert clear.min() >= scenario.options.target_margin - 1e-9
 
@@ -217,3 +222,15 @@ def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() ->
     np.testing.assert_array_equal(core.observe(np.array([2, 0])), core.observe()[[2, 0]])
     referee = core.scenario.referee.fields([2, 0])
     np.testing.assert_array_equal(referee.placement, core.scenario.referee.placement[[2, 0]])
+
+
+def test_a_fouled_robot_is_labelled_a_foul_in_figures() -> None:
+    result = {"trajectories": [{"field": 0}]}
+    no = np.zeros((1, 3), bool)
+    label_outcomes(
+        result, no, np.array([[False, True, False]]), np.zeros((1, 3)), np.array([[True, False, False]])
+    )
+    episode = result["trajectories"][0]
+    assert episode["outcome"] == ["foul", "collision", "timeout"]
+    episode["robots"] = np.zeros((5, 3, 2))
+    assert panel_title("direct", episode) == "direct\n0/3 reached, 1 collided (robot 1), 1 fouled, 4 steps"

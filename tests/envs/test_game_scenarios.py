@@ -52,7 +52,11 @@ def test_the_vector_views_take_the_games(name: str) -> None:
     gym_vec = hier_ssl.manager_vector_env(name, num_fields=2, **_small(name))
     obs, _ = gym_vec.reset(seed=0)
     assert obs.shape == (4, gym_vec.core.obs_dim) and gym_vec.num_envs == 4
-    gym_vec.step(np.zeros((4, gym_vec.core.act_dim), np.float32))
+    # Past the time limit (12 decisions of 4 control steps): every field resets inside step.
+    for _ in range(12):
+        obs, _, terminated, truncated, info = gym_vec.step(np.zeros((4, gym_vec.core.act_dim), np.float32))
+    assert (terminated | truncated).all() and info["_task_foul"].any()
+    assert (gym_vec.core.steps == 0).all() and (gym_vec.core.scenario.way == 0).all()
     torch_vec = hier_ssl.scenario_vector_env(name, num_fields=2, **_small(name))
     obs = torch_vec.reset(seed=0)
     out = torch_vec.step(torch.zeros((4, torch_vec.core.act_dim)))

@@ -29,8 +29,11 @@ command the script has in force at the episode's time to 127.0.0.1:``referee_por
 frames, so that the controller's tick on them is under it), and after each world step it calls the fouls
 of the step with the rules' functions the environments call (``hier_ssl.game.fouls.step_fouls``), for
 every robot of both teams: counted by robot and kind in each episode's records and in ``fouls`` over the
-run. The ball is the world's where the task's world has one (the game scenarios), otherwise one lying
-still at ``ball`` (the centre spot unless given); either goes into the cameras' frames and the rules.
+run. A game scenario (``hier_ssl.envs.game``) plays its own referee: its state goes out the same way, its
+targets go to the controller again when its command changes them, and its fouls are its own (the team
+is then yellow, as the scenario's). The ball is the world's where the task's world has one (the game
+scenarios), otherwise one lying still at ``ball`` (the centre spot unless given); either goes into the
+cameras' frames and the rules.
 """
 
 from __future__ import annotations

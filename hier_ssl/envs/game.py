@@ -77,6 +77,7 @@ GAME_DEFAULTS = {
 }
 # How a robot's episode ended, per robot: still in play, at its target, in a collision, by a foul.
 IN_PLAY, SUCCEEDED, COLLIDED, FOULED = 0, 1, 2, 3
+MARK_DISTANCE = 0.4  # m goal-side of the opponent a marking role position lies
 Box = tuple[tuple[float, float], tuple[float, float]]  # (low, high) x, y in fractions of the half field
 
 
@@ -163,6 +164,7 @@ class GameScenario(FieldScenario):
     target_box: ClassVar[Box] = ((-1.0, -1.0), (1.0, 1.0))  # our robots' role positions
     ball_box: ClassVar[Box] = ((-0.6, -0.8), (0.6, 0.8))
     placement_box: ClassVar[Box] = ((0.0, 0.0), (0.0, 0.0))  # the ball placement position (placement only)
+    mark_share: ClassVar[float] = 0.0  # of our field robots, whose role position marks an opponent
     stat_names = ("foul", *(f"foul_{kind}" for kind in KINDS))
     rules_in_observation = True
 
@@ -257,17 +259,20 @@ class GameScenario(FieldScenario):
         mirror: np.ndarray,
         zones: Zones,
         placed: np.ndarray,
+        first: np.ndarray | None = None,
     ) -> np.ndarray:
         """Points (F, C, 2) drawn in ``box`` (low, high (C, 2), drawing frame), mirrored into each field,
         moved to the nearest point ``target_margin`` beyond their zones (F, C, S), inside the field lines and
         at least ``gap`` from each other and from ``placed`` (F, P, 2): a point that is not is drawn again
-        until none is."""
+        until none is. ``first`` (F, C, 2), field frame: the points to try before any draw, where not NaN."""
         f, c = zones.kind.shape[:2]
         inflated = Zones(zones.kind, zones.shape, zones.clearance + self.options.target_margin)
         earlier = np.tril(np.ones((c, c), bool), k=-1)
         pts, bad = np.zeros((f, c, 2)), np.ones((f, c), bool)
-        for _ in range(1000):
+        for attempt in range(1000):
             fresh = rng.uniform(box[0], box[1], (f, c, 2)) * mirror
+            if attempt == 0 and first is not None:
+                fresh = np.where(np.isnan(first), fresh, first)
             pts = nearest_legal(inflated, np.where(bad[..., None], fresh, pts))
             near = np.linalg.norm(pts[:, :, None] - pts[:, None], axis=-1) < self.gap
             near_placed = np.linalg.norm(pts[:, :, None] - placed[:, None], axis=-1) < self.gap
@@ -278,11 +283,31 @@ class GameScenario(FieldScenario):
                 return pts
         raise RuntimeError(f"scenario {self.name!r}: cannot place {c} robots {self.gap} m apart, legally")
 
+    def _marks(self, rng: np.random.Generator, referee: RefereeState, theirs: np.ndarray) -> np.ndarray:
+        """(F, M, 2) m: for a share ``mark_share`` of our robots but the keeper, drawn per robot, a point
+        ``MARK_DISTANCE`` goal-side of an opponent at ``theirs`` (F, K, 2) (each its own while there are
+        enough), on the line to our goal's centre; NaN for the others."""
+        f, m, k = len(theirs), self.num_agents, self.num_obstacles
+        marked = np.argsort(rng.random((f, k)), axis=1)[:, np.arange(m) % k]
+        opponent = np.take_along_axis(theirs, marked[..., None], axis=1)
+        goal = np.stack([own_side(referee, self.ours)[:, 0] * self.field.half_length, np.zeros(f)], axis=-1)
+        to_goal = goal[:, None] - opponent
+        unit = to_goal / np.maximum(np.linalg.norm(to_goal, axis=-1, keepdims=True), 1e-9)
+        marking = rng.random((f, m)) < self.mark_share
+        marking[:, self.options.keeper if 0 <= self.options.keeper < m else []] = False
+        return np.where(marking[..., None], opponent + MARK_DISTANCE * unit, np.nan)
+
     def _targets(
-        self, rng: np.random.Generator, referee: RefereeState, ball: np.ndarray, mirror: np.ndarray
+        self,
+        rng: np.random.Generator,
+        referee: RefereeState,
+        ball: np.ndarray,
+        mirror: np.ndarray,
+        theirs: np.ndarray,
     ) -> np.ndarray:
-        """Our robots' role positions (F, M, 5) under ``referee`` with the ball at ``ball`` (F, 2): the
-        keeper before its goal, the others in ``target_box``, all legal, facing the ball, at rest."""
+        """Our robots' role positions (F, M, 5) under ``referee`` with the ball at ``ball`` (F, 2) and the
+        opponents at ``theirs`` (F, K, 2): the keeper before its goal, a share marking opponents
+        (``_marks``), the others in ``target_box``, all legal, facing the ball, at rest."""
         m = self.num_agents
         zones = _robots(forbidden_zones(referee, ball, self.field, self.lineup), slice(0, m))
         low, high = (np.array(a) for a in self._box(self.target_box, m))
@@ -290,7 +315,8 @@ class GameScenario(FieldScenario):
         if 0 <= keeper < m:  # the keeper's box: 0.25 m before the goal line, within the goal's width
             edge, half_goal = self.field.half_length, self.field.goal_width / 2
             low[keeper], high[keeper] = (-edge + 0.2, -0.6 * half_goal), (-edge + 0.3, 0.6 * half_goal)
-        pos = self._spread(rng, (low, high), mirror, zones, ball[:, None])
+        marks = self._marks(rng, referee, theirs)
+        pos = self._spread(rng, (low, high), mirror, zones, ball[:, None], marks)
         target = np.zeros(pos.shape[:2] + (5,))
         target[..., 0:2] = pos
         to_ball = ball[:, None] - pos
@@ -327,7 +353,7 @@ class GameScenario(FieldScenario):
         return GamePlacement(
             pos,
             rng.uniform(-np.pi, np.pi, (f, m + k)),
-            self._targets(rng, played, ball[:, 0], mirror),
+            self._targets(rng, played, ball[:, 0], mirror, theirs),
             ball_pos=ball,
             ball_vel=ball_vel,
             blue_on_positive_half=blue_positive,
@@ -367,7 +393,8 @@ class GameScenario(FieldScenario):
             mirror = self._mirror(referee, core.rng)
             ball = world.ball.fields(came)
             rest = rest_point(ball.pos[:, 0], ball.vel[:, 0], world.ball_spec.deceleration, self.field)
-            core.set_targets(came, self._targets(core.rng, referee, rest, mirror))
+            theirs = world.state.pos[came, self.num_agents :]
+            core.set_targets(came, self._targets(core.rng, referee, rest, mirror, theirs))
         state = world.state
         theirs = self.team.commands(state, world.ball.pos[:, 0], self.referee, self.lineup, steps, core.rng)
         np.copyto(command[:, self.num_agents :], theirs, where=playing[:, None, None])
@@ -517,8 +544,8 @@ class FreeKickOptions(GameOptions):
 
 @register_scenario
 class GameFreeKick(GameScenario):
-    """The opponent's free kick in our half (Division B, 6 v 6): our robots take defending positions between
-    the ball and our goal, 0.5 m from the ball, while the opponents move."""
+    """The opponent's free kick in our half (Division B, 6 v 6): our robots take defending positions in our
+    half, 0.5 m from the ball, half of them marking an attacker goal-side, while the opponents move."""
 
     name = "game_free_kick"
     Options = FreeKickOptions
@@ -526,6 +553,7 @@ class GameFreeKick(GameScenario):
     start_box = ((-1.0, -1.0), (0.5, 1.0))
     target_box = ((-1.0, -1.0), (-0.1, 1.0))
     ball_box = ((-0.7, -0.8), (-0.1, 0.8))
+    mark_share = 0.5  # half the defenders mark an attacker goal-side, as a defence does at a free kick
 
 
 class PlacementOptions(GameOptions):
@@ -570,14 +598,16 @@ class MatchOptions(GameOptions):
 @register_scenario
 class GameMatch(GameScenario):
     """Division A, 11 v 11, the game running (FORCE_START): the ball lost, our robots fall back from the
-    half we attack to positions in ours, through the 21 other robots and a rolling ball."""
+    half we attack to positions in ours, half of them marking an opponent goal-side, through the 21 other
+    robots and a rolling ball."""
 
     name = "game_match"
     Options = MatchOptions
-    # Short moves within one half were solved by ``sampling`` at 96 % (frame skip 1); falling back across
-    # the field, as a team does after losing the ball, takes every robot through the opponents' lines.
+    # Moves anywhere were solved by ``sampling`` at 96 % (frame skip 1), falling back across the field
+    # alone at 97 %: the team falls back to mark, half of it goal-side of an opponent that moves on.
     start_box = ((0.0, -1.0), (1.0, 1.0))
     target_box = ((-1.0, -1.0), (0.0, 1.0))
+    mark_share = 0.5
     defaults = GAME_DEFAULTS | {
         "field": "division_a",
         "num_agents": 11,

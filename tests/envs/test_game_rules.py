@@ -9,8 +9,16 @@ import pytest
 
 import hier_ssl
 from hier_ssl.config import ConfigError
-from hier_ssl.envs import HierarchicalCore, Scenario, scenario_config
-from hier_ssl.envs.game import COLLIDED, FOULED, IN_PLAY, SUCCEEDED, game_outcome, rest_point
+from hier_ssl.envs import HierarchicalCore, Scenario, make_scenario, scenario_config
+from hier_ssl.envs.game import (
+    COLLIDED,
+    FOULED,
+    IN_PLAY,
+    MARK_DISTANCE,
+    SUCCEEDED,
+    game_outcome,
+    rest_point,
+)
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.evaluation.figures import label_outcomes, panel_title
@@ -234,3 +242,16 @@ def test_a_fouled_robot_is_labelled_a_foul_in_figures() -> None:
     assert episode["outcome"] == ["foul", "collision", "timeout"]
     episode["robots"] = np.zeros((5, 3, 2))
     assert panel_title("direct", episode) == "direct\n0/3 reached, 1 collided (robot 1), 1 fouled, 4 steps"
+
+
+def test_half_the_defenders_at_a_free_kick_mark_an_attacker_goal_side() -> None:
+    scenario = make_scenario(scenario_config("game_free_kick"))
+    placement = scenario.reset_world_at(100, np.random.default_rng(0))
+    target, theirs = placement.target[:, 1:, 0:2], placement.pos[:, 6:]  # robot 0 is the keeper
+    gaps = np.linalg.norm(target[:, :, None] - theirs[:, None], axis=-1)
+    marking = np.abs(gaps - MARK_DISTANCE).min(axis=-1) < 1e-9  # left where the mark put it
+    assert 0.3 < marking.mean() < 0.5  # of the half drawn, the marks that no zone or robot moved
+    our_goal = np.where(placement.blue_on_positive_half, -1.0, 1.0) * scenario.field.half_length
+    marked = np.take_along_axis(theirs, np.abs(gaps - MARK_DISTANCE).argmin(axis=-1)[..., None], axis=1)
+    nearer = np.abs(target[..., 0] - our_goal[:, None]) < np.abs(marked[..., 0] - our_goal[:, None])
+    assert nearer[marking].all()

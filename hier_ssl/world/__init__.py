@@ -1,6 +1,6 @@
 """The world: field geometry, robot bodies, obstacle behaviours and contacts, N fields stepped together.
 
-A world's fields hold entities of the kinds it simulates (``entities.py``: robots now, the ball next),
+A world's fields hold entities of the kinds it simulates (``entities.py``: robots and balls),
 added in groups by a scenario. Everything crosses this boundary as arrays with a leading (fields, entities
 of one kind) pair of axes. Drawing
 (``hier_ssl.world.render``, matplotlib) is imported where it is used.
@@ -8,6 +8,7 @@ of one kind) pair of axes. Drawing
 
 from __future__ import annotations
 
+from hier_ssl.world.ball import BallSpec, BallState
 from hier_ssl.world.entities import KINDS, Entities
 from hier_ssl.world.field import FIELDS, Field, get_field
 from hier_ssl.world.frames import to_field_frame, to_robot_frame, wrap_angle
@@ -27,6 +28,8 @@ __all__ = [
     "KINDS",
     "OBSTACLE_AGENT_OBS_DIM",
     "OBSTACLES",
+    "BallSpec",
+    "BallState",
     "Entities",
     "Field",
     "PublicCodeRandom",

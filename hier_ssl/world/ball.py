@@ -21,9 +21,8 @@ class BallSpec:
     along the contact normal alone, and a wall only turns back its normal velocity.
     """
 
-    # Rules 2.2 "Ball": a standard orange golf ball, 42.7 mm across and 46 g (the ER-Force simulator, as
-    # vendored in UBC-Thunderbots/Software's er_force_sim/src/core/simulator/simball.h, uses the same
-    # BALL_RADIUS 0.0215 and BALL_MASS 0.046).
+    # Rules 2.2 "Ball": an orange golf ball, 0.043 m across. The ER-Force simulator (its simball.h, as
+    # UBC-Thunderbots/Software vendors it in er_force_sim) has BALL_RADIUS 0.0215 and BALL_MASS 0.046.
     radius: float = 0.0215
     mass: float = 0.046
     # The ER-Force simulator's BALL_ROLLING_FRICTION_DECELERATION (simball.h above): 0.5 m/s^2 while the

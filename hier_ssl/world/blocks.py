@@ -64,9 +64,10 @@ class FieldBlock:
 
     Bodies sit at the World's field ``offsets`` (F, 2), so a field's coordinates and their rounding do
     not depend on its block. ``owners`` maps each shape to its (field, robot) index in the World, robot -1
-    for walls; ``joints`` lists the block's joints. After ``fast.read()``, ``robot_rows`` (C, R, 6) holds
-    each robot's x, y, angle, vx, vy, w. ``step`` writes the velocity rows the World gave ``bind``, at the
-    rows ``body_rows()`` names, and reads into its read rows; ``place`` sets a field's bodies.
+    for walls and goal walls, (field, ball) for a ball; ``joints`` lists the block's joints. After
+    ``fast.read()``, ``robot_rows`` (C, R, 6) holds each robot's x, y, angle, vx, vy, w. ``step`` writes
+    the velocity rows the World gave ``bind``, at the rows ``body_rows()`` names, and reads into its read
+    rows; ``place`` sets a field's bodies, ``place_balls`` its balls.
 
     With ``num_balls`` balls in every field (of ``ball``'s spec), every field also gets its two goals
     (``hier_ssl.world.goals``) and its balls, whose rows ``ball_rows`` (C, B, 6) are read like the
@@ -99,7 +100,7 @@ class FieldBlock:
         self.owners: dict[pymunk.Shape, tuple[int, int]] = {}
         self.joints: list[pymunk.Constraint] = []
         self._bodies = self._build(offsets, field, robot, parked)
-        self._balls = self._build_balls(offsets, field, ball or BallSpec(), parked) if num_balls else []
+        self._balls = self._build_balls(offsets, field, ball or BallSpec()) if num_balls else []
         # pymunk.batch lists the space's static body once the space has stepped.
         self.space.step(sub_dt)
         self.space.on_collision(ROBOT, ROBOT, pre_solve=handlers[0])
@@ -151,15 +152,14 @@ class FieldBlock:
                 self.owners[disc] = (f, i)
         return robots, controls
 
-    def _build_balls(
-        self, offsets: np.ndarray, field: Field, spec: BallSpec, parked: np.ndarray
-    ) -> list[pymunk.Body]:
+    def _build_balls(self, offsets: np.ndarray, field: Field, spec: BallSpec) -> list[pymunk.Body]:
         """Each field's goals and balls, added after every robot: pymunk.batch then lists the balls (dynamic)
         right after the robots, so that both are strided views of its rows."""
         boxes = goal_boxes(field)
-        # Until the first reset the balls wait on the centre line, clear of the parked robots.
-        spots = np.stack([np.zeros(self.num_balls), 4 * spec.radius * np.arange(self.num_balls)], axis=-1)
-        spots[:, 1] += parked[:, 1].max() + 0.5
+        # Until the first reset the balls wait on a touch line, clear of the robots parked at the centre.
+        spots = np.stack(
+            [4 * spec.radius * np.arange(self.num_balls), np.full(self.num_balls, field.half_width)], -1
+        )
         balls = []
         for f in range(self.start, self.stop):
             for box in boxes:

@@ -83,7 +83,7 @@ def unpack_rows(
 @numba.njit(cache=True)
 def _first_hit(
     px: float, py: float, vx: float, vy: float, time: float, limits: np.ndarray, boxes: np.ndarray
-):
+) -> tuple[float, int]:
     """When (s, at most ``time``) a ball at (px, py) moving at (vx, vy) first meets a wall or a goal wall,
     and along which axis (0 x, 1 y; -1 for none). The walls hold its centre within the reach ``limits[2:4]``;
     ``boxes`` (G, 4) are the goal walls grown by the ball's radius (their corners square, not round)."""
@@ -126,14 +126,16 @@ def ball_rows(
     delta: np.ndarray,
 ) -> None:
     """What a step writes into pymunk for the balls: at row ``at[f, b]`` of ``out`` (rows, 3) ball b of
-    field f's (vx, vy, 0), and into ``delta`` (N, B, 2) what to add to the velocity pymunk gives back.
+    field f's (vx, vy, 0), and into ``delta`` (N, B, 3) how ``unpack_balls`` turns the velocity pymunk
+    gives back into the period's last: add (dx, dy), then take off a speed h along it, never turning it.
 
     A ball at ``pos`` (N, B, 2) rolling at ``vel`` (N, B, 2) slows down by ``limits[0]`` m/s^2 over the
     period ``limits[1]`` s: pymunk carries it at the period's mean velocity, so that it travels exactly
-    what the constant deceleration gives (v^2 / (2 a) to a stop), and the period's last velocity is that
-    mean plus ``delta``. Its straight path is also swept against the walls and ``boxes`` (G, 4), the goal
-    walls grown by its radius: each bounce turns back the normal velocity times the restitution
-    ``limits[4]``, and pymunk carries the ball to where the bounces leave it. Chipmunk would only see a
+    what the constant deceleration gives (v^2 / (2 a) to a stop), and h is the second half-period's loss
+    (a robot that stops it leaves it at rest). Its straight path is also swept against the walls and
+    ``boxes`` (G, 4), the goal walls grown by its radius: each bounce turns back the normal velocity times
+    the restitution ``limits[4]``, and pymunk carries the ball to where the bounces leave it, (dx, dy)
+    being what the bounced last velocity differs from that carrying one (h 0). Chipmunk would only see a
     wall once the ball overlaps it, and at 6.5 m/s a ball crosses a goal wall within a substep.
     """
     decel, dt, restitution = limits[0], limits[1], limits[4]
@@ -146,7 +148,7 @@ def ball_rows(
             else:  # it stops within the period, after speed^2 / (2 decel)
                 mean, last = speed / (2.0 * decel * dt), 0.0
             mx, my, ex, ey = vx * mean, vy * mean, vx * last, vy * last
-            px, py, left = pos[f, b, 0], pos[f, b, 1], dt
+            px, py, left, bounced = pos[f, b, 0], pos[f, b, 1], dt, False
             for _ in range(4):  # a ball in a corner meets two walls within one period
                 t, axis = _first_hit(px, py, mx, my, left, limits, boxes)
                 px, py, left = px + mx * t, py + my * t, left - t
@@ -156,9 +158,13 @@ def ball_rows(
                     my, ey = -restitution * my, -restitution * ey
                 else:
                     break
+                bounced = True
             row = out[at[f, b]]
             row[0], row[1], row[2] = (px - pos[f, b, 0]) / dt, (py - pos[f, b, 1]) / dt, 0.0
-            delta[f, b, 0], delta[f, b, 1] = ex - row[0], ey - row[1]
+            if bounced:
+                delta[f, b, 0], delta[f, b, 1], delta[f, b, 2] = ex - row[0], ey - row[1], 0.0
+            else:
+                delta[f, b, 0], delta[f, b, 1], delta[f, b, 2] = 0.0, 0.0, 0.5 * decel * dt
 
 
 @numba.njit(cache=True)
@@ -171,13 +177,17 @@ def unpack_balls(
     vel: np.ndarray,
 ) -> None:
     """The read-back ``rows`` (N, B, 6) of the balls of ``fields`` (F,) ints written into a ball state's
-    field-frame ``pos`` (N, B, 2) and ``vel`` (N, B, 2): pymunk's velocity plus ``delta`` (N, B, 2), what
-    ``ball_rows`` left out of it; other fields' entries are left as they are."""
+    field-frame ``pos`` (N, B, 2) and ``vel`` (N, B, 2): pymunk's velocity turned into the period's last
+    by ``delta`` (N, B, 3), what ``ball_rows`` left out of it; other fields' entries are left as they
+    are."""
     for f in fields:
         for b in range(rows.shape[1]):
-            row = rows[f, b]
+            row, d = rows[f, b], delta[f, b]
             pos[f, b, 0], pos[f, b, 1] = row[0] - offsets[f, 0], row[1] - offsets[f, 1]
-            vel[f, b, 0], vel[f, b, 1] = row[3] + delta[f, b, 0], row[4] + delta[f, b, 1]
+            vx, vy = row[3] + d[0], row[4] + d[1]
+            speed = math.hypot(vx, vy)
+            keep = max(speed - d[2], 0.0) / speed if speed > 0.0 else 0.0
+            vel[f, b, 0], vel[f, b, 1] = vx * keep, vy * keep
 
 
 __all__ = ["ball_rows", "unpack_balls", "unpack_rows", "velocity_rows"]

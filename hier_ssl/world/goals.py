@@ -1,9 +1,9 @@
 """The two goals of a field as walls: each goal's two side walls and its back wall, as boxes.
 
 Rules 2.1.4 "Goals": each goal's inner width is the field's ``goal_width`` and it reaches ``goal_depth``
-behind the goal line, the side walls' front ends (the posts) on the goal line. The rules do not give the
-walls' thickness; 0.02 m is grSim's (``Goal_Thickness``, RoboCup-SSL/grSim). The back wall spans the side
-walls' outer faces, so that a goal is one closed U.
+behind the goal line, the side walls' front ends (the posts) on the goal line, and its walls are 0.02 m
+thick (grSim's ``Goal_Thickness``, RoboCup-SSL/grSim, too). The back wall spans the side walls' outer
+faces, so that a goal is one closed U.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 
 from hier_ssl.world.field import Field
 
-GOAL_WALL_THICKNESS = 0.02  # m, grSim's Goal_Thickness
+GOAL_WALL_THICKNESS = 0.02  # m, rules 2.1.4
 
 
 def goal_boxes(field: Field) -> np.ndarray:

@@ -24,6 +24,7 @@ import pymunk
 
 from hier_ssl.world.ball import BallSpec, BallState
 from hier_ssl.world.blocks import BALL, ROBOT, FieldBlock, block_bounds
+from hier_ssl.world.checks import check_inside, checked_arrays, checked_fields
 from hier_ssl.world.entities import Entities, robots
 from hier_ssl.world.exchange import ball_rows, unpack_balls, unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
@@ -79,9 +80,9 @@ class World:
         field: Field | str = "hardware_challenge",
         robot: RobotSpec | None = None,
         dt: float = 0.025,
-        ball: BallSpec | None = None,
         substeps: int = 2,
         iterations: int = 5,
+        ball: BallSpec | None = None,
     ) -> None:
         if not (isinstance(num_fields, int | np.integer) and num_fields >= 1):
             raise ValueError(f"num_fields must be an integer >= 1, got {num_fields!r}")
@@ -141,7 +142,7 @@ class World:
         self.ball_touch = np.zeros((n, r), dtype=bool)
         self._contacts_set = False  # whether a callback has written a contact since the last clearing
         # What a ball's next read-back velocity lacks (``exchange.ball_rows``): nothing before a step.
-        self._ball_delta = np.zeros((n, self.num_balls, 2))
+        self._ball_delta = np.zeros((n, self.num_balls, 3))
         self.ball: BallState | None = None
         self.state = self._read_state()
 
@@ -172,10 +173,10 @@ class World:
         for block, size in zip(self.blocks, sizes, strict=True):
             reads = self._read_rows[block.fields], self._ball_read[block.fields]
             block.bind(self._velocity_rows[first : first + size], *reads)
-            robot_rows, control_rows, ball_rows_ = block.body_rows()
-            self._velocity_at[block.fields, :, 0] = first + robot_rows
-            self._velocity_at[block.fields, :, 1] = first + control_rows
-            self._ball_at[block.fields] = first + ball_rows_
+            robot_at, control_at, ball_at = block.body_rows()
+            self._velocity_at[block.fields, :, 0] = first + robot_at
+            self._velocity_at[block.fields, :, 1] = first + control_at
+            self._ball_at[block.fields] = first + ball_at
             first += size
         reach = (hx - spec.radius, hy - spec.radius)
         self._limits = np.array([spec.max_speed, spec.max_ang_speed, self.dt, *reach])
@@ -254,11 +255,8 @@ class World:
         """A new ball state from the rows of the last read, of every field or of ``fields`` (F,) ints and
         the current ball state's other fields (as ``_state_of_rows``)."""
         if fields is None:
-            fields = self._all_fields
-            pos, vel = (
-                np.empty((self.num_fields, self.num_balls, 2)),
-                np.empty((self.num_fields, self.num_balls, 2)),
-            )
+            fields, shape = self._all_fields, (self.num_fields, self.num_balls, 2)
+            pos, vel = np.empty(shape), np.empty(shape)
         else:
             pos, vel = self.ball.pos.copy(), self.ball.vel.copy()
         unpack_balls(self._ball_read, self.offsets, self._ball_delta, fields, pos, vel)
@@ -290,7 +288,7 @@ class World:
 
         Shapes: fields (M,) ints; pos (M, R, 2); angle (M, R); vel (M, R, 2) and ang_vel (M, R), zero if None.
         """
-        fields = self._checked_fields(fields)
+        fields = checked_fields(fields, self.num_fields)
         m, r = len(fields), self.num_robots
         vel = np.zeros((m, r, 2)) if vel is None else vel
         ang_vel = np.zeros((m, r)) if ang_vel is None else ang_vel
@@ -300,8 +298,8 @@ class World:
             "vel": (vel, (m, r, 2)),
             "ang_vel": (ang_vel, (m, r)),
         }
-        checked = _checked_arrays("set_state", arrays)
-        _check_inside("set_state", "robot", fields, checked["pos"], self._limits[3:5])
+        checked = checked_arrays("set_state", "robot", fields, arrays)
+        check_inside("set_state", "robot", fields, checked["pos"], self._limits[3:5])
         if m == 0:
             return
         packed = np.concatenate(
@@ -331,24 +329,16 @@ class World:
         """
         if self.ball is None:
             raise ValueError("set_balls: this world holds no balls (its entities add none)")
-        fields = self._checked_fields(fields)
+        fields = checked_fields(fields, self.num_fields)
         shape = (len(fields), self.num_balls, 2)
         vel = np.zeros(shape) if vel is None else vel
-        checked = _checked_arrays("set_balls", {"pos": (pos, shape), "vel": (vel, shape)})
-        _check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
+        checked = checked_arrays("set_balls", "ball", fields, {"pos": (pos, shape), "vel": (vel, shape)})
+        check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
         rows = np.concatenate([checked["pos"] + self.offsets[fields, None, :], checked["vel"]], axis=-1)
         for f, field_rows in zip(fields.tolist(), rows, strict=True):
             self._ball_read[f] = self.blocks[self._block_of[f]].place_balls(f, field_rows)
         self._ball_delta[fields] = 0.0
         self.ball = self._balls_of_rows(fields)
-
-    def _checked_fields(self, fields: np.ndarray | list[int]) -> np.ndarray:
-        """``fields`` as (F,) int64, each one of this world's."""
-        fields = np.asarray(fields, dtype=np.int64).reshape(-1)
-        if len(fields) and (fields.min() < 0 or fields.max() >= self.num_fields):
-            bad = fields[(fields < 0) | (fields >= self.num_fields)]
-            raise ValueError(f"field index {bad.tolist()} out of range [0, {self.num_fields})")
-        return fields
 
     # -- stepping -----------------------------------------------------------------------------------------
 
@@ -358,8 +348,9 @@ class World:
         ``command`` (N, R, 3) is each robot's (vx, vy, w) in its own frame, m/s and rad/s. The world caps
         speed and angular speed at the robot's limits; acceleration is capped by the joints' force. After
         the call ``state`` holds the new poses and ``robot_contacts`` (N, R, R) / ``wall_contacts`` (N, R)
-        tell which robots touched which robot or wall during any substep of this period, ``robot_touch``
-        (N, R) which touched any robot.
+        tell which robots touched which robot or wall (a goal wall included) during any substep of this
+        period, ``robot_touch`` (N, R) which touched any robot and ``ball_touch`` (N, R) which touched a
+        ball; ``ball`` holds the balls' new positions and velocities.
         """
         command = as_float(command)
         expected = (self.num_fields, self.num_robots, 3)
@@ -401,29 +392,3 @@ class World:
         """Write the velocity rows into ``blocks``, step them and read them back, one after another."""
         for block in blocks:
             block.step(self._sub_dt, self.substeps)
-
-
-def _checked_arrays(method: str, arrays: dict[str, tuple[object, tuple[int, ...]]]) -> dict[str, np.ndarray]:
-    """Each of ``arrays`` (name: (value, expected shape)) as float64 of its shape and finite; a ValueError
-    naming ``method`` and the array otherwise."""
-    checked = {}
-    for name, (value, shape) in arrays.items():
-        value = np.asarray(value, dtype=np.float64)
-        if value.shape != shape:
-            raise ValueError(f"{method}: {name} has shape {value.shape}, expected {shape}")
-        if not all_finite(value):
-            f, i = np.argwhere(~np.isfinite(value.reshape(*shape[:2], -1)).all(axis=-1))[0]
-            raise ValueError(f"{method}: {name} holds NaN or infinite values ({name}[{f}, {i}])")
-        checked[name] = value
-    return checked
-
-
-def _check_inside(method: str, kind: str, fields: np.ndarray, pos: np.ndarray, reach: np.ndarray) -> None:
-    """A ValueError naming the first entity of ``pos`` (F, E, 2) whose centre is beyond ``reach`` (x, y)."""
-    outside = (np.abs(pos) > reach).any(axis=-1)
-    if np.count_nonzero(outside):
-        f, i = np.argwhere(outside)[0]
-        raise ValueError(
-            f"{method}: {kind} {i} of field {fields[f]} at {pos[f, i].tolist()} is not inside "
-            f"the walls (|x| <= {reach[0]:.3f}, |y| <= {reach[1]:.3f})"
-        )

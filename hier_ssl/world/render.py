@@ -49,7 +49,7 @@ def render_fields(
     collision_robot: Sequence[int] | None = None,
     extra: Callable[[Axes], None] | None = None,
     balls: np.ndarray | None = None,
-    ball: BallSpec | None = None,
+    ball: BallSpec | None = None,  # the balls' radius (default: ``BallSpec()``)
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
@@ -65,9 +65,7 @@ def render_fields(
     points of this field where controlled robots hit another robot, marked with a cross above everything
     else in the colour of the robot ``collision_robot[c]`` (an index among the controlled ones; default 0).
     ``extra`` draws on the axes (field frame, m) what a scenario adds, above the field's lines and under
-    everything else. ``balls`` (N, B, 2), every field's ball positions (a ``BallState``'s ``pos``), are
-    drawn orange above the robots, at ``ball``'s radius (default: ``BallSpec()``) but never smaller than a
-    field line is wide, so that a ball stays visible in a small image.
+    everything else. ``balls`` (N, B, 2) (a ``BallState``'s ``pos``) are orange discs above the robots.
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -117,7 +115,8 @@ def render_fields(
 
 
 def _draw_balls(ax: Axes, points: np.ndarray, radius: float, line_pt: float) -> None:
-    """Balls (B, 2) as orange discs with a dark edge, above the robots."""
+    """Balls (B, 2) as orange discs with a dark edge, above the robots, of the ball's ``radius`` but at
+    least a field line's width, so that a ball stays visible in a small image."""
     radius = max(radius, _LINE_WIDTH_M)
     ax.add_collection(
         PatchCollection(

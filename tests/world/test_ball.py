@@ -88,6 +88,20 @@ def test_a_robot_driving_into_the_ball_pushes_it_and_touches_it() -> None:
     assert not world.ball_touch.any()
 
 
+def test_a_ball_bounces_off_a_robot_at_its_restitution() -> None:
+    world = _world(1)
+    world.set_state([0], np.array([[[1.0, 0.0]]]), np.zeros((1, 1)))
+    world.set_balls([0], np.zeros((1, 1, 2)), np.array([[[2.0, 0.0]]]))
+    before = world.ball.vel[0, 0, 0]
+    while not world.ball_touch[0, 0]:
+        before = world.ball.vel[0, 0, 0]
+        world.step(np.zeros((1, 1, 3)))
+    # The robot, 48 times heavier and held by its motors, barely moves: the ball keeps about the
+    # restitution's share of its speed, less a period's rolling deceleration.
+    after = world.ball.vel[0, 0, 0]
+    assert -SPEC.restitution_robot * before * 1.05 < after < -SPEC.restitution_robot * before * 0.9
+
+
 def _shot(world: World, start: tuple[float, float], vel: tuple[float, float], steps: int) -> np.ndarray:
     """The ball's path (T, 2) after a shot from ``start`` at ``vel`` in field 0."""
     world.set_balls([0], np.array([[start]]), np.array([[vel]]))
@@ -140,7 +154,9 @@ def test_set_balls_names_the_bad_value() -> None:
         world.set_balls([0], np.zeros((1, 1, 2)))
     bad = np.zeros((1, 2, 2))
     bad[0, 1, 0] = np.nan
-    with pytest.raises(ValueError, match=r"set_balls: vel holds NaN or infinite values \(vel\[0, 1\]\)"):
+    with pytest.raises(
+        ValueError, match=r"set_balls: vel holds NaN or infinite values: \[nan, 0.0\], ball 1 of field 1"
+    ):
         world.set_balls([1], np.zeros((1, 2, 2)), bad)
     far = np.zeros((1, 2, 2))
     far[0, 1] = (4.0, 5.0)
@@ -185,6 +201,25 @@ def test_each_fields_ball_rolls_as_in_a_world_of_its_own() -> None:
     np.testing.assert_array_equal(many.ball.pos[0], one.ball.pos[0])
     np.testing.assert_allclose(many.ball.pos[2], one.ball.pos[0], atol=1e-9)
     assert np.abs(many.ball.pos[1] - many.ball.pos[0]).max() > 1.0
+
+
+def test_blocks_stepped_in_threads_move_the_balls_as_one_thread_does() -> None:
+    worlds = [_world(70, robots=2) for _ in range(2)]  # two blocks of 35 fields
+    worlds[1].use_threads(2)
+    rng = np.random.default_rng(3)
+    robots, balls, vel = (
+        rng.uniform(-1, 1, (70, 2, 2)),
+        rng.uniform(-1, 1, (70, 1, 2)),
+        rng.uniform(-3, 3, (70, 1, 2)),
+    )
+    command = np.tile([1.0, 0.0, 0.0], (70, 2, 1))
+    for world in worlds:
+        world.set_state(np.arange(70), robots * [1.0, 3.0], np.zeros((70, 2)))
+        world.set_balls(np.arange(70), balls, vel)
+        for _ in range(10):
+            world.step(command)
+    np.testing.assert_array_equal(worlds[0].ball.pos, worlds[1].ball.pos)
+    np.testing.assert_array_equal(worlds[0].ball_touch, worlds[1].ball_touch)
 
 
 class _BallCrossing(Crossing):

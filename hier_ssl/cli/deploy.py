@@ -188,6 +188,26 @@ def add_field(subparsers: argparse._SubParsersAction) -> None:
         help="step the world once per command period, waiting for the commands (at most 100 ms), instead "
         "of every 25 ms of wall-clock time; the controller runs with deploy --lockstep",
     )
+    field.add_argument(
+        "--referee-script",
+        default=None,
+        metavar="SCRIPT",
+        help="play referee: TIME:COMMAND entries of each episode's time, comma-separated, a ball placement "
+        "with its position (m), e.g. 2.0:STOP,5.0:FORCE_START,8.0:BALL_PLACEMENT_YELLOW@1.0,-0.5; the "
+        "game runs before the first; fouls are counted per robot and kind",
+    )
+    field.add_argument(
+        "--referee-port",
+        type=int,
+        default=10003,
+        help="send the Referee messages to 127.0.0.1:PORT (deploy --referee 127.0.0.1:PORT)",
+    )
+    field.add_argument(
+        "--ball",
+        default=None,
+        metavar="X,Y",
+        help="a ball lying still there, m (default: none; with a referee script, the centre spot)",
+    )
     field.set_defaults(func=_field)
 
 
@@ -195,8 +215,14 @@ def _field(args: argparse.Namespace) -> int:
     import math
 
     from hier_ssl.deploy.field import Cameras, FieldServer
+    from hier_ssl.deploy.referee_script import parse_script, parse_xy
     from hier_ssl.envs import task_config
+    from hier_ssl.world.field import get_field
 
+    config = task_config(args.task)
+    referee = None
+    if args.referee_script is not None:
+        referee = parse_script(args.referee_script, get_field(config.field))
     cameras = Cameras(
         args.cameras,
         rate=args.rate,
@@ -206,7 +232,7 @@ def _field(args: argparse.Namespace) -> int:
         latency=args.latency_ms / 1000,
     )
     server = FieldServer(
-        task_config(args.task),
+        config,
         args.vision_port,
         args.team,
         cameras,
@@ -215,13 +241,20 @@ def _field(args: argparse.Namespace) -> int:
         args.control,
         args.seed,
         lockstep=args.lockstep,
+        referee=referee,
+        referee_port=args.referee_port,
+        ball=None if args.ball is None else parse_xy(args.ball, "ball"),
     )
     ports = {"vision_port": args.vision_port, "grsim_port": server.grsim_port}
+    refereed = referee is not None or server.game  # a game scenario plays its own referee
+    ports["referee_port"] = args.referee_port if refereed else None
     print(json.dumps({"task": args.task, **ports, "simulation_port": server.simulation_port}), flush=True)
     try:
         server.run(args.episodes, _stop_on_signals(), lambda record: print(json.dumps(record), flush=True))
     finally:
         server.close()
+    if refereed:
+        print(json.dumps({"fouls": server.foul_counts()}), flush=True)
     return 0
 
 
@@ -237,20 +270,33 @@ def add_bench_deploy(bench: argparse.ArgumentParser) -> None:
     bench.add_argument(
         "--rows",
         default="tracking,latency,task",
-        help="which rows, comma-separated: tracking, latency, task (default all)",
+        help="which rows, comma-separated: tracking, latency, task, game (game_stop under the field server's "
+        "referee; default tracking,latency,task)",
+    )
+    bench.add_argument(
+        "--robots",
+        default="1,6",
+        help="the latency rows' robot counts, comma-separated: 1 (obstacle), 6 (formation), 11 (formation on "
+        "the Division A field) (default 1,6)",
     )
     bench.set_defaults(func=_bench_deploy)
 
 
 def _bench_deploy(args: argparse.Namespace) -> int:
-    from hier_ssl.deploy.bench import ROWS, deploy_rows
+    from hier_ssl.deploy.bench import LATENCY_TASKS, ROWS, deploy_rows
 
     rows = tuple(args.rows.split(","))
     if not set(rows) <= set(ROWS):
         raise ValueError(f"rows {args.rows!r}: expected a comma-separated choice of {', '.join(ROWS)}")
+    counts = tuple(args.robots.split(","))
+    if not set(counts) <= {str(k) for k in LATENCY_TASKS}:
+        raise ValueError(
+            f"robots {args.robots!r}: expected a comma-separated choice of {sorted(LATENCY_TASKS)}"
+        )
     _one_thread()
     noise = (args.noise_mm, args.noise_deg)
-    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority, noise, rows):
+    robots = tuple(map(int, counts))
+    for row in deploy_rows(args.run, args.seconds, args.episodes, args.priority, noise, rows, robots):
         print(
             json.dumps(row) if args.json else "  " + ", ".join(f"{k} {v}" for k, v in row.items()), flush=True
         )

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hier_ssl.deploy.game import game_rules
+from hier_ssl.deploy.game import game_rules, labelled_lineup
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
@@ -89,6 +89,7 @@ class Controller:
         self.view, self.tracker, self.team = view, tracker, team
         self.robots, self.max_age = list(robots), max_age
         self.keys = [(team, robot) for robot in robots]
+        self.players = labelled_lineup(self.keys)  # the rules' lineup of the controlled robots
         self.has_target = np.zeros(len(robots), dtype=bool)
         self.was_live = np.zeros(len(robots), dtype=bool)
         self.since_decision = 0
@@ -143,6 +144,8 @@ class Controller:
         state = view.state(rows, view.fields(rows))
         grid = live.reshape(view.n, view.m)
         if self.decide_now or self.since_decision >= view.frame_skip or (live & ~self.was_live).any():
+            if view.game and self.referee is not None:
+                view.set_game(self.referee, self._ball(now))
             view.decide(state, grid, rules)
             self.since_decision, self.decide_now = 0, False
         self.since_decision += 1
@@ -162,15 +165,18 @@ class Controller:
         referee), the ball where vision saw it within ``BALL_AGE``."""
         if self.referee is None:
             return None
-        fresh = now - self.tracker.ball_seen <= BALL_AGE
-        ball = self.tracker.ball if fresh else None
+        ball = self._ball(now)
         referee, held_ball, _ = self._rules
         if referee is not self.referee or held_ball != ball:
-            rules = game_rules(self.referee, self.view.field, self.team, self.robots, ball)
+            rules = game_rules(self.referee, self.view.field, self.players, ball)
             # A new command: decide under it now; a ball that moved: the next decision plans round it.
             self.decide_now = self.decide_now or referee is not self.referee
             self._rules = (self.referee, ball, rules)
         return self._rules[2]
+
+    def _ball(self, now: float) -> tuple[float, float] | None:
+        """The ball where vision saw it within ``BALL_AGE`` of monotonic ``now`` (None: not known)."""
+        return self.tracker.ball if now - self.tracker.ball_seen <= BALL_AGE else None
 
     def _told(self, commands: list[Command], t: float) -> list[Command]:
         """``commands``, told to the tracker as sent at vision time ``t``: its filters' control input."""

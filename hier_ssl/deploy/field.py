@@ -22,6 +22,18 @@ controller's ticks) let one command act for no step or for two; in lockstep each
 in ``hier-ssl eval``, so the through-the-wire episodes follow the directly played ones. The controller
 ticks on the frames (``hier-ssl deploy --lockstep``). grSim and a real field run on their own clocks: the
 free-running mode is the one that stands in for them.
+
+Referee (``referee``, a script of ``hier_ssl.deploy.referee_script``): the field server plays the game
+controller too. Each time the world's clock moves on a period it sends the ``Referee`` message of the
+command the script has in force at the episode's time to 127.0.0.1:``referee_port`` (before the period's
+frames, so that the controller's tick on them is under it), and after each world step it calls the fouls
+of the step with the rules' functions the environments call (``hier_ssl.game.fouls.step_fouls``), for
+every robot of both teams: counted by robot and kind in each episode's records and in ``fouls`` over the
+run. A game scenario (``hier_ssl.envs.game``) plays its own referee: its state goes out the same way, its
+targets go to the controller again when its command changes them, and its fouls are its own (the team
+is then yellow, as the scenario's). The ball is the world's where the task's world has one (the game
+scenarios), otherwise one lying still at ``ball`` (the centre spot unless given); either goes into the
+cameras' frames and the rules.
 """
 
 from __future__ import annotations
@@ -40,7 +52,9 @@ from typing import Any
 import numpy as np
 
 from hier_ssl.config import TaskConfig
+from hier_ssl.deploy.game import labelled_lineup
 from hier_ssl.deploy.net import LOOPBACK, receive
+from hier_ssl.deploy.referee_script import Call, GameController, ScriptedReferee
 from hier_ssl.deploy.wire import (
     TEAMS,
     Detection,
@@ -53,9 +67,12 @@ from hier_ssl.deploy.wire import (
     parse_simulation,
 )
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.game import FOULED, GameScenario
+from hier_ssl.game.fouls import KINDS, Motion, new_clocks, step_fouls
 
 STEP = 0.025  # s
 COMMAND_TIMEOUT = 0.1  # s
+REFEREE_PORT = 10003  # the game controller's port in the league (its multicast group's)
 
 
 @dataclass(frozen=True)
@@ -97,9 +114,11 @@ def camera_frames(
     strips: np.ndarray,
     t_capture: float,
     rng: np.random.Generator,
+    ball: tuple[float, float] | None = None,
 ) -> list[DetectionFrame]:
     """One frame per camera of robots at ``pos`` (R, 2) m, ``angle`` (R,) labelled ``teams``: each camera
-    reports the robots inside its strip, with noise and drops. Shapes of the outputs: a tuple per frame."""
+    reports the robots inside its strip, with noise and drops, and the ``ball`` (m; None: none) where it
+    lies inside the strip, as it is. Shapes of the outputs: a tuple per frame."""
     frames = []
     for c, (low, high) in enumerate(strips):
         inside = (pos[:, 0] >= low) & (pos[:, 0] <= high) & (rng.random(len(pos)) >= cameras.drop)
@@ -110,13 +129,17 @@ def camera_frames(
             for i, (team, robot) in enumerate(teams)
             if inside[i]
         )
-        frames.append(DetectionFrame(t_capture, t_capture + cameras.latency, c, seen))
+        sees_ball = ball is not None and low <= ball[0] <= high
+        frames.append(
+            DetectionFrame(t_capture, t_capture + cameras.latency, c, seen, ball if sees_ball else None)
+        )
     return frames
 
 
 class FieldServer:
-    """Serves one field of ``config`` over 127.0.0.1 (module docstring), free-running or in ``lockstep``.
-    Ports 0 pick free ones, read back as ``grsim_port`` and ``simulation_port``."""
+    """Serves one field of ``config`` over 127.0.0.1 (module docstring), free-running or in ``lockstep``,
+    playing ``referee`` (a parsed script; None: no referee, no fouls called). Ports 0 pick free ones, read
+    back as ``grsim_port`` and ``simulation_port``."""
 
     def __init__(
         self,
@@ -130,6 +153,9 @@ class FieldServer:
         seed: int = 0,
         settle: float = 0.15,
         lockstep: bool = False,
+        referee: tuple[Call, ...] | None = None,
+        referee_port: int = REFEREE_PORT,
+        ball: tuple[float, float] | None = None,
     ) -> None:
         if team not in TEAMS:
             raise ValueError(f"team {team!r}: expected one of {TEAMS}")
@@ -164,6 +190,17 @@ class FieldServer:
         self.commanded = np.full(self.m, -np.inf)
         self.dropped = self.frames_sent = 0
         self.capture_time = time.time()
+        self.game = isinstance(self.core.scenario, GameScenario)  # it plays its own referee, calls its fouls
+        if self.game and (referee is not None or team != "yellow"):
+            raise ValueError(
+                f"{self.core.scenario.name}: a game scenario plays its own referee (no referee script) and "
+                f"its controlled robots are the yellow team (team 'yellow'), got team {team!r}"
+            )
+        self.referee = None if referee is None else ScriptedReferee(referee, fld)
+        self.game_controller, self.referee_to = GameController(), (LOOPBACK, referee_port)
+        self.ball = (0.0, 0.0) if ball is None and referee is not None else ball
+        self.players = labelled_lineup(self.labels)
+        self.fouls = np.zeros((self.m + self.k, len(KINDS)), dtype=np.int64)  # by robot and kind, the run's
 
     @staticmethod
     def _listen(port: int) -> socket.socket:
@@ -229,6 +266,7 @@ class FieldServer:
                 continue
             next_step += STEP
             self.capture_time = time.time()  # the world as it stands now: stepped below, or still
+            self._call()
             if sent is None and now - start >= self.settle:
                 self._send_targets(control)
                 self._read_grsim()  # commands sent before the targets were taken: not the first ones
@@ -240,6 +278,7 @@ class FieldServer:
                 running = (self.commanded > sent).all() or now - sent > COMMAND_TIMEOUT
             if running:
                 live, over = self._step(live, now)
+                self._send_new_targets(control)
                 if over:
                     ended(episode)
                     episode += 1
@@ -269,6 +308,7 @@ class FieldServer:
                 while not (self.commanded > published).all() and clock() - published <= COMMAND_TIMEOUT:
                     self._serve(max(0.0, published + COMMAND_TIMEOUT - clock()))
                 live, over = self._step(live, clock())
+                self._send_new_targets(control)
             if over:
                 ended(episode)
                 episode += 1
@@ -278,6 +318,7 @@ class FieldServer:
         camera's frames whose capture falls in the step's period at the camera's rate (one or two at 60
         Hz, always at least one: the controller ticks on them); the next frame number."""
         self.capture_time = epoch + step * STEP
+        self._call()
         t0, t1 = (round(k * STEP * self.cameras.rate, 9) for k in (step, step + 1))
         pending: list[tuple[float, int, bytes]] = []
         for _ in range(math.ceil(t1) - math.ceil(t0)):
@@ -293,11 +334,69 @@ class FieldServer:
         self.command[:] = 0.0
         self.outcome = {"success": np.zeros(self.m, bool), "collision": np.zeros(self.m, bool)}
         self.length = np.zeros(self.m, dtype=np.int64)
+        self.game_controller.restart()
+        if self.referee is not None:
+            self.clocks, self.episode_fouls = new_clocks(1, self.m + self.k), np.zeros_like(self.fouls)
+            self.touching = np.zeros_like(self.core.world.robot_contacts)
         return np.ones((1, self.m), dtype=bool)
+
+    def _call(self) -> None:
+        """The referee's message at the episode's time, sent now: the script's or the game scenario's state
+        (neither: nothing)."""
+        if self.referee is not None:
+            self.rules = self.referee.at(self.core.steps[0] * STEP)
+        elif self.game:
+            self.rules = self.core.scenario.referee_of(None)
+        else:
+            return
+        wall = time.time()
+        self.out.sendto(self.game_controller.packet(self.rules, wall), self.referee_to)
+
+    def _ball(self) -> tuple[float, float] | None:
+        """Where the ball is: the world's first, where its world has balls, or the still one."""
+        balls = self.core.world.ball
+        return self.ball if balls is None else tuple(balls.pos[0, 0].tolist())
+
+    def _motion(self) -> Motion:
+        state = self.core.world.state
+        return Motion(state.pos.copy(), state.vel.copy())
+
+    def _call_fouls(self, before: Motion) -> None:
+        """The fouls of the world step from ``before`` (``step_fouls``), added to the episode's and the
+        run's counts; a contact is a crash's only in the step it begins."""
+        touching = np.triu(self.core.world.robot_contacts, 1)
+        began = np.argwhere(touching & ~self.touching)
+        self.touching = touching
+        self.clocks, report = step_fouls(
+            self.clocks,
+            self.rules,
+            self.players,
+            self.core.field,
+            before,
+            self._motion(),
+            np.array([self._ball()], dtype=float),
+            began,
+            STEP,
+        )
+        self.episode_fouls += report.by_robot[0]
+        self.fouls += report.by_robot[0]
+
+    def foul_counts(self, fouls: np.ndarray | None = None) -> dict[str, dict[str, int]]:
+        """``fouls`` (robots, kinds; default the run's) by robot ("blue 0") and kind, robots without any
+        left out."""
+        fouls = self.fouls if fouls is None else fouls
+        return {
+            f"{team} {robot}": {kind: int(n) for kind, n in zip(KINDS, row, strict=True) if n}
+            for (team, robot), row in zip(self.labels, fouls, strict=True)
+            if row.any()
+        }
 
     def _step(self, live: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
         command = np.where((now - self.commanded <= COMMAND_TIMEOUT)[:, None], self.command, 0.0)
+        before = self._motion() if self.referee is not None else None
         _, success, hit = self.core.control_step(live, worker_action=(command / self.scale)[None])
+        if before is not None:
+            self._call_fouls(before)
         self.length += live[0]
         self.outcome["success"] |= success[0]
         self.outcome["collision"] |= hit[0]
@@ -306,7 +405,8 @@ class FieldServer:
         return live, bool(timeout or not live.any())
 
     def _records(self, episode: int) -> list[dict[str, Any]]:
-        return [
+        """One record per controlled robot; with a referee, its fouls of the episode by kind."""
+        records = [
             {
                 "episode": episode,
                 "robot": i,
@@ -316,13 +416,31 @@ class FieldServer:
             }
             for i in range(self.m)
         ]
+        if self.game:  # the scenario's own fouls, which end a robot's episode
+            self.episode_fouls = np.zeros_like(self.fouls)
+            self.episode_fouls[: self.m] = self.core.scenario.fouls[0]
+            self.fouls += self.episode_fouls
+            for i, record in enumerate(records):
+                record["foul"] = bool(self.core.scenario.way[0, i] == FOULED)
+        if self.referee is not None or self.game:
+            fouls = self.foul_counts(self.episode_fouls)
+            for i, record in enumerate(records):
+                record["fouls"] = fouls.get(f"{self.team} {i}", {})
+        return records
 
     def _capture(self, frame: int, pending: list, now: float) -> int:
         """Every camera's frame of the world as it stands, queued in ``pending`` to go out ``latency`` s
         after ``now``; a geometry packet with every ``rate``-th round of frames; the next frame number."""
         s = self.core.world.state
         frames = camera_frames(
-            s.pos[0], s.angle[0], self.labels, self.cameras, self.strips, self.capture_time, self.rng
+            s.pos[0],
+            s.angle[0],
+            self.labels,
+            self.cameras,
+            self.strips,
+            self.capture_time,
+            self.rng,
+            self._ball(),
         )
         send_at = now + self.cameras.latency
         for camera in frames:
@@ -333,8 +451,16 @@ class FieldServer:
         self.frames_sent += len(frames)
         return frame
 
+    def _send_new_targets(self, control: socket.socket | None) -> None:
+        """The targets again where the task changed them in mid-episode (a game scenario's command): held as
+        the sub-goals, as at the reset, and sent to the controller."""
+        if not np.array_equal(self.core.target, self.targets_sent):
+            self.core.hold_subgoal(self.core.target)
+            self._send_targets(control)
+
     def _send_targets(self, control: socket.socket | None) -> None:
         """Each controlled robot's target to the controller; RuntimeError with its answer if refused."""
+        self.targets_sent = self.core.target.copy()
         if control is None:
             return
         for i in range(self.m):

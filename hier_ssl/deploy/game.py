@@ -31,12 +31,20 @@ from math import inf
 
 import numpy as np
 
-from hier_ssl.deploy.guard import RELEARN, ClockGuard, counter_went_back
+from hier_ssl.deploy.guard import RELEARN, ClockGuard, Streak, counter_went_back
 from hier_ssl.deploy.net import receive
 from hier_ssl.deploy.referee import RefereeMessage, game_state, parse_referee
 from hier_ssl.deploy.wire import PacketError
 from hier_ssl.game.legal import RowRules, row_rules
-from hier_ssl.game.referee import BLUE, STOP, YELLOW, RefereeState, is_placement, lineup, referee_state
+from hier_ssl.game.referee import (
+    STOP,
+    TEAM_NAMES,
+    Lineup,
+    RefereeState,
+    is_placement,
+    lineup,
+    referee_state,
+)
 from hier_ssl.game.zones import BALL, NONE, forbidden_zones, speed_limit
 from hier_ssl.world.field import Field
 
@@ -53,8 +61,7 @@ class RefereeInput:
         self.state: RefereeState | None = None
         self.heard = -inf  # monotonic s of the last accepted message
         self.accepted = 0
-        self.going_back = 0  # packets in a row whose counter went back, all saying ``back_said``
-        self.back_said: tuple[int, str] | None = None  # (counter, command)
+        self.going_back = Streak()  # packets in a row whose counter went back, saying one (counter, command)
         self._held: tuple[RefereeState | None, RefereeState] | None = None  # (the state it holds from, STOP)
 
     def read(self, now: float, dropped: Counter) -> None:
@@ -78,10 +85,7 @@ class RefereeInput:
         last = self.message
         if last is not None and counter_went_back(message.counter, last.counter):
             # A restarted game controller repeats its count and command; corrupt packets scatter.
-            said = (message.counter, message.command)
-            self.going_back = self.going_back + 1 if said == self.back_said else 1
-            self.back_said = said
-            if self.going_back < RELEARN:
+            if self.going_back.add((message.counter, message.command)) < RELEARN:
                 if message.command == last.command:
                     # The game controller repeats the command in force: it is not silent, whatever count
                     # went ahead of it (silence would hold the team at STOP's limits, moving it out of HALT).
@@ -93,7 +97,8 @@ class RefereeInput:
             state = game_state(message, self.field)
         except ValueError:
             return "unplayable"
-        self.message, self.state, self.heard, self.going_back = message, state, arrival, 0
+        self.message, self.state, self.heard = message, state, arrival
+        self.going_back.clear()
         self.accepted += 1
         return None
 
@@ -113,20 +118,19 @@ class RefereeInput:
         self.sock.close()
 
 
+def labelled_lineup(labels: Sequence[tuple[str, int]]) -> Lineup:
+    """The rules' lineup of robots labelled (team name, vision id) as vision labels them, in their order."""
+    team = np.array([TEAM_NAMES.index(name) for name, _ in labels], dtype=np.int64)
+    return lineup(team, np.array([robot for _, robot in labels], dtype=np.int64))
+
+
 def game_rules(
-    referee: RefereeState,
-    field: Field,
-    team: str,
-    robots: Sequence[int],
-    ball: tuple[float, float] | None = None,
+    referee: RefereeState, field: Field, players: Lineup, ball: tuple[float, float] | None = None
 ) -> RowRules:
-    """The rules of the controlled ``robots`` (ids of ``team``), one planner row each in their order, under
-    ``referee`` (one field) with the ``ball`` where vision saw it (m; None: not known): zones and speed
-    limit. Without a ball, a ball placement's zone is a circle around the designated position and the
-    other commands' zones around the ball are left out: there is no position to put them at."""
-    own = BLUE if team == "blue" else YELLOW
-    ids = np.asarray(robots, dtype=np.int64)
-    players = lineup(np.full(len(ids), own), ids)
+    """The rules of the controlled robots ``players`` (``labelled_lineup``), one planner row each in their
+    order, under ``referee`` (one field) with the ``ball`` where vision saw it (m; None: not known): zones
+    and speed limit. Without a ball, a ball placement's zone is a circle around the designated position and
+    the other commands' zones around the ball are left out: there is no position to put them at."""
     at = referee.placement if ball is None else np.asarray(ball, dtype=float)[None]
     zones = forbidden_zones(referee, at, field, players)
     if ball is None and not is_placement(referee.command).all():
@@ -136,4 +140,4 @@ def game_rules(
     return row_rules(zones, speed_limit(referee))
 
 
-__all__ = ["SILENCE", "RefereeInput", "game_rules"]
+__all__ = ["SILENCE", "RefereeInput", "game_rules", "labelled_lineup"]

@@ -28,7 +28,9 @@ covers a vision PC without NTP or with a wrong time zone); otherwise the guard a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import operator
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 from hier_ssl.deploy.wire import FieldGeometry, check_field
@@ -40,14 +42,44 @@ COUNTER_SPAN = 1 << 32  # the referee's command counter is a uint32
 
 
 @dataclass
+class Streak:
+    """How many values in a row agree (``same``) with the one before them, and the last of them: the
+    guards take a new clock, field or count once enough dropped packets in a row agree on it."""
+
+    same: Callable[[Any, Any], bool] = operator.eq
+    last: Any = None
+    count: int = 0
+
+    def add(self, value: Any) -> int:
+        """Count ``value`` in (a streak of one where it does not agree with the last); the streak's length."""
+        self.count = self.count + 1 if self.count and self.same(value, self.last) else 1
+        self.last = value
+        return self.count
+
+    def clear(self) -> None:
+        self.last, self.count = None, 0
+
+
+@dataclass
 class ClockGuard:
     """Whether a packet's time fits the sender's clock as learned from the packets accepted before it."""
 
     window: float = WINDOW
     relearn: int = RELEARN
     offset: float | None = None  # the last accepted packet's time minus its arrival
-    candidate: float | None = None  # the offset the dropped packets in a row agree on
-    agreeing: int = 0
+    streak: Streak = field(init=False)  # the offsets the dropped packets in a row agree on
+
+    def __post_init__(self) -> None:
+        self.streak = Streak(lambda a, b: abs(a - b) <= self.window)
+
+    @property
+    def candidate(self) -> float | None:
+        """The offset the dropped packets in a row agree on."""
+        return self.streak.last
+
+    @property
+    def agreeing(self) -> int:
+        return self.streak.count
 
     def accept(self, sent: float, arrival: float, wall: float | None = None) -> bool:
         """Whether a packet stamped ``sent`` (the sender's clock, s) that arrived at ``arrival`` (monotonic
@@ -59,16 +91,10 @@ class ClockGuard:
         if self.offset is None and wall is not None and abs(sent - wall) <= PLAUSIBLE:
             self.offset = offset
             return True
-        if self.offset is not None and abs(offset - self.offset) <= self.window:
-            self.offset, self.candidate, self.agreeing = offset, None, 0
-            return True
-        if self.candidate is not None and abs(offset - self.candidate) <= self.window:
-            self.agreeing += 1
-        else:
-            self.agreeing = 1
-        self.candidate = offset
-        if self.agreeing >= self.relearn:
-            self.offset, self.candidate, self.agreeing = offset, None, 0
+        fits = self.offset is not None and abs(offset - self.offset) <= self.window
+        if fits or self.streak.add(offset) >= self.relearn:
+            self.offset = offset
+            self.streak.clear()
             return True
         return False
 
@@ -83,19 +109,16 @@ class FieldGuard:
 
     trained: Any
     relearn: int = 3  # SSL-Vision sends its geometry every few seconds: the error comes within seconds
-    candidate: FieldGeometry | None = None
-    agreeing: int = 0
+    streak: Streak = field(default_factory=Streak)  # the other fields seen in a row
 
     def accept(self, seen: FieldGeometry) -> bool:
         try:
             check_field(seen, self.trained)
         except ValueError:
-            self.agreeing = self.agreeing + 1 if seen == self.candidate else 1
-            self.candidate = seen
-            if self.agreeing >= self.relearn:
+            if self.streak.add(seen) >= self.relearn:
                 raise
             return False
-        self.candidate, self.agreeing = None, 0
+        self.streak.clear()
         return True
 
 
@@ -121,6 +144,7 @@ __all__ = [
     "WINDOW",
     "ClockGuard",
     "FieldGuard",
+    "Streak",
     "counter_went_back",
     "frame_times_valid",
 ]

@@ -4,10 +4,17 @@ A period's tick waits for the first camera frame at or after its due time (so th
 from the newest detections, and the time from that frame's arrival to the command's send is the loop's
 own latency), but never more than ``WAIT`` past it: without vision the ticks go on, and the controller
 stops the robots it no longer sees. Every datagram that is not vision from the configured source is
-dropped and counted by reason; none of them reaches the controller. While datagrams are being dropped the
-loop says so through ``report`` (at most one line a ``REPORT_EVERY``), not only in the counts at exit: a
-wrong ``--vision-source`` or a second team's SSL-Vision on the port shows at once. On exit (``stop`` set,
-e.g. by SIGINT or SIGTERM, or ``duration`` over) every controlled robot is sent a zero command.
+dropped and counted by reason; none of them reaches the controller. While datagrams are being dropped, or
+the simulator answers with errors, the loop says so through ``report`` (the module's logger by default),
+at most one line a ``REPORT_EVERY`` on each, not only in the counts at exit: a wrong ``--vision-source``
+or a second team's SSL-Vision on the port shows at once. On exit (``stop`` set, e.g. by SIGINT or SIGTERM,
+or ``duration`` over) every controlled robot is sent a zero command.
+
+The referee (``referee``, the game controller's messages, ``hier_ssl.deploy.game.RefereeInput``): its
+socket is read beside vision's, each packet checked and counted there (drops as ``referee ...``), and the
+state in force (the last accepted message's, or STOP's limits after a second of silence) is handed to the
+controller before each tick, which plans and caps its commands by its rules from that tick on (HALT:
+zero commands).
 
 The loop's thread runs under the real-time scheduler (SCHED_FIFO at ``priority``) where the OS allows it:
 a tick computes for about a millisecond, and on cores shared with other processes (the field server, a
@@ -51,9 +58,9 @@ WAIT = 0.010  # s a tick waits past its due time for a camera frame
 WARMUP_TICKS = 40  # the first second's latencies are not kept: TorchScript's first runs are slower
 STOP_COPIES = 2  # the stop goes out twice: one lost datagram must not leave a robot driving
 PRIORITY = 10  # SCHED_FIFO priority: above every time-shared process, below interrupt threads (50)
-ERROR_LOG_PERIOD = 1.0  # s between log lines of the simulator's errors
 GATHER = 0.02  # s lockstep waits at most for the other cameras' frames of a world time (they go out together)
-REPORT_EVERY = 1.0  # s between two lines about dropped datagrams: a flood must not become a flood of lines
+REPORT_EVERY = 1.0  # s between two lines on one topic (drops, the simulator's errors): a flood must not
+# become a flood of lines
 
 
 def _raise_priority(priority: int) -> tuple[str, Callable[[], None]]:
@@ -75,7 +82,8 @@ def _raise_priority(priority: int) -> tuple[str, Callable[[], None]]:
 class LoopStats:
     """What the loop saw: camera frames and geometry packets accepted, datagrams dropped by reason,
     ticks, commands that move a robot, the latencies (s) from a frame's arrival to the command sent on it
-    (after ``WARMUP_TICKS``), the field size from geometry, the simulator's errors, the scheduling the
+    and the controller's compute time (s) of each tick that decided (both after ``WARMUP_TICKS``), the
+    field size from geometry, the simulator's errors, the scheduling the
     loop's thread ran under (``_raise_priority``)."""
 
     frames: int = 0
@@ -84,9 +92,20 @@ class LoopStats:
     ticks: int = 0
     moving_commands: int = 0
     latencies: list[float] = field(default_factory=list)
+    decisions: list[float] = field(default_factory=list)
     field_size: FieldGeometry | None = None
     simulator_errors: Counter = field(default_factory=Counter)  # by message: bounded, unlike a list of each
     scheduling: str = ""
+
+
+@dataclass
+class Throttle:
+    """When the last line on one topic was said: the next may come ``REPORT_EVERY`` s after it."""
+
+    said: float = -inf
+
+    def due(self, now: float) -> bool:
+        return now - self.said >= REPORT_EVERY
 
 
 @dataclass
@@ -124,8 +143,8 @@ class DeployLoop:
     """``controller`` fed from ``vision`` (datagrams from ``source`` only), commands out through
     ``sender``, targets in through ``control`` (optional); its thread runs at SCHED_FIFO ``priority``
     (0: time-shared) while ``run`` runs; ``lockstep`` for a field server that waits for the commands
-    (module docstring). ``report`` takes a line on the datagrams dropped since the last one, while some
-    are (None: only the counts in ``stats``)."""
+    (module docstring). ``report`` takes a line on the datagrams dropped since the last one while some are,
+    and on the simulator's errors (None: the module's logger, as warnings)."""
 
     def __init__(
         self,
@@ -146,9 +165,9 @@ class DeployLoop:
         self.controller, self.vision, self.source = controller, vision, source
         self.sender, self.control, self.clock = sender, control, clock
         self.stats = LoopStats()
-        self.report = report
-        self._reported: Counter = Counter()  # the drops already reported, and when the last report went
-        self._reported_at = clock()
+        self.report = report or log.warning
+        self._reported: Counter = Counter()  # the drops already reported
+        self._drops, self._errors = Throttle(clock()), Throttle()  # a drop's line covers the time since
         self.world = WorldTime() if lockstep else None
         self.vision_clock = ClockGuard()  # frames stamped at times no camera could send are dropped ("time")
         self.field_guard = FieldGuard(controller.view.field)
@@ -157,7 +176,6 @@ class DeployLoop:
         self.selector.register(sender.sock, selectors.EVENT_READ, "response")
         if control is not None:
             self.selector.register(control.listener, selectors.EVENT_READ, "listener")
-        self._error_logged = -inf  # when the simulator's errors were last logged (monotonic)
         self.referee = referee  # the game controller: its state holds from the next tick
         if referee is not None:
             self.selector.register(referee.sock, selectors.EVENT_READ, "referee")
@@ -195,20 +213,24 @@ class DeployLoop:
     def _report_drops(self, now: float) -> None:
         """One line to ``report`` on what was dropped since the last line, if anything was and
         ``REPORT_EVERY`` has passed since it."""
-        if self.report is None or now - self._reported_at < REPORT_EVERY:
+        if not self._drops.due(now):
             return
         new = self.stats.dropped - self._reported
         if not new:
             return
         reasons = ", ".join(f"{reason} {count}" for reason, count in sorted(new.items()))
-        self.report(f"dropped {new.total()} datagrams in {now - self._reported_at:.1f} s ({reasons})")
-        self._reported, self._reported_at = self.stats.dropped.copy(), now
+        self.report(f"dropped {new.total()} datagrams in {now - self._drops.said:.1f} s ({reasons})")
+        self._reported, self._drops.said = self.stats.dropped.copy(), now
 
     def _tick(self, now: float, arrival: float | None) -> None:
         """Send the controller's commands of monotonic time ``now``; keep the latency from ``arrival``."""
         if self.referee is not None:
             self.controller.referee = self.referee.current(self.clock())
-        self._send(self.controller.tick(now))
+        start = self.clock()
+        commands = self.controller.tick(now)
+        if self.controller.since_decision == 1 and self.stats.ticks >= WARMUP_TICKS:  # it decided
+            self.stats.decisions.append(self.clock() - start)
+        self._send(commands)
         if arrival is not None and self.stats.ticks >= WARMUP_TICKS:
             self.stats.latencies.append(self.clock() - arrival)
         self.stats.ticks += 1
@@ -278,10 +300,11 @@ class DeployLoop:
                 self.stats.dropped[f"response {err.reason}"] += 1
                 continue
             self.stats.simulator_errors.update(errors)
-            # A simulator repeats its error in each response (60 a second): logged at most once a second.
-            if errors and self.clock() - self._error_logged >= ERROR_LOG_PERIOD:
-                self._error_logged = self.clock()
-                log.warning("simulator: %s (%d so far)", errors[0], self.stats.simulator_errors.total())
+            # A simulator repeats its error in each response (60 a second): said at most once a second.
+            now = self.clock()
+            if errors and self._errors.due(now):
+                self._errors.said = now
+                self.report(f"simulator: {errors[0]} ({self.stats.simulator_errors.total()} so far)")
 
     def _send(self, commands: list) -> None:
         try:

@@ -30,8 +30,10 @@ from hier_ssl.config import ScenarioConfig, TaskConfig
 from hier_ssl.deploy.tracker import follow
 from hier_ssl.envs import make_scenario, task_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.game import GameScenario
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.game.legal import RowRules, cap_speed, nearest_legal
+from hier_ssl.game.referee import RefereeState
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import Worker, resolve_worker
 from hier_ssl.world.field import get_field
@@ -172,6 +174,8 @@ class DeployView:
         self.field = get_field(config.field)
         self.reach = np.array(self.field.wall_half_extent) - self.robot.radius
         self.planner = manager in PLANNERS
+        # A game scenario observes the referee's state and the ball (its planner reads its rules there).
+        self.game = isinstance(scenario, GameScenario)
         # The core's arrays: its decoding writes sub-goals there, the observation reads targets there.
         self.target, self.subgoal = self.core.target, self.core.subgoal
 
@@ -203,6 +207,21 @@ class DeployView:
         pos = np.where(missing[..., None], corner, np.clip(picked[..., 0:2], -self.reach, self.reach))
         return RobotState(pos, picked[..., 2], picked[..., 3:5], picked[..., 5])
 
+    def set_game(self, referee: RefereeState, ball: tuple[float, float] | None) -> None:
+        """What a game scenario observes besides the robots, which it reads from its own state and world:
+        the ``referee``'s state received (one field) and the ``ball`` tracked (m; None: not seen, where it
+        was), in every field."""
+        n = self.n
+        self.core.scenario.referee = RefereeState(
+            np.repeat(referee.command, n),
+            np.repeat(referee.placement, n, axis=0),
+            np.repeat(referee.keeper, n, axis=0),
+            np.repeat(referee.blue_on_positive_half, n),
+        )
+        if ball is not None:
+            pos = np.broadcast_to(np.asarray(ball, dtype=float), (n, 1, 2))
+            self.core.world.set_balls(np.arange(n), pos, np.zeros((n, 1, 2)))
+
     def decide(self, state: RobotState, live: np.ndarray, rules: RowRules | None = None) -> None:
         """New sub-goals for the ``live`` (N, M) robots, held in ``self.subgoal`` until the next call; under
         ``rules`` (one row per robot, field by field) where given: a planner plans with them, and every
@@ -214,7 +233,7 @@ class DeployView:
         if self.exported is None:
             obs = self.core.observe(state=state)
             action = np.zeros((self.n, self.m, self.core.act_dim))
-            if self.planner and rules is not None:
+            if self.planner and rules is not None and not self.game:  # a game's reads them in its obs
                 live_rules = RowRules(rules.zones.take(rows), rules.speed[rows])
                 action[live] = self.policy(obs[live], rules=live_rules)
             else:

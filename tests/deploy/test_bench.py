@@ -9,10 +9,19 @@ import numpy as np
 import pytest
 
 from hier_ssl.cli import build_parser, main
-from hier_ssl.deploy.bench import EXPORT_FORMATS, direct_episodes, latency_row, task_row, untrained_export
+from hier_ssl.deploy.bench import (
+    EXPORT_FORMATS,
+    GAME_TASK,
+    direct_episodes,
+    latency_row,
+    latency_task,
+    task_row,
+    untrained_export,
+)
 from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.loop import PRIORITY
-from hier_ssl.deploy.view import manager_task
+from hier_ssl.deploy.view import DeployView, manager_task
+from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
@@ -71,3 +80,37 @@ def test_the_latency_rows_time_the_exported_network_in_each_format_it_runs(tmp_p
     assert [f.suffix for f in files] == [".pt", ".onnx"]
     row = latency_row(str(files[1]), "network (untrained, onnx)", 1, seconds=3.0)
     assert row["samples"] > 0 and 0 < row["p50_ms"] <= row["p99_ms"]
+
+
+def test_the_11_robot_latency_row_decides_for_all_of_them_in_one_batched_call(tmp_path: Path) -> None:
+    task = latency_task(11, tmp_path)
+    config = task_config(task)
+    assert (config.scenario_name, config.field, config.num_agents, config.num_obstacles) == (
+        "formation",
+        "division_a",
+        11,
+        11,
+    )
+    view = DeployView("direct", 11, manager_task("direct", task))
+    assert (view.n, view.m) == (1, 11)  # one field of 11: one call decides for all
+    row = latency_row("direct", "direct", 11, seconds=2.0, task=task)
+    assert row["robots"] == 11 and row["field"] == "formation" and row["samples"] > 10
+    assert row["decisions"] > 0 and 0 < row["decision_p50_ms"] <= row["decision_p99_ms"] < 1000
+    with pytest.raises(ValueError, match=r"latency rows of 7 robots: expected one of \[1, 6, 11\]"):
+        latency_task(7, tmp_path)
+    assert main(["bench", "deploy", "--rows", "latency", "--robots", "1,7"]) == 1
+
+
+def test_a_row_under_the_field_servers_referee_script_counts_its_fouls_through_the_wire() -> None:
+    row = task_row("direct", "direct", "crowd", episodes=1, seed=2, noise=(0.0, 0.0), script="0.5:STOP")
+    assert row["bench"] == "deploy game" and row["referee_script"] == "0.5:STOP"
+    assert row["robot_samples"] == 1 and row["wire_fouls"] in (0.0, 1.0) and row["eval_fouls"] is None
+    assert row["wire_success"] in (0.0, 1.0) and row["eval_success"] in (0.0, 1.0)
+
+
+def test_the_game_row_plays_game_stop_with_its_own_referee_through_the_wire() -> None:
+    row = task_row("direct", "direct", GAME_TASK, episodes=1, seed=0, noise=(0.0, 0.0))
+    assert (row["bench"], row["task"], row["robot_samples"]) == ("deploy game", "game_stop", 6)
+    assert "referee_script" not in row and 0 <= row["wire_fouls"] <= 1 and 0 <= row["eval_fouls"] <= 1
+    assert row["wire_success"] > 0  # its robots reach the role positions STOP gives them in mid-episode
+    assert abs(row["foul_gap_points"] - 100 * (row["wire_fouls"] - row["eval_fouls"])) < 0.1

@@ -16,6 +16,7 @@ from hier_ssl.deploy.view import DeployView, load_exported, manager_task
 from hier_ssl.deploy.wire import Detection, DetectionFrame
 from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.game.referee import HALT, STOP, referee_state
 from hier_ssl.policies.export import export_manager
 
 
@@ -165,3 +166,17 @@ def test_an_onnx_manager_drives_the_controller_as_its_torchscript_twin_and_its_r
     assert np.abs(commands[0]).max() > 0.1  # the robots drive
     np.testing.assert_allclose(commands[2], commands[1], atol=1e-4)  # ONNX against TorchScript
     np.testing.assert_allclose(commands[2], commands[0], atol=1e-3)  # and against the run directory
+
+
+def test_a_game_scenario_observes_the_referee_received_and_the_ball_tracked() -> None:
+    config = manager_task("direct", "game_stop")
+    view = DeployView("direct", 6, config)
+    field = view.field
+    before = view.core.observe()
+    view.set_game(referee_state(STOP, field, keeper=(2, 0), blue_on_positive_half=True), (1.0, -0.5))
+    scenario = view.core.scenario
+    assert scenario.referee.command.tolist() == [STOP] and scenario.referee.keeper.tolist() == [[2, 0]]
+    np.testing.assert_allclose(view.core.world.ball.pos[0, 0], (1.0, -0.5))
+    assert not np.array_equal(view.core.observe(), before)  # the game's columns read them
+    view.set_game(referee_state(HALT, field, keeper=(2, 0)), None)  # no ball seen: it stays where it was
+    np.testing.assert_allclose(view.core.world.ball.pos[0, 0], (1.0, -0.5))

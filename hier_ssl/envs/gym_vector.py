@@ -35,7 +35,7 @@ from gymnasium.vector.utils import batch_space
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.rows import RowView
-from hier_ssl.envs.shards import ShardedCore, Threads, batched_core
+from hier_ssl.envs.shards import ShardedCore, Threads, batched_core, close_core
 
 
 class ManagerVectorEnv(VectorEnv):
@@ -65,8 +65,7 @@ class ManagerVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the shards' worker processes, if any (Gymnasium's ``close`` calls this)."""
-        if isinstance(self.core, ShardedCore):
-            self.core.close()
+        close_core(self.core)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

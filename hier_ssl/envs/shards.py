@@ -387,6 +387,12 @@ class ShardedCore:
         return RobotState(*(self._arrays[key].copy() for key in _ROBOTS))
 
 
+def close_core(core: HierarchicalCore | ShardedCore) -> None:
+    """Stop a sharded core's worker processes; a core of this process has none."""
+    if isinstance(core, ShardedCore):
+        core.close()
+
+
 def batched_core(
     task: TaskConfig | Scenario,
     num_fields: int,
@@ -402,4 +408,4 @@ def batched_core(
     return ShardedCore(task, num_fields, autoreset, worker, threads)
 
 
-__all__ = ["ShardedCore", "Threads", "batched_core", "resolve_threads", "shard_seeds"]
+__all__ = ["ShardedCore", "Threads", "batched_core", "close_core", "resolve_threads", "shard_seeds"]

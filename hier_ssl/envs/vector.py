@@ -16,7 +16,7 @@ from tensordict import TensorDict
 
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.rows import RowView
-from hier_ssl.envs.shards import ShardedCore, Threads, batched_core
+from hier_ssl.envs.shards import Threads, batched_core, close_core
 
 _NUMPY_DTYPES = {torch.float32: np.float32, torch.bool: np.bool_, torch.int64: np.int64}
 
@@ -117,8 +117,7 @@ class TorchVectorEnv(TorchView):
 
     def close(self) -> None:
         """Stop the shards' worker processes, if any."""
-        if isinstance(self.core, ShardedCore):
-            self.core.close()
+        close_core(self.core)
 
 
 class RslRlVecEnv(VecEnv):

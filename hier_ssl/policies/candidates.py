@@ -32,9 +32,9 @@ from tqdm import tqdm
 from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig
 from hier_ssl.config.learners import CandidatePPOConfig
-from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
+from hier_ssl.envs.shards import batched_core, close_core, resolve_threads
 from hier_ssl.envs.vector import TorchVectorEnv
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_graph import (
@@ -112,6 +112,7 @@ class CandidateLearner:
         self.resumed: dict[str, Any] = {}  # the model.pt that ``load`` read
         self.phase = "dagger"
         self.on_checkpoint: OnCheckpoint | None = None
+        self.threads = resolve_threads(config.threads)  # the cores that play the fields of both phases
 
     def load(self, run_dir: str | Path) -> None:
         """Continue from ``run_dir``'s ``model.pt``, in the phase it was saved in."""
@@ -183,8 +184,13 @@ class CandidateLearner:
 
         for round_ in range(first, rounds):
             began = time.perf_counter()
-            core = HierarchicalCore(self.config.task_config, settings.episodes, autoreset=False)
-            ends = play(core, labelling(self.net), _seed(self.config, 0, round_))
+            core = batched_core(
+                self.config.task_config, settings.episodes, autoreset=False, threads=self.threads
+            )
+            try:
+                ends = play(core, labelling(self.net), _seed(self.config, 0, round_))
+            finally:
+                close_core(core)
             played = {"success_rate": ends["success"].mean(), "collision_rate": ends["collision"].mean()}
             x = torch.as_tensor(np.concatenate(obs_parts))
             p = torch.as_tensor(np.concatenate(label_parts))
@@ -221,7 +227,15 @@ class CandidateLearner:
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
-        self.env = TorchVectorEnv(self.config.task_config, settings.fields)
+        self.env = TorchVectorEnv(self.config.task_config, settings.fields, threads=self.threads)
+        try:
+            self._ppo_iterations(saved, iterations)
+        finally:
+            self.env.close()
+
+    def _ppo_iterations(self, saved: dict[str, Any], iterations: int) -> None:
+        settings, net = self.settings.ppo, self.net
+        assert net is not None
         self.value = mlp(self.env.num_obs, settings.value_hidden, 1, nn.Tanh)
         self.optimizers = (
             torch.optim.Adam(net.parameters(), lr=settings.learning_rate),

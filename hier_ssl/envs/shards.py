@@ -46,8 +46,6 @@ from hier_ssl.world.robot import RobotState
 Threads = int | Literal["auto"]
 # The per-robot info of a core's step that the shards hand back as arrays (N, M): what the views read.
 _INFO = ("control_steps", "success", "collision", "action_clipped", "live")
-# The core's state after a command, (N, M) or (N, ...) arrays the callers of ``play`` and the views read.
-_STATE = ("active", "steps", "decisions", "target", "subgoal")
 _ROBOTS = ("pos", "angle", "vel", "ang_vel")
 _ALIGN = 64  # bytes: every array of the shared buffer starts on a cache line
 
@@ -113,13 +111,20 @@ def _arrays(buffer: Any, layout: dict[str, tuple[tuple, type]]) -> dict[str, np.
     return out
 
 
+# What a step writes of each shard, besides its observations: the result's arrays and the core's counters.
+_RESULT = ("reward", "terminated", "truncated")
+_COUNTERS = ("active", "steps", "decisions", "subgoal")
+
+
 @dataclass
 class _Lane:
-    """The shards one process steps: ``cores`` over fields ``bounds``, writing into ``arrays``."""
+    """The shards one process steps: ``cores`` over fields ``bounds``, writing into ``arrays``; ``views``
+    holds each shard's rows of every array, made once."""
 
     cores: list[HierarchicalCore]
     bounds: list[tuple[int, int]]
     arrays: dict[str, np.ndarray]
+    views: list[dict[str, np.ndarray]]
     # The statistics of a step where no robot left (zero-length arrays of the core's dtypes), from the
     # first step: a shard with every episode ended (no auto-reset) has stepped before.
     nobody: dict[str, np.ndarray] | None = None
@@ -135,50 +140,51 @@ class _Lane:
         arrays: dict[str, np.ndarray],
     ) -> _Lane:
         cores = [HierarchicalCore(scenario(config), b - a, autoreset, worker) for a, b in bounds]
-        return cls(cores, bounds, arrays)
+        views = [{key: array[a:b] for key, array in arrays.items()} for a, b in bounds]
+        return cls(cores, bounds, arrays, views)
 
     def run(self, command: str, seeds: Sequence[int | None]) -> list[dict[str, np.ndarray]]:
-        """``reset`` (with ``seeds``, one a shard) or ``step`` (with the shared actions) every shard, its
-        results into the shared arrays; after a step, each shard's episode statistics (``info["task"]``,
-        fields numbered among the N)."""
+        """``reset`` (with ``seeds``, one a shard), ``step`` (with the shared actions) or ``state`` (the
+        targets and robots, written on demand: a step does not need them) every shard, its results into
+        the shared arrays; after a step, each shard's episode statistics (``info["task"]``, fields
+        numbered among the N)."""
         out = []
-        for k, (core, (a, b)) in enumerate(zip(self.cores, self.bounds, strict=True)):
+        for k, (core, view) in enumerate(zip(self.cores, self.views, strict=True)):
+            if command == "state":
+                np.copyto(view["target"], core.target)
+                for key in _ROBOTS:
+                    np.copyto(view[key], getattr(core.state, key))
+                continue
             if command == "reset":
-                self.arrays["obs"][a:b] = core.reset(seeds[k])
+                np.copyto(view["obs"], core.reset(seeds[k]))
             elif core.active.any():
-                out.append(self._step(core, a, b))
+                out.append(self._step(core, view, self.bounds[k][0]))
             else:  # a shard whose episodes have all ended (no auto-reset) waits for the others: no step
-                out.append(self._idle(a, b))
-            self._mirror(core, a, b)
+                out.append(self._idle(view))
+            for key in _COUNTERS:
+                np.copyto(view[key], getattr(core, key))
         return out
 
-    def _step(self, core: HierarchicalCore, a: int, b: int) -> dict[str, np.ndarray]:
-        result = core.step(self.arrays["action"][a:b])
-        put = self.arrays
-        put["obs"][a:b], put["reward"][a:b] = result.obs, result.reward
-        put["terminated"][a:b], put["truncated"][a:b] = result.terminated, result.truncated
-        put["final_obs"][a:b] = result.info["final_obs"]
+    def _step(self, core: HierarchicalCore, view: dict[str, np.ndarray], first: int) -> dict[str, np.ndarray]:
+        result = core.step(view["action"])
+        info = result.info
+        np.copyto(view["obs"], result.obs)
+        np.copyto(view["final_obs"], info["final_obs"])
+        for key in _RESULT:
+            np.copyto(view[key], getattr(result, key))
         for key in _INFO:
-            put[key][a:b] = result.info[key]
-        stats = result.info["task"]
+            np.copyto(view[key], info[key])
+        stats = info["task"]
         if self.nobody is None:
             self.nobody = {key: value[:0] for key, value in stats.items()}
-        return {**stats, "field": stats["field"] + a}
+        return {**stats, "field": stats["field"] + first}
 
-    def _idle(self, a: int, b: int) -> dict[str, np.ndarray]:
-        put = self.arrays
-        put["final_obs"][a:b] = put["obs"][a:b]
-        for key in ("reward", "terminated", "truncated", *_INFO):
-            put[key][a:b] = 0
+    def _idle(self, view: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        np.copyto(view["final_obs"], view["obs"])
+        for key in (*_RESULT, *_INFO):
+            view[key].fill(0)
         assert self.nobody is not None
         return self.nobody
-
-    def _mirror(self, core: HierarchicalCore, a: int, b: int) -> None:
-        put, s = self.arrays, core.state
-        for key in _STATE:
-            put[key][a:b] = getattr(core, key)
-        for key in _ROBOTS:
-            put[key][a:b] = getattr(s, key)
 
     @property
     def control_steps(self) -> int:
@@ -375,15 +381,17 @@ class ShardedCore:
         return self._arrays["decisions"].copy()
 
     @property
-    def target(self) -> np.ndarray:
-        return self._arrays["target"].copy()
-
-    @property
     def subgoal(self) -> np.ndarray:
         return self._arrays["subgoal"].copy()
 
     @property
+    def target(self) -> np.ndarray:
+        self._send("state", [None] * len(self._bounds))
+        return self._arrays["target"].copy()
+
+    @property
     def state(self) -> RobotState:
+        self._send("state", [None] * len(self._bounds))
         return RobotState(*(self._arrays[key].copy() for key in _ROBOTS))
 
 

@@ -334,14 +334,17 @@ class ShardedCore:
         # This process's shards always give their statistics, empty or not: the concatenation's dtypes.
         ended = [entry for entry in self._send("step", [None] * len(self._bounds)) if entry is not None]
         a = self._arrays
+        task = {key: np.concatenate([entry[key] for entry in ended]) for key in ended[0]}
+        obs = a["obs"].copy()
         info = {key: a[key].copy() for key in _INFO}
+        # Where no robot left, no field was reset: the last observations are the new ones, one array for
+        # both as a core gives them (the largest copy of the step, spared on most steps).
         info |= {
             "subgoal": a["subgoal"].copy(),
-            "final_obs": a["final_obs"].copy(),
-            "task": {key: np.concatenate([entry[key] for entry in ended]) for key in ended[0]},
+            "final_obs": a["final_obs"].copy() if len(task["field"]) else obs,
+            "task": task,
         }
-        copies = (a[key].copy() for key in ("obs", "reward", "terminated", "truncated"))
-        return StepResult(*copies, info)
+        return StepResult(obs, *(a[key].copy() for key in _RESULT), info)
 
     def observe(self, fields: np.ndarray | None = None) -> np.ndarray:
         """Manager observations (F, M, obs_dim) float32 of ``fields`` (default all)."""

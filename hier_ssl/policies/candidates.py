@@ -234,6 +234,7 @@ class CandidateLearner:
             self.env.close()
 
     def _ppo_iterations(self, saved: dict[str, Any], iterations: int) -> None:
+        """Phase 2's iterations over ``self.env``, its value and optimisers built or restored first."""
         settings, net = self.settings.ppo, self.net
         assert net is not None
         self.value = mlp(self.env.num_obs, settings.value_hidden, 1, nn.Tanh)

@@ -3,7 +3,7 @@ its own, stepped by this process and K - 1 worker processes over shared memory.
 
 Threads do not get there: Chipmunk's step releases Python's lock, but the compiled per-robot loops, the
 observation, the rules and the core's book-keeping hold it, and two threads stepping two halves of
-`obstacle` at N = 1024 gave 1.15-1.35x one (docs/guide/benchmarks.md). A process per core holds its own
+`obstacle` at N = 1024 gave 1.2x one (docs/guide/benchmarks.md). A process per core holds its own
 lock; the calling process steps the first shards itself and waits for the rest.
 
 **Same seed, same results, for every K.** The shards are the blocks of ``block_bounds(N)`` (at most

@@ -264,7 +264,7 @@ class VectorRun:
         self.core, self._in_world = env.core, [0.0]
         # The cores this process steps (every shard on one core; the first ones on more): their worlds.
         local = getattr(self.core, "local_cores", [self.core])
-        self._all_local = len(local) == getattr(self.core, "shards", 1)
+        self._all_local = getattr(self.core, "threads", 1) == 1
         for world in (core.world for core in local):
             world.step = self._timed(world.step)
         generator = torch.Generator().manual_seed(self.seed)

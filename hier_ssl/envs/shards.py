@@ -13,13 +13,11 @@ alone, wherever it runs. K only says how many processes share the shards out. A 
 on the shard it is in, so N above one block does not replay the episodes of one core over all N fields;
 N within one block is one core, bit for bit as it always was (``batched_core`` returns it).
 
-**The processes.** Workers start from the ``forkserver`` context: a clean server process (started once,
-with this module preloaded) forks them, so none inherits the threads torch or OpenMP started in the
-caller, and a worker takes milliseconds to start after the first. Every per-field array of a step (actions
-in, observations, rewards, flags, the per-robot info and the cores' state out) lives in one shared buffer,
-each shard's rows at its own fields; a pipe per worker carries the command and the few episode statistics
-of robots that left. ``close()`` (also on garbage collection and at exit) stops the workers; a worker whose
-parent dies sees its pipe close and exits.
+**The processes.** Workers fork from a ``forkserver`` (a clean process, started once with this module
+preloaded): none inherits the threads torch or OpenMP started in the caller. Every per-field array of a
+step lives in one shared buffer, each shard's rows at its own fields; a pipe per worker carries the
+command and the episode statistics of robots that left. ``close()`` (also on garbage collection and at
+exit) stops the workers; a worker whose parent dies sees its pipe close and exits.
 """
 
 from __future__ import annotations
@@ -70,45 +68,36 @@ def shard_seeds(seed: int | None, count: int) -> list[int | None]:
 
 def _layout(n: int, m: int, robots: int, obs_dim: int, act_dim: int) -> dict[str, tuple[tuple, type]]:
     """Name -> (shape, dtype) of every shared array of N fields."""
-    per_robot = {
-        key: ((n, m), np.int64 if key in ("control_steps", "action_clipped") else np.bool_) for key in _INFO
-    }
+    flags = ("terminated", "truncated", "success", "collision", "live", "active")
     return {
         "action": ((n, m, act_dim), np.float64),
         "obs": ((n, m, obs_dim), np.float32),
         "final_obs": ((n, m, obs_dim), np.float32),
         "reward": ((n, m), np.float32),
-        "terminated": ((n, m), np.bool_),
-        "truncated": ((n, m), np.bool_),
-        **per_robot,
-        "active": ((n, m), np.bool_),
+        **dict.fromkeys(flags, ((n, m), np.bool_)),
+        **dict.fromkeys(("control_steps", "action_clipped", "decisions"), ((n, m), np.int64)),
         "steps": ((n,), np.int64),
-        "decisions": ((n, m), np.int64),
-        "target": ((n, m, 5), np.float64),
-        "subgoal": ((n, m, 5), np.float64),
-        "pos": ((n, robots, 2), np.float64),
-        "angle": ((n, robots), np.float64),
-        "vel": ((n, robots, 2), np.float64),
-        "ang_vel": ((n, robots), np.float64),
+        **dict.fromkeys(("target", "subgoal"), ((n, m, 5), np.float64)),
+        **{key: ((n, robots, 2) if key in ("pos", "vel") else (n, robots), np.float64) for key in _ROBOTS},
     }
 
 
-def _size(layout: dict[str, tuple[tuple, type]]) -> int:
-    return sum(
-        -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // _ALIGN) * _ALIGN
-        for shape, dtype in layout.values()
-    )
+def _places(layout: dict[str, tuple[tuple, type]]) -> tuple[dict[str, int], int]:
+    """Each array's byte offset in the shared buffer (each on a cache line), and the buffer's size."""
+    places, at = {}, 0
+    for name, (shape, dtype) in layout.items():
+        places[name] = at
+        at += -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // _ALIGN) * _ALIGN
+    return places, at
 
 
 def _arrays(buffer: Any, layout: dict[str, tuple[tuple, type]]) -> dict[str, np.ndarray]:
-    """The arrays of ``layout`` laid one after another on ``buffer`` (bytes-like, ``_size`` long)."""
-    out, at = {}, 0
-    raw = np.frombuffer(buffer, dtype=np.uint8)
-    for name, (shape, dtype) in layout.items():
-        size = int(np.prod(shape)) * np.dtype(dtype).itemsize
-        out[name] = raw[at : at + size].view(dtype).reshape(shape)
-        at += -(-size // _ALIGN) * _ALIGN
-    return out
+    """The arrays of ``layout`` on ``buffer`` (bytes-like), at their ``_places``."""
+    places, _ = _places(layout)
+    return {
+        name: np.frombuffer(buffer, dtype, int(np.prod(shape)), places[name]).reshape(shape)
+        for name, (shape, dtype) in layout.items()
+    }
 
 
 # What a step writes of each shard, besides its observations: the result's arrays and the core's counters.
@@ -270,11 +259,11 @@ class ShardedCore:
         self._processes: list[Any] = []
         self._conns: list[Connection] = []
         if len(lanes) == 1:
-            buffer: Any = bytearray(_size(layout))
+            buffer: Any = bytearray(_places(layout)[1])
         else:
             context = multiprocessing.get_context("forkserver")
             context.set_forkserver_preload([__name__])
-            buffer = context.RawArray(ctypes.c_ubyte, _size(layout))
+            buffer = context.RawArray(ctypes.c_ubyte, _places(layout)[1])
         self._arrays = _arrays(buffer, layout)
         self._lane = _Lane.build(kind, config, first, autoreset, worker, self._arrays)
         self._finalizer = weakref.finalize(self, _stop, self._processes, self._conns)
@@ -356,10 +345,6 @@ class ShardedCore:
         self._finalizer()
 
     @property
-    def shards(self) -> int:
-        return len(self._bounds)
-
-    @property
     def local_cores(self) -> list[HierarchicalCore]:
         """The shards' cores this process steps (all of them on one core), in field order."""
         return self._lane.cores
@@ -371,21 +356,12 @@ class ShardedCore:
         """(N,) bool: no robot is left in the field's episode."""
         return ~self._arrays["active"].any(axis=1)
 
-    @property
-    def active(self) -> np.ndarray:
-        return self._arrays["active"].copy()
-
-    @property
-    def steps(self) -> np.ndarray:
-        return self._arrays["steps"].copy()
-
-    @property
-    def decisions(self) -> np.ndarray:
-        return self._arrays["decisions"].copy()
-
-    @property
-    def subgoal(self) -> np.ndarray:
-        return self._arrays["subgoal"].copy()
+    def __getattr__(self, name: str) -> np.ndarray:
+        # ``active``, ``steps``, ``decisions``, ``subgoal``: copies of the shards' counters after the last
+        # command (a core replaces its arrays; a caller may keep these).
+        if name in _COUNTERS and "_arrays" in self.__dict__:
+            return self._arrays[name].copy()
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def target(self) -> np.ndarray:

@@ -299,7 +299,9 @@ class ShardedCore:
         for k, conn in enumerate(self._conns, start=1):
             try:
                 status, reply = conn.recv()
-            except EOFError:
+            except (
+                EOFError
+            ):  # e.g. a script without ``if __name__ == "__main__":``, which each worker imports
                 status, reply = "error", f"the worker process exited (code {self._processes[k - 1].exitcode})"
             if status == "error" and failed is None:
                 a, b = self._bounds[self._lanes[k][0]][0], self._bounds[self._lanes[k][-1]][1]

@@ -299,9 +299,7 @@ class ShardedCore:
         for k, conn in enumerate(self._conns, start=1):
             try:
                 status, reply = conn.recv()
-            except (
-                EOFError
-            ):  # e.g. a script without ``if __name__ == "__main__":``, which each worker imports
+            except EOFError:  # a script without ``if __name__ == "__main__":`` (workers import it), ...
                 status, reply = "error", f"the worker process exited (code {self._processes[k - 1].exitcode})"
             if status == "error" and failed is None:
                 a, b = self._bounds[self._lanes[k][0]][0], self._bounds[self._lanes[k][-1]][1]

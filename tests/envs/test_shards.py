@@ -119,3 +119,17 @@ def test_a_finished_sharded_core_asks_for_a_reset() -> None:
     core = ShardedCore(task_config("proposed"), 70, autoreset=False)
     with pytest.raises(RuntimeError, match="call reset"):
         core.step(np.zeros((70, 1, core.act_dim)))
+
+
+def test_the_gymnasium_vector_view_steps_alike_and_closes_its_workers() -> None:
+    envs = [
+        hier_ssl.manager_vector_env(task="proposed", num_fields=70, frame_skip=4, threads=k) for k in (1, 2)
+    ]
+    action = np.random.default_rng(2).uniform(-1, 1, (70, envs[0].single_action_space.shape[0]))
+    results = [(env.reset(seed=9)[0], *env.step(action)[:4]) for env in envs]
+    for x, y in zip(*results, strict=True):
+        np.testing.assert_array_equal(x, y)
+    workers = list(envs[1].core._processes)
+    for env in envs:
+        env.close()
+    assert workers and not any(w.is_alive() for w in workers)

@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from hier_ssl.cli import bench, side_by_side
+from hier_ssl.cli import bench, game_bench, side_by_side
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 from hier_ssl.cli.demo import run_demo
 from hier_ssl.cli.deploy import add_bench_deploy
@@ -91,7 +91,22 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="step the world's blocks in this many threads, VMAS on one: wall clock, unpinned "
         "(default: 1, pinned to one core)",
     )
+    versus.add_argument(
+        "--tasks",
+        nargs="+",
+        default=None,
+        help="the pairs to time, by hier_ssl's side: obstacle, formation, proposed, game_stop (default: the "
+        "first three)",
+    )
     versus.set_defaults(func=_bench_compare)
+    game_bench.add_bench_game(
+        targets.add_parser(
+            "game",
+            help="game_match's PettingZoo view at frame skip 1 (opponents deciding every 16 steps); "
+            "game_stop's batched view per field at each N",
+        ),
+        CPU_TIME_HELP,
+    )
     add_bench_deploy(
         targets.add_parser("deploy", help="deploy chain over 127.0.0.1: tracker error, latency, task success")
     )
@@ -116,7 +131,9 @@ def _bench_compare(args: argparse.Namespace) -> int:
         where = f"CPU {cpu}" if cpu is not None else f"{args.threads} thread(s), unpinned"
         vmas = "beside VMAS" if side_by_side.vmas_installed() else "(VMAS not installed: hier_ssl alone)"
         print(f"compare on {where}, {args.rounds} alternating rounds, best of each, {vmas}")
-    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps, args.threads)
+    records = side_by_side.comparisons(
+        args.sizes, args.rounds, _clock(args), args.steps, args.threads, args.tasks
+    )
     side_by_side.print_comparisons(records, args.json)
     return 0
 

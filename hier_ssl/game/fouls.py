@@ -144,6 +144,8 @@ def _first_of_team(robot: np.ndarray, robots: Lineup, team_called: np.ndarray) -
 def _team_graced(robot: np.ndarray, robots: Lineup, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rules 8.4.3's grace of 2 s per team for robots committing a foul ``robot`` (N, M), ``last`` (N, 2) s
     after the team's last: the robots whose foul counts (N, M) and the teams' clocks after them (N, 2)."""
+    if not robot.any():  # the usual step: no robot of either team commits this foul
+        return np.zeros_like(robot), last
     first = _first_of_team(robot, robots, last > GRACE)
     return first, np.where(_per_team(first, robots) > 0, 0.0, last)
 
@@ -153,6 +155,8 @@ def _crashes(
 ) -> None:
     """Adds the crashes among ``contacts`` (C, 3) [field, slot a, slot b] to ``by_robot``, the rest to
     ``collisions``. The moment of collision is the step's start: ``before``."""
+    if not len(contacts):
+        return
     f, a, b = contacts[:, 0], contacts[:, 1], contacts[:, 2]
     apart = robots.team[a] != robots.team[b]
     fault_a, fault_b = crash_verdicts(before.pos[f, a], before.pos[f, b], before.vel[f, a], before.vel[f, b])

@@ -79,8 +79,10 @@ def referee_flags(referee: RefereeState, robots: Lineup) -> np.ndarray:
     kick, place = is_free_kick(command), is_placement(command)
     flags = (command == HALT, command == STOP, is_running(command), kick & ours, kick & ~ours)
     flags += (place & ours, place & ~ours)
-    shape = (len(command), len(robots.team))
-    return np.stack([np.broadcast_to(flag, shape) for flag in flags], axis=-1)
+    out = np.empty((len(command), len(robots.team), len(flags)), bool)
+    for i, flag in enumerate(flags):  # (N, 1) or (N, M) each, broadcast by the assignment
+        out[..., i] = flag
+    return out
 
 
 def game_columns(

@@ -267,8 +267,11 @@ def _interference(
     interfere (N, M), each robot's time in the stadium after the step (N, M), the teams' time since their
     last interference (N, 2), each team's foul-counter increment (N, 2) and its interferences (N, 2). A robot
     that stays in the stadium interferes again once the team's 2 s of grace (8.4.3) have passed."""
-    time_in = np.where(inside & ~changed[:, None], clocks.in_placement + dt, 0.0)
     last = clocks.last_interference + dt
+    if not inside.any():  # outside a ball placement, every step: nobody in, nothing counted
+        nothing = np.zeros(last.shape, np.int64)
+        return np.zeros_like(inside), np.zeros(inside.shape), last, nothing, nothing.copy()
+    time_in = np.where(inside & ~changed[:, None], clocks.in_placement + dt, 0.0)
     first, last = _team_graced(inside & (time_in > GRACE), robots, last)
     teams = _per_team(first, robots)
     counted_before = clocks.placement_counted & ~changed[:, None]

@@ -221,8 +221,10 @@ def signed_distance(zones: Zones, points: np.ndarray) -> np.ndarray:
     positive while it keeps the clearance, negative by how much it breaks it, +inf for an empty slot."""
     lead, s = zones.kind.shape[:-1], zones.kind.shape[-1]
     flat = int(np.prod(lead, dtype=np.int64))
+    if np.shape(points) != lead + (2,):  # broadcast only where needed: the game calls this every step
+        points = np.broadcast_to(points, lead + (2,))
     out = _distances(
-        np.ascontiguousarray(np.broadcast_to(points, lead + (2,)), np.float64).reshape(flat, 2),
+        np.ascontiguousarray(points, np.float64).reshape(flat, 2),
         np.ascontiguousarray(zones.kind, np.int64).reshape(flat, s),
         np.ascontiguousarray(zones.shape, np.float64).reshape(flat, s, 4),
         np.ascontiguousarray(zones.clearance, np.float64).reshape(flat, s),

@@ -254,6 +254,8 @@ def _stop_speed(
     stoppage before the step (N, M). A stoppage lasts through HALT, STOP and ball placement."""
     stopped = (command == HALT) | (command == STOP) | is_placement(command)
     called = clocks.speed_called & stopped[:, None]
+    if not stopped.any():  # the game runs on every field: nobody called, nobody fast
+        return called, clocks.last_stop_speed + dt, called.copy()
     fast = (np.linalg.norm(vel, axis=-1) > STOP_SPEED) & ~called
     fast &= ((command == STOP) & (since > GRACE))[:, None]
     first, last = _team_graced(fast, robots, clocks.last_stop_speed + dt)

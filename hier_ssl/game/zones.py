@@ -116,7 +116,8 @@ def forbidden_zones(
 
 # One compiled loop over fields and robots, not some 60 numpy calls: the game reads the zones two or three
 # times a control step. Each value is the same expression as ``defense_box``'s, ``own_side``'s,
-# ``is_keeper``'s and ``favoured_team``'s, so the zones are bit for bit theirs (tests/game/test_zones.py).
+# ``is_keeper``'s and ``favoured_team``'s, so the zones are bit for bit theirs (held equal by
+# tests/game/test_zones.py).
 @numba.njit(cache=True)
 def _fill_zones(
     command: np.ndarray,

@@ -116,8 +116,8 @@ def game_columns(
 
 
 # The zone slots in one compiled loop, not some 20 numpy calls a control step. Each value is the numpy
-# expression the layout describes, in float64, rounded to float32 once on writing (as an assignment of the
-# float64 array did), so the columns are bit for bit those numpy wrote.
+# expression the layout describes, in float64, rounded to float32 once on writing, as the numpy code this
+# replaced did (its columns and these were byte for byte equal over 300 random referee states).
 @numba.njit(cache=True)
 def _zone_columns(
     kind: np.ndarray,

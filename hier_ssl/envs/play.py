@@ -13,18 +13,21 @@ import numpy as np
 from tqdm import tqdm
 
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.shards import ShardedCore
 
+# One core, or shards of one on several cores (``hier_ssl.envs.shards``).
+Core = HierarchicalCore | ShardedCore
 Policy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (B, obs_dim) -> actions (B, act_dim) in [-1, 1], one row per live robot."""
 
 
 def play(
-    core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int] = (), progress: str | None = None
+    core: Core, policy: Policy, seed: int, record: Sequence[int] = (), progress: str | None = None
 ) -> dict[str, Any]:
     """Reset ``core`` (built without auto-reset) with ``seed``, one episode per field, and play every
     episode to its end; the policy acts for the live robots only (its input rows shrink as robots leave).
-    The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
-    evaluation and ``hier-ssl render`` all run it.
+    The one episode loop: training's model selection and data collection, ``hier-ssl eval``, the goToPoint
+    workers' evaluation and ``hier-ssl render`` all run it; ``record`` needs a ``HierarchicalCore``.
 
     Returns length (control steps), success, collision, cpad, cpad_public, distance (start to target, m),
     start_gap (to the nearest other robot at reset, m) and the scenario's ``stat_names`` (the game's
@@ -44,7 +47,7 @@ def play(
     obs = core.reset(seed)
     recorder = Recorder(core, record) if record else None
     shape = core.active.shape
-    pos = core.world.state.pos
+    pos = core.state.pos
     start = pos[:, : shape[1]]
     distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
     # Centre distance to the nearest other robot at reset: under the collision distance the episode

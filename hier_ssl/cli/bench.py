@@ -165,19 +165,41 @@ def _best(run: Callable[[], tuple[float, ...]], repeats: int) -> tuple[float, ..
     return min((run() for _ in range(repeats)), key=lambda r: r[0] / max(r[1], 1))
 
 
-def build_seconds(task: str, frame_skip: int, repeats: int = 3) -> float:
-    """Seconds that ``import hier_ssl`` and ``parallel_env(task=..., frame_skip=...)`` take in a fresh
-    interpreter (its own start-up not included), best of ``repeats``; the child inherits this process's
-    CPU affinity."""
-    code = (
-        "import time; start = time.perf_counter(); import hier_ssl; "
-        f"hier_ssl.parallel_env(task={task!r}, frame_skip={frame_skip}); print(time.perf_counter() - start)"
-    )
+def build_seconds(task: str, frame_skip: int, repeats: int = 3, **settings: Any) -> float:
+    """Seconds that ``import hier_ssl`` and ``parallel_env(task, frame_skip=..., **settings)`` take in a
+    fresh interpreter (its own start-up not included), best of ``repeats``; the child inherits this
+    process's CPU affinity."""
+    build = f"hier_ssl.parallel_env({task!r}, frame_skip={frame_skip}, **{settings!r})"
+    code = f"import time; t = time.perf_counter(); import hier_ssl; {build}; print(time.perf_counter() - t)"
     runs = (
         subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
         for _ in range(repeats)
     )
     return min(float(run.stdout) for run in runs)
+
+
+class EnvRun:
+    """The PettingZoo ParallelEnv of ``task`` (a task or a scenario, ``settings`` its keys) at ``frame_skip``,
+    reset; ``run(count)``: ``count`` manager steps of uniform random actions drawn beforehand, resetting
+    finished episodes (in the time, not the steps), as (seconds by ``clock``, control steps)."""
+
+    def __init__(self, task: str, frame_skip: int, clock: Clock, seed: int = 0, **settings: Any) -> None:
+        self.env = env = hier_ssl.parallel_env(task, frame_skip=frame_skip, **settings)
+        self.core, self.clock = env.core, clock
+        for i, agent in enumerate(env.possible_agents):
+            env.action_space(agent).seed(seed + i)
+        self._pool = [{a: env.action_space(a).sample() for a in env.possible_agents} for _ in range(256)]
+        env.reset(seed=seed)
+
+    def run(self, count: int) -> tuple[float, int]:
+        env, core = self.env, self.core
+        first, start = core.control_steps, self.clock()
+        for i in range(count):
+            if not env.agents:
+                env.reset()
+            actions = self._pool[i % len(self._pool)]
+            env.step({a: actions[a] for a in env.agents})
+        return self.clock() - start, core.control_steps - first
 
 
 def bench_env(
@@ -187,37 +209,24 @@ def bench_env(
     repeats: int = 7,
     seed: int = 0,
     clock: Clock = time.perf_counter,
+    **settings: Any,
 ) -> BenchResult:
-    """The PettingZoo ParallelEnv of ``task`` at ``frame_skip``, uniform random actions drawn beforehand,
-    resetting when the episode ends (resets count in the time, not in the steps). ``decisions`` manager
-    steps per timed run (about 4000 control steps if None). ``steps_per_s``: control steps per second;
-    ``decisions_per_s``: ``step`` calls per second; ``build_s``: ``build_seconds``."""
+    """``EnvRun``'s best of ``repeats`` runs of ``decisions`` manager steps (about 4000 control steps if
+    None): ``steps_per_s`` control steps a second, ``decisions_per_s`` ``step`` calls a second, ``build_s``
+    (``build_seconds``), ``median_steps_per_s`` the median run's."""
     decisions = max(50, 4000 // frame_skip) if decisions is None else decisions
-    env = hier_ssl.parallel_env(task=task, frame_skip=frame_skip)
-    core = env.core
-    for i, agent in enumerate(env.possible_agents):
-        env.action_space(agent).seed(seed + i)
-    pool = [{a: env.action_space(a).sample() for a in env.possible_agents} for _ in range(256)]
-    env.reset(seed=seed)
-
-    def run(count: int = decisions) -> tuple[float, int]:
-        first, start = core.control_steps, clock()
-        for i in range(count):
-            if not env.agents:
-                env.reset()
-            actions = pool[i % len(pool)]
-            env.step({a: actions[a] for a in env.agents})
-        return clock() - start, core.control_steps - first
-
-    run(min(decisions, 100))
-    wall, steps = _best(run, repeats)
+    bench = EnvRun(task, frame_skip, clock, seed, **settings)
+    bench.run(min(decisions, 100))
+    runs = [bench.run(decisions) for _ in range(repeats)]
+    wall, steps = min(runs, key=lambda r: r[0] / max(r[1], 1))
     extra = {
         "task": task,
         "frame_skip": frame_skip,
         "decisions_per_s": round(decisions / wall, 1),
-        "build_s": round(build_seconds(task, frame_skip), 3),
+        "build_s": round(build_seconds(task, frame_skip, **settings), 3),
+        "median_steps_per_s": round(float(np.median([s / w for w, s in runs])), 1),
     }
-    return BenchResult("env", 1, core.num_agents + core.num_obstacles, steps / wall, extra)
+    return BenchResult("env", 1, bench.core.num_agents + bench.core.num_obstacles, steps / wall, extra)
 
 
 def resident_bytes() -> int | None:

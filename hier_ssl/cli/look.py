@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from hier_ssl.cli import bench, side_by_side
+from hier_ssl.cli import bench, game_bench, side_by_side
 from hier_ssl.cli.common import WORKER_HELP, positive_int, worker_spec
 from hier_ssl.cli.demo import run_demo
 from hier_ssl.cli.deploy import add_bench_deploy
@@ -85,6 +85,29 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
     vector.add_argument(
         "--rounds", type=positive_int, default=20, help="alternations of --threads (default: %(default)s)"
     )
+    _add_bench_compare(targets)
+    game_bench.add_bench_game(
+        targets.add_parser(
+            "game",
+            help="game_match's PettingZoo view at frame skip 1 (opponents deciding every 16 steps); "
+            "game_stop's batched view per field at each N",
+        ),
+        CPU_TIME_HELP,
+    )
+    add_bench_deploy(
+        targets.add_parser("deploy", help="deploy chain over 127.0.0.1: tracker error, latency, task success")
+    )
+
+
+def _thread_counts(args: argparse.Namespace) -> list[int]:
+    """``--threads`` as counts (none given: 1 up to this process's cores); SystemExit with --cpu-time."""
+    counts = args.threads or list(range(1, resolve_threads("auto") + 1))
+    if max(counts) > 1 and args.cpu_time:
+        raise SystemExit("--cpu-time counts this thread alone: use the wall clock with --threads above 1")
+    return counts
+
+
+def _add_bench_compare(targets: argparse._SubParsersAction) -> None:
     versus = targets.add_parser(
         "compare", help="vector view beside VMAS (if installed), alternating; PettingZoo at frame skip 1"
     )
@@ -106,18 +129,14 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
         help="hier_ssl on K cores for each K given, alternated with each other and VMAS (on one torch "
         "thread): wall clock, unpinned above 1 (default: 1, pinned to one core)",
     )
-    versus.set_defaults(func=_bench_compare)
-    add_bench_deploy(
-        targets.add_parser("deploy", help="deploy chain over 127.0.0.1: tracker error, latency, task success")
+    versus.add_argument(
+        "--tasks",
+        nargs="+",
+        default=None,
+        help="the pairs to time, by hier_ssl's side: obstacle, formation, proposed, game_stop (default: the "
+        "first three)",
     )
-
-
-def _thread_counts(args: argparse.Namespace) -> list[int]:
-    """``--threads`` as counts (none given: 1 up to this process's cores); SystemExit with --cpu-time."""
-    counts = args.threads or list(range(1, resolve_threads("auto") + 1))
-    if max(counts) > 1 and args.cpu_time:
-        raise SystemExit("--cpu-time counts this thread alone: use the wall clock with --threads above 1")
-    return counts
+    versus.set_defaults(func=_bench_compare)
 
 
 def _bench_view(args: argparse.Namespace) -> int:
@@ -153,7 +172,7 @@ def _bench_compare(args: argparse.Namespace) -> int:
         where = f"CPU {cpu}" if cpu is not None else f"{counts} cores, unpinned"
         vmas = "beside VMAS" if side_by_side.vmas_installed() else "(VMAS not installed: hier_ssl alone)"
         print(f"compare on {where}, {args.rounds} alternating rounds, best of each, {vmas}")
-    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps, counts)
+    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps, counts, args.tasks)
     side_by_side.print_comparisons(records, args.json)
     return 0
 

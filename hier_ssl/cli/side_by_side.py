@@ -2,11 +2,12 @@
 
 Each pair has the same robots per field: ``obstacle`` (1 robot + 1 obstacle) beside VMAS ``navigation``
 with 2 agents, ``formation`` (6 + 6) beside ``navigation`` with 6 (the issue's anchor; VMAS has no moving
-obstacles), ``proposed`` (1 robot) beside ``simple``. Both take uniform random actions drawn beforehand;
-hier_ssl resets finished episodes inside its step, VMAS (no auto-reset) runs on. Rounds alternate the
-two, hier_ssl first, and each side's best round is kept. Rounds are many and short (40 of about 0.1 s by
-default): on a shared machine a process's speed drifts over seconds, and a few long rounds let that drift
-into the ratio (docs/guide/benchmarks.md has the runs that showed it). A control step is 0.025 s of
+obstacles), ``proposed`` (1 robot) beside ``simple``; on request ``game_stop`` (6 v 6 and a ball) beside
+``navigation`` with 12. Both take uniform random actions drawn beforehand; hier_ssl resets finished
+episodes inside its step, VMAS (no auto-reset) runs on. Rounds alternate the two, hier_ssl first, and each
+side's best round is kept. Rounds are many and short (40 of about 0.1 s by default): on a shared machine a
+process's speed drifts over seconds, and a few long rounds let that drift into the ratio
+(docs/guide/benchmarks.md has the runs that showed it). A control step is 0.025 s of
 simulated time in hier_ssl and 0.1 s in VMAS: the ratios are given per control step and per simulated
 second.
 
@@ -33,6 +34,8 @@ PAIRS = (
     ("formation", "navigation", {"n_agents": 6}),
     ("proposed", "simple", {}),
 )
+# Timed on request (``--tasks game_stop``): 6 v 6 robots a field and a ball beside 12 VMAS agents.
+GAME_PAIRS = (("game_stop", "navigation", {"n_agents": 12}),)
 PETTINGZOO_TASKS = ("proposed", "obstacle")
 ROUND_ROBOT_STEPS = 50_000  # a round at N = 1024: 25 control steps of `obstacle`, about 0.1 s
 PETTINGZOO_ROUND_STEPS = 500  # a PettingZoo round: about 25 ms
@@ -134,16 +137,23 @@ def comparisons(
     clock: Clock,
     steps: int | None = None,
     threads: Sequence[int] = (1,),
+    tasks: Sequence[str] | None = None,
 ) -> Iterator[dict[str, Any]]:
     """The PettingZoo view at frame skip 1 for ``PETTINGZOO_TASKS`` (``bench_env``, best of ``rounds``
-    rounds of ``PETTINGZOO_ROUND_STEPS`` steps, or ``steps``), then every pair at every N (``compare_pair``,
-    on each count of cores in ``threads``)."""
+    rounds of ``PETTINGZOO_ROUND_STEPS`` steps, or ``steps``), then the pairs of ``tasks`` (None: every one
+    of ``PAIRS``; ``GAME_PAIRS`` by name) at every N (``compare_pair``, on each count of cores in
+    ``threads``)."""
+    known = {pair[0]: pair for pair in PAIRS + GAME_PAIRS}
+    unknown = sorted(set(tasks or ()) - set(known))
+    if unknown:
+        raise ValueError(f"no VMAS pair for {unknown}; pairs: {sorted(known)}")
+    pairs = PAIRS if tasks is None else tuple(known[task] for task in tasks)
     for task in PETTINGZOO_TASKS:
         decisions = steps or PETTINGZOO_ROUND_STEPS
         result = bench_env(1, task, decisions=decisions, repeats=rounds, clock=clock)
         yield {"bench": "env", "task": task, "n_fields": 1, "steps_per_s": round(result.steps_per_s, 1)}
     for n in sizes:
-        for task, scenario, options in PAIRS:
+        for task, scenario, options in pairs:
             yield from compare_pair(task, scenario, options, n, rounds, clock, steps, threads)
 
 

@@ -144,6 +144,8 @@ def _first_of_team(robot: np.ndarray, robots: Lineup, team_called: np.ndarray) -
 def _team_graced(robot: np.ndarray, robots: Lineup, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rules 8.4.3's grace of 2 s per team for robots committing a foul ``robot`` (N, M), ``last`` (N, 2) s
     after the team's last: the robots whose foul counts (N, M) and the teams' clocks after them (N, 2)."""
+    if not robot.any():  # the usual step: no robot of either team commits this foul
+        return np.zeros_like(robot), last
     first = _first_of_team(robot, robots, last > GRACE)
     return first, np.where(_per_team(first, robots) > 0, 0.0, last)
 
@@ -153,6 +155,8 @@ def _crashes(
 ) -> None:
     """Adds the crashes among ``contacts`` (C, 3) [field, slot a, slot b] to ``by_robot``, the rest to
     ``collisions``. The moment of collision is the step's start: ``before``."""
+    if not len(contacts):
+        return
     f, a, b = contacts[:, 0], contacts[:, 1], contacts[:, 2]
     apart = robots.team[a] != robots.team[b]
     fault_a, fault_b = crash_verdicts(before.pos[f, a], before.pos[f, b], before.vel[f, a], before.vel[f, b])
@@ -250,6 +254,8 @@ def _stop_speed(
     stoppage before the step (N, M). A stoppage lasts through HALT, STOP and ball placement."""
     stopped = (command == HALT) | (command == STOP) | is_placement(command)
     called = clocks.speed_called & stopped[:, None]
+    if not stopped.any():  # the game runs on every field: nobody called, nobody fast
+        return called, clocks.last_stop_speed + dt, called.copy()
     fast = (np.linalg.norm(vel, axis=-1) > STOP_SPEED) & ~called
     fast &= ((command == STOP) & (since > GRACE))[:, None]
     first, last = _team_graced(fast, robots, clocks.last_stop_speed + dt)
@@ -263,8 +269,11 @@ def _interference(
     interfere (N, M), each robot's time in the stadium after the step (N, M), the teams' time since their
     last interference (N, 2), each team's foul-counter increment (N, 2) and its interferences (N, 2). A robot
     that stays in the stadium interferes again once the team's 2 s of grace (8.4.3) have passed."""
-    time_in = np.where(inside & ~changed[:, None], clocks.in_placement + dt, 0.0)
     last = clocks.last_interference + dt
+    if not inside.any():  # outside a ball placement, every step: nobody in, nothing counted
+        nothing = np.zeros(last.shape, np.int64)
+        return np.zeros_like(inside), np.zeros(inside.shape), last, nothing, nothing.copy()
+    time_in = np.where(inside & ~changed[:, None], clocks.in_placement + dt, 0.0)
     first, last = _team_graced(inside & (time_in > GRACE), robots, last)
     teams = _per_team(first, robots)
     counted_before = clocks.placement_counted & ~changed[:, None]

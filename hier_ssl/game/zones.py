@@ -24,15 +24,15 @@ import numba
 import numpy as np
 
 from hier_ssl.game.referee import (
+    BALL_PLACEMENT_BLUE,
+    BALL_PLACEMENT_YELLOW,
+    BLUE,
+    DIRECT_FREE_YELLOW,
     HALT,
+    INDIRECT_FREE_BLUE,
     STOP,
     Lineup,
     RefereeState,
-    favoured_team,
-    is_free_kick,
-    is_keeper,
-    is_placement,
-    own_side,
 )
 from hier_ssl.world.field import Field
 
@@ -93,34 +93,84 @@ def forbidden_zones(
     (rules 5.4); the caller then moves the command on to FORCE_START, as the game controller's state does.
     """
     n, m = referee.command.shape[0], robots.team.shape[0]
-    command, favoured = referee.command[:, None], favoured_team(referee.command)[:, None]
-    kind = np.zeros((n, m, len(SLOTS)), np.int64)
-    shape = np.zeros((n, m, len(SLOTS), 4))
-    clearance = np.zeros((n, m, len(SLOTS)))
-
-    hx, hy = field.wall_half_extent
-    kind[..., BOUNDARY], shape[..., BOUNDARY, :] = KEEP_IN, (-hx, -hy, hx, hy)
-    clearance[..., BOUNDARY] = radius
-
-    side = own_side(referee, robots)
-    own = ~is_keeper(referee, robots) & ~is_placement(command)
-    kind[..., OWN_DEFENSE] = np.where(own, BOX, NONE)
-    shape[..., OWN_DEFENSE, :] = defense_box(field, side)
-    clearance[..., OWN_DEFENSE] = radius
-
-    near_defense = np.broadcast_to((command == STOP) | is_free_kick(command), (n, m))
-    kind[..., OPPONENT_DEFENSE] = np.where(near_defense, BOX, NONE)
-    shape[..., OPPONENT_DEFENSE, :] = defense_box(field, -side)
-    clearance[..., OPPONENT_DEFENSE] = DEFENSE_AREA_DISTANCE + radius
-
-    other_team = robots.team != favoured
-    placing = is_placement(command)
-    keep_off = (command == STOP) | ((is_free_kick(command) | placing) & other_team)
-    kind[..., BALL] = np.where(keep_off, CAPSULE, NONE)
-    end = np.where(placing[..., None], referee.placement[:, None], ball[:, None])
-    shape[..., BALL, :] = np.concatenate(np.broadcast_arrays(ball[:, None], end), axis=-1)
-    clearance[..., BALL] = np.where(placing, PLACEMENT_DISTANCE, BALL_DISTANCE) + radius
+    kind = np.empty((n, m, len(SLOTS)), np.int64)
+    shape = np.empty((n, m, len(SLOTS), 4))
+    clearance = np.empty((n, m, len(SLOTS)))
+    _fill_zones(
+        referee.command,
+        referee.placement,
+        referee.keeper,
+        referee.blue_on_positive_half,
+        np.ascontiguousarray(ball, np.float64),
+        robots.team,
+        robots.robot_id,
+        field.wall_half_extent,
+        (field.half_length, field.penalty_area_depth, field.penalty_area_width / 2),
+        radius,
+        kind,
+        shape,
+        clearance,
+    )
     return Zones(kind, shape, clearance)
+
+
+# One compiled loop over fields and robots, not some 60 numpy calls: the game reads the zones two or three
+# times a control step. Each value is the same expression as ``defense_box``'s, ``own_side``'s,
+# ``is_keeper``'s and ``favoured_team``'s, so the zones are bit for bit theirs (held equal by
+# tests/game/test_zones.py).
+@numba.njit(cache=True)
+def _fill_zones(
+    command: np.ndarray,
+    placement: np.ndarray,
+    keeper: np.ndarray,
+    blue_positive: np.ndarray,
+    ball: np.ndarray,
+    team: np.ndarray,
+    robot_id: np.ndarray,
+    wall: tuple[float, float],
+    defense: tuple[float, float, float],
+    radius: float,
+    kind: np.ndarray,
+    shape: np.ndarray,
+    clearance: np.ndarray,
+) -> None:
+    """Writes ``forbidden_zones``'s ``kind``, ``shape`` and ``clearance`` (N, M, S) of the referee's
+    arrays (N, ...), the ball (N, 2) and the lineup's ``team`` and ``robot_id`` (M,); ``wall``: the walled
+    area's half extent, ``defense``: (half length, defense area depth, half its width) m."""
+    hx, hy = wall
+    half_length, depth, half = defense
+    for n in range(command.shape[0]):
+        c = command[n]
+        free_kick = DIRECT_FREE_YELLOW <= c <= INDIRECT_FREE_BLUE
+        placing = BALL_PLACEMENT_YELLOW <= c <= BALL_PLACEMENT_BLUE
+        favoured = c % 2 if free_kick or placing else -1
+        blue_side = 1.0 if blue_positive[n] else -1.0
+        end_x, end_y = (placement[n, 0], placement[n, 1]) if placing else (ball[n, 0], ball[n, 1])
+        for i in range(team.shape[0]):
+            kind[n, i, BOUNDARY] = KEEP_IN
+            shape[n, i, BOUNDARY, 0], shape[n, i, BOUNDARY, 1] = -hx, -hy
+            shape[n, i, BOUNDARY, 2], shape[n, i, BOUNDARY, 3] = hx, hy
+            clearance[n, i, BOUNDARY] = radius
+            side = blue_side if team[i] == BLUE else -blue_side
+            own = keeper[n, team[i]] != robot_id[i] and not placing
+            kind[n, i, OWN_DEFENSE] = BOX if own else NONE
+            _defense_box(side, half_length, depth, half, shape[n, i, OWN_DEFENSE])
+            clearance[n, i, OWN_DEFENSE] = radius
+            kind[n, i, OPPONENT_DEFENSE] = BOX if c == STOP or free_kick else NONE
+            _defense_box(-side, half_length, depth, half, shape[n, i, OPPONENT_DEFENSE])
+            clearance[n, i, OPPONENT_DEFENSE] = DEFENSE_AREA_DISTANCE + radius
+            keep_off = c == STOP or ((free_kick or placing) and team[i] != favoured)
+            kind[n, i, BALL] = CAPSULE if keep_off else NONE
+            shape[n, i, BALL, 0], shape[n, i, BALL, 1] = ball[n, 0], ball[n, 1]
+            shape[n, i, BALL, 2], shape[n, i, BALL, 3] = end_x, end_y
+            clearance[n, i, BALL] = (PLACEMENT_DISTANCE if placing else BALL_DISTANCE) + radius
+
+
+@numba.njit(cache=True)
+def _defense_box(side: float, half_length: float, depth: float, half: float, out: np.ndarray) -> None:
+    """``defense_box`` of one goal, x sign ``side``, written into ``out`` (4,)."""
+    goal_line, inner = side * half_length, side * (half_length - depth)
+    out[0], out[1], out[2], out[3] = min(goal_line, inner), -half, max(goal_line, inner), half
 
 
 def speed_limit(referee: RefereeState) -> np.ndarray:
@@ -172,8 +222,10 @@ def signed_distance(zones: Zones, points: np.ndarray) -> np.ndarray:
     positive while it keeps the clearance, negative by how much it breaks it, +inf for an empty slot."""
     lead, s = zones.kind.shape[:-1], zones.kind.shape[-1]
     flat = int(np.prod(lead, dtype=np.int64))
+    if np.shape(points) != lead + (2,):  # broadcast only where needed: the game calls this every step
+        points = np.broadcast_to(points, lead + (2,))
     out = _distances(
-        np.ascontiguousarray(np.broadcast_to(points, lead + (2,)), np.float64).reshape(flat, 2),
+        np.ascontiguousarray(points, np.float64).reshape(flat, 2),
         np.ascontiguousarray(zones.kind, np.int64).reshape(flat, s),
         np.ascontiguousarray(zones.shape, np.float64).reshape(flat, s, 4),
         np.ascontiguousarray(zones.clearance, np.float64).reshape(flat, s),

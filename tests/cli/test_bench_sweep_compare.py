@@ -6,13 +6,13 @@ import time
 import pytest
 
 from hier_ssl import cli
-from hier_ssl.cli import bench, look, side_by_side
+from hier_ssl.cli import bench, game_bench, look, side_by_side
 
 
 @pytest.fixture(autouse=True)
 def _quick(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(bench, "pin_to_one_core", lambda: None)
-    monkeypatch.setattr(bench, "build_seconds", lambda task, frame_skip: 0.5)
+    monkeypatch.setattr(bench, "build_seconds", lambda task, frame_skip, **settings: 0.5)
 
 
 def test_vector_sweep_gives_each_task_at_each_size_against_the_smallest(
@@ -120,3 +120,34 @@ def test_compare_beside_vmas_gives_both_sides_and_their_ratios() -> None:
     assert record["ratio_per_sim_s"] == pytest.approx(ratio * 0.25, rel=1e-2)
     line = side_by_side.describe(record)
     assert "VMAS navigation n_agents=2" in line and "per simulated second" in line
+
+
+def test_compare_times_the_game_pair_by_name(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(side_by_side, "vmas_installed", lambda: False)
+    argv = ["bench", "compare", "--json", "--sizes", "2", "--rounds", "1", "--steps", "3"]
+    assert cli.main([*argv, "--tasks", "game_stop"]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(r["bench"], r["task"]) for r in records[2:]] == [("compare", "game_stop")]
+    assert records[2]["robots_per_field"] == 12
+    assert cli.main([*argv, "--tasks", "crowd"]) == 1
+    assert "no VMAS pair for ['crowd']" in capsys.readouterr().err
+
+
+def test_bench_game_gives_the_match_then_game_stop_per_field(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["bench", "game", "--json", "--sizes", "2", "1", "--rounds", "2", "--steps", "3"]
+    assert cli.main(argv) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    match = records[0]
+    assert (match["task"], match["frame_skip"], match["decide_every"], match["robots_per_field"]) == (
+        "game_match",
+        1,
+        16,
+        22,
+    )
+    assert match["steps_per_s"] >= match["median_steps_per_s"] > 0
+    assert [(r["task"], r["n_fields"]) for r in records[1:]] == [("game_stop", 1), ("game_stop", 2)]
+    lines = game_bench.match_profile(steps=4, rows=3)
+    assert lines[0].startswith("game_match, 4 steps under cProfile: ") and len(lines) == 4
+    assert all(" us " in line and " calls " in line for line in lines[1:])

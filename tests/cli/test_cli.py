@@ -84,7 +84,9 @@ def test_bench_env_and_vector_json_lines_parse(
     common = {"bench", "n_fields", "robots_per_field", "steps_per_s", "task", "frame_skip", "decisions_per_s"}
     for record in records:
         vector = {"physics_share", "memory_kb_per_field"}
-        assert set(record) == common | ({"build_s"} if record["bench"] == "env" else vector)
+        assert set(record) == common | (
+            {"build_s", "median_steps_per_s"} if record["bench"] == "env" else vector
+        )
         assert record["steps_per_s"] > 0 and record["decisions_per_s"] > 0
     assert [r["robots_per_field"] for r in records] == [1, 1, 1, 12]
     # At frame skip 1 a decision is one control step.

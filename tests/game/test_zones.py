@@ -166,3 +166,30 @@ def test_speed_limits() -> None:
     state = ref.referee_state(np.array(ALL), FIELD, placement=PLACE)
     expected = {ref.HALT: 0.0, ref.STOP: 1.5}  # rules 5.1.2, 5.1.1; none otherwise, ball placement included
     assert z.speed_limit(state).tolist() == [expected.get(c, np.inf) for c in ALL]
+
+
+def test_the_compiled_zones_agree_with_the_referee_functions() -> None:
+    # forbidden_zones is one compiled loop: its slots must be what the referee's own functions say.
+    rng = np.random.default_rng(0)
+    robots = ref.lineup(np.repeat([ref.YELLOW, ref.BLUE], 6), np.tile(np.arange(6), 2), FIELD)
+    n = 64
+    state = ref.referee_state(
+        rng.choice(ALL, n),
+        FIELD,
+        placement=rng.uniform(-1.0, 1.0, (n, 2)),
+        keeper=rng.integers(-1, 6, (n, 2)),
+        blue_on_positive_half=rng.random(n) < 0.5,
+    )
+    ball = rng.uniform(-4.0, 4.0, (n, 2))
+    zones = z.forbidden_zones(state, ball, FIELD, robots)
+    side, command = ref.own_side(state, robots), state.command
+    assert np.array_equal(zones.shape[..., z.OWN_DEFENSE, :], z.defense_box(FIELD, side))
+    assert np.array_equal(zones.shape[..., z.OPPONENT_DEFENSE, :], z.defense_box(FIELD, -side))
+    own = ~ref.is_keeper(state, robots) & ~ref.is_placement(command)[:, None]
+    assert np.array_equal(zones.kind[..., z.OWN_DEFENSE] == z.BOX, own)
+    other = robots.team != ref.favoured_team(command)[:, None]
+    either = ref.is_free_kick(command) | ref.is_placement(command)
+    keep_off = (command == ref.STOP)[:, None] | (either[:, None] & other)
+    assert np.array_equal(zones.kind[..., z.BALL] == z.CAPSULE, keep_off)
+    end = np.where(ref.is_placement(command)[:, None], state.placement, ball)
+    assert np.array_equal(zones.shape[..., z.BALL, :], np.broadcast_to(np.c_[ball, end][:, None], (n, 12, 4)))

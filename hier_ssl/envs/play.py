@@ -44,14 +44,7 @@ def play(
     obs = core.reset(seed)
     recorder = Recorder(core, record) if record else None
     shape = core.active.shape
-    pos = core.world.state.pos
-    start = pos[:, : shape[1]]
-    distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
-    # Centre distance to the nearest other robot at reset: under the collision distance the episode
-    # begins in contact (the public code's 0.2 m starts with a midpoint obstacle allow it).
-    gaps = np.linalg.norm(start[:, :, None] - pos[:, None], axis=-1)
-    gaps[:, np.arange(shape[1]), np.arange(shape[1])] = np.inf
-    start_gap = gaps.min(axis=2, initial=np.inf)
+    distance, start_gap = start_distances(core)
     ends = {
         "length": np.zeros(shape, dtype=np.int64),
         "success": np.zeros(shape, dtype=bool),
@@ -103,6 +96,19 @@ def play(
     }
 
 
+def start_distances(core: HierarchicalCore) -> tuple[np.ndarray, np.ndarray]:
+    """After a reset: each controlled robot's distance to its target and its centre distance to the
+    nearest other robot, m, (N, M) each."""
+    m, pos = core.active.shape[1], core.world.state.pos
+    start = pos[:, :m]
+    distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
+    # Under the collision distance the episode begins in contact (the public code's 0.2 m starts with a
+    # midpoint obstacle allow it).
+    gaps = np.linalg.norm(start[:, :, None] - pos[:, None], axis=-1)
+    gaps[:, np.arange(m), np.arange(m)] = np.inf
+    return distance, gaps.min(axis=2, initial=np.inf)
+
+
 def check_record(record: Sequence[int], episodes: int) -> list[int]:
     """Episode indices to record, as ints; ValueError naming them if any is out of range."""
     record = [int(i) for i in record]
@@ -145,4 +151,4 @@ class Recorder:
         }
 
 
-__all__ = ["Policy", "Recorder", "check_record", "play"]
+__all__ = ["Policy", "Recorder", "check_record", "play", "start_distances"]

@@ -32,7 +32,8 @@ from hier_ssl.game import (
     signed_distance,
     speed_limit,
 )
-from hier_ssl.game.legal import row_rules
+from hier_ssl.game.legal import SPEED_MARGIN, row_rules
+from hier_ssl.game.zones import STOP_SPEED
 from hier_ssl.manager.game_observation import (
     GAME_OBS_DIM,
     GAME_OBS_SLICES,
@@ -91,6 +92,21 @@ def test_halt_stops_every_robot_ours_and_theirs() -> None:
     core.step(np.ones((1, 2, core.act_dim)))  # sub-goals in a corner: the workers would drive
     np.testing.assert_array_equal(core.state.vel, 0.0)
     np.testing.assert_allclose(core.state.pos, pos, atol=1e-9)
+
+
+@pytest.mark.parametrize(("guard", "top"), [(SPEED_MARGIN, SPEED_MARGIN * STOP_SPEED), (None, 2.2)])
+def test_the_speed_guard_caps_our_robots_under_stop_as_the_deploy_controller_does(
+    guard: float | None, top: float
+) -> None:
+    core = _core("game_stop", fields=4, options={"command_at": [0.0, 0.0], "speed_guard": guard})
+    action, fastest = np.ones((4, 2, core.act_dim)), 0.0
+    action[..., 1] = -1.0  # sub-goals in a far corner: the worker drives at its own cap, 2.2 m/s
+    for _ in range(40):
+        live = core.active.copy()
+        core.step(action)
+        fastest = max(fastest, np.linalg.norm(core.state.vel[:, :2], axis=-1)[live].max(initial=0.0))
+    assert (core.scenario.referee.command == STOP).all()
+    assert fastest == pytest.approx(top, abs=1e-9)
 
 
 def _place(core: HierarchicalCore, pos: np.ndarray, vel: np.ndarray, ball: tuple[float, float]) -> None:

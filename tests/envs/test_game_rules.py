@@ -22,7 +22,7 @@ from hier_ssl.envs.game import (
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.evaluation.figures import label_outcomes, panel_title
-from hier_ssl.evaluation.report import make_record, markdown_table
+from hier_ssl.evaluation.report import csv_table, make_record, markdown_table
 from hier_ssl.game import (
     DIRECT_FREE_BLUE,
     FORCE_START,
@@ -236,8 +236,18 @@ def test_evaluation_reports_fouls_by_kind() -> None:
     per = result["per_robot"]
     assert not (per["foul"] & per["collision"]).any()
     assert result["foul_rate"] == per["foul"].mean()
-    table = markdown_table([make_record("direct", result)])
+    # Fouls per robot-minute: over the time each robot played, 25 ms a control step.
+    assert result["robot_minutes"] == pytest.approx(per["length"].sum() * 0.025 / 60)
+    for kind, count in result["fouls"].items():
+        assert result["fouls_per_robot_minute"][kind] * result["robot_minutes"] == pytest.approx(count)
+    record = make_record("direct", result)
+    table = markdown_table([record])
     assert table.splitlines()[0].endswith("| Foul |") and "fouls of direct: " in table
+    assert f"per robot-minute ({result['robot_minutes']:.1f} played): all " in table
+    header, row = csv_table([record]).splitlines()
+    values = dict(zip(header.split(","), row.split(","), strict=True))
+    for kind, rate in result["fouls_per_robot_minute"].items():
+        assert float(values[f"fouls_per_robot_minute_{kind}"]) == rate
 
 
 def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() -> None:

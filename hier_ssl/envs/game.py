@@ -19,6 +19,8 @@ role positions is ``hier_ssl.envs.game_places``, whose ``MARK_DISTANCE``, ``Game
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import Any, Literal
 
 import numpy as np
@@ -26,6 +28,7 @@ from pydantic import Field, field_validator
 
 from hier_ssl.config import ScenarioConfig, Strict
 from hier_ssl.envs.game_places import MARK_DISTANCE, GamePlacement, GamePlaces, rest_point, robot_zones
+from hier_ssl.envs.game_render import draw_game
 from hier_ssl.envs.opponents import OpponentTeam
 from hier_ssl.envs.scenario import Placement
 from hier_ssl.game import (
@@ -47,7 +50,6 @@ from hier_ssl.game import (
     step_fouls,
 )
 from hier_ssl.game.legal import SPEED_MARGIN, cap_speed
-from hier_ssl.game.zones import BALL, OPPONENT_DEFENSE, OWN_DEFENSE
 from hier_ssl.manager import HIT_REWARD, SUCCESS_REWARD
 from hier_ssl.manager.game_observation import GAME_OBS_DIM, game_columns
 from hier_ssl.world.entities import Entities
@@ -118,6 +120,7 @@ class GameScenario(GamePlaces):
 
     stat_names = ("foul", *(f"foul_{kind}" for kind in KINDS))
     rules_in_observation = True
+    ssl_teams = True
 
     def __init__(self, config: ScenarioConfig) -> None:
         if config.obstacles.behaviour != "stationary":
@@ -309,45 +312,23 @@ class GameScenario(GamePlaces):
 
     # -- render --------------------------------------------------------------------------------------------
 
-    def extra_render(self, ax: Any, field_index: int) -> None:
-        """Field ``field_index``'s active zones of our first robot that is no keeper (shaded), the referee's
-        command, and a cross where each of our robots committed a foul."""
+    def drawing(self, field_index: int) -> Callable[[Any], None]:
+        """Field ``field_index``'s referee state, ball and fouls as they are now, drawn when called on a
+        matplotlib ``ax`` (``draw_game``): a recorded episode's frames draw the game as it was."""
         i = [field_index]
-        referee, ball = self.referee_of(i), self.world.ball.pos[i, 0]
-        zones = forbidden_zones(referee, ball, self.field, self.lineup)
-        robot = int(self.options.keeper == 0 and self.num_agents > 1)
-        for slot in (OWN_DEFENSE, OPPONENT_DEFENSE, BALL):
-            kind, (x0, y0, x1, y1), clear = (
-                a[0, robot, slot] for a in (zones.kind, zones.shape, zones.clearance)
-            )
-            if kind == 0:
-                continue
-            if slot == BALL:  # a capsule: the stadium of the points within the clearance of the segment
-                ax.fill(*_stadium(x0, y0, x1, y1, clear).T, color="#e03131", alpha=0.25, zorder=1)
-            else:
-                xs, ys = (
-                    (x0 - clear, x1 + clear, x1 + clear, x0 - clear),
-                    (y0 - clear, y0 - clear, y1 + clear, y1 + clear),
-                )
-                ax.fill(xs, ys, color="#e03131", alpha=0.2, zorder=1)
-        name = COMMANDS[int(referee.command[0])]
-        ax.text(
-            -self.field.half_length, self.field.half_width + 0.1, name, color="white", fontsize=8, zorder=6
+        return functools.partial(
+            draw_game,
+            field=self.field,
+            lineup=self.lineup,
+            robot=int(self.options.keeper == 0 and self.num_agents > 1),
+            referee=self.referee_of(i),
+            ball=self.world.ball.pos[i, 0],
+            fouls=self.foul_at[field_index].copy(),
         )
-        fouls = self.foul_at[field_index]
-        fouls = fouls[~np.isnan(fouls[:, 0])]
-        if len(fouls):
-            ax.plot(fouls[:, 0], fouls[:, 1], "x", color="#e03131", markersize=9, mew=2.5, zorder=6)
 
-
-def _stadium(x0: float, y0: float, x1: float, y1: float, radius: float) -> np.ndarray:
-    """The outline (P, 2) of the points within ``radius`` of the segment (x0, y0) -> (x1, y1)."""
-    heading = np.arctan2(y1 - y0, x1 - x0)
-    turn = np.linspace(-np.pi / 2, np.pi / 2, 16)
-    ends = [(x1, y1, heading + turn), (x0, y0, heading + np.pi + turn)]
-    return np.concatenate(
-        [np.stack([x + radius * np.cos(a), y + radius * np.sin(a)], -1) for x, y, a in ends]
-    )
+    def extra_render(self, ax: Any, field_index: int) -> None:
+        """``draw_game`` of field ``field_index`` now."""
+        self.drawing(field_index)(ax)
 
 
 __all__ = [

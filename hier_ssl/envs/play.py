@@ -126,6 +126,8 @@ class Recorder:
         self.target = core.target[self.fields].copy()
         s = core.world.state
         self.pos, self.angle, self.subgoal = [s.pos[self.fields]], [s.angle[self.fields]], []
+        self.balls, self.drawings = [], []
+        self._scene()
         self._step = core.control_step
         core.control_step = self.control_step  # instance attribute: only this core is affected
 
@@ -135,13 +137,27 @@ class Recorder:
         self.pos.append(s.pos[self.fields])
         self.angle.append(s.angle[self.fields])
         self.subgoal.append(self.core.subgoal[self.fields])
+        self._scene()
         return out
+
+    def _scene(self) -> None:
+        """The balls and the scenario's drawing (``Scenario.drawing``) of the recorded fields now."""
+        ball = self.core.world.ball
+        if ball is not None:
+            self.balls.append(ball.pos[self.fields])
+        self.drawings.append([self.core.scenario.drawing(int(i)) for i in self.fields])
 
     def episode(self, j: int, length: int) -> dict[str, object]:
         """Recorded field ``j`` over its ``length`` control steps, M controlled robots (robots 0..M-1) of
         R: ``controlled`` M; target (M, 5); robots (T+1, R, 2) and angles (T+1, R) from the reset on;
-        subgoal (T, M, 5), the sub-goals in force at each control step. Metres, radians, field frame."""
+        subgoal (T, M, 5), the sub-goals in force at each control step; balls (T+1, B, 2) where the world
+        has balls; drawings (T+1), the scenario's ``drawing`` of each step; ssl_teams, the scenario's.
+        Metres, radians, field frame."""
+        balls = {"balls": np.stack([b[j] for b in self.balls[: length + 1]])} if self.balls else {}
         return {
+            **balls,
+            "drawings": [d[j] for d in self.drawings[: length + 1]],
+            "ssl_teams": self.core.scenario.ssl_teams,
             "field": int(self.fields[j]),
             "controlled": self.target.shape[1],
             "target": self.target[j],

@@ -20,8 +20,9 @@ from hier_ssl.envs.game import (
     rest_point,
 )
 from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.play import play
 from hier_ssl.evaluation.evaluate import evaluate
-from hier_ssl.evaluation.figures import label_outcomes, panel_title
+from hier_ssl.evaluation.figures import _panel, label_outcomes, panel_title
 from hier_ssl.evaluation.report import csv_table, make_record, markdown_table
 from hier_ssl.game import (
     DIRECT_FREE_BLUE,
@@ -256,6 +257,23 @@ def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() ->
     np.testing.assert_array_equal(core.observe(np.array([2, 0])), core.observe()[[2, 0]])
     referee = core.scenario.referee.fields([2, 0])
     np.testing.assert_array_equal(referee.placement, core.scenario.referee.placement[[2, 0]])
+
+
+def test_a_recorded_game_episode_draws_the_ball_and_the_referee_as_they_were() -> None:
+    config = scenario_config("game_stop", **{**SMALL, "options": {"command_at": [0.25, 0.25]}})
+    core = HierarchicalCore(config, 1, autoreset=False)
+    episode = play(core, make_planner("direct", config), 0, record=[0])["trajectories"][0]
+    steps = len(episode["robots"])
+    assert (
+        episode["ssl_teams"] and episode["balls"].shape == (steps, 1, 2) and len(episode["drawings"]) == steps
+    )
+    commands = [int(d.keywords["referee"].command[0]) for d in episode["drawings"]]
+    assert commands[:11] == [FORCE_START] * 11 and set(commands[11:]) == {STOP}  # STOP at step 10
+    assert not np.array_equal(episode["balls"][0], episode["balls"][-1])  # the ball rolled
+    episode["outcome"], episode["cpad"] = ["timeout"] * 2, [0.0] * 2
+    drawn = _panel(core.field, episode)
+    bare = _panel(core.field, {k: v for k, v in episode.items() if k not in ("balls", "drawings")})
+    assert (drawn != bare).any(axis=-1).mean() > 0.01  # the zones, the ball and the command's name
 
 
 def test_a_fouled_robot_is_labelled_a_foul_in_figures() -> None:

@@ -116,6 +116,7 @@ def test_render_draws_one_scenario_episode_and_names_a_bad_file_type(
     assert cli.main(["render", "crossing", "--out", str(tmp_path / "crossing.mp4")]) == 1
     assert "crossing.mp4" in capsys.readouterr().err and not (tmp_path / "crossing.mp4").exists()
     assert cli.main(["render", "crosing", "--out", str(gif)]) == 1
-    assert "unknown scenario 'crosing'; known: ['crossing', 'crowd', 'formation', 'game_ball_placement'," in capsys.readouterr().err
+    known = "known: ['crossing', 'crowd', 'formation', 'game_ball_placement', 'game_free_kick', 'game_match'"
+    assert f"unknown scenario 'crosing'; {known}" in capsys.readouterr().err
     assert cli.main(["eval", "direct", "--scenario", "crossing", "--set", "config=3"]) == 1
     assert "scenario.config: Extra inputs are not permitted" in capsys.readouterr().err

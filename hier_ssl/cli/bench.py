@@ -11,7 +11,8 @@ included, and in the env views also rewards, success and collision checks, obser
 - ``vector``: the batched view (auto-reset) at frame skip 16 with random actions, for the Proposed task at
   N = 1024 and ``formation`` (6 controlled robots + 6 moving obstacles per field) at N = 256, or (``sweep``)
   each task of a list at each N of a list; the policy's cost is not included. Also the resident memory
-  per field.
+  per field. ``scaling``: the same view on 1, 2, ... cores (``hier_ssl.envs.shards``), the counts
+  alternated round by round in one process, on the wall clock.
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ ENV_FRAME_SKIPS = (1, 16)
 VECTOR_RUNS = (("proposed", 1024), ("formation", 256))
 # One new random sub-goal per field every 2 s, so robots keep accelerating, braking and turning.
 _SUBGOAL_PERIOD = 80
+# Robot-steps of a round of ``scaling``: about 0.1-0.3 s on one core, short enough that a shared machine's
+# drift lands in every count's rounds alike.
+SCALING_ROUND_ROBOT_STEPS = 100_000
 
 
 @dataclass(frozen=True)
@@ -230,8 +234,9 @@ class VectorRun:
     """The batched torch view of ``task`` over ``n_fields`` fields, built and reset, ready to be timed:
     ``run(count)`` makes ``count`` vector steps of uniform random actions (drawn beforehand, auto-reset)
     and returns (seconds, control steps of one field, seconds in ``World.step``) by ``clock``;
-    ``memory_per_field`` is the resident memory building and one step added, bytes per field. The world
-    steps its blocks in ``threads`` threads (``World.use_threads``)."""
+    ``memory_per_field`` is the resident memory building and one step added, bytes per field. The fields
+    step on ``threads`` cores (``hier_ssl.envs.shards``); the time in ``World.step`` is counted where this
+    process steps them all (one core), None otherwise."""
 
     task: str
     n_fields: int
@@ -255,18 +260,13 @@ class VectorRun:
         del warm
         gc.collect()  # what an earlier run left is freed before, not while, this one is measured
         before = resident_bytes()
-        self.env = env = TorchVectorEnv(config, self.n_fields)
-        self.core, world = env.core, env.core.world
-        world.use_threads(self.threads)
-        world_step, self._in_world = world.step, [0.0]
-
-        def timed_step(command: Any) -> Any:  # World.step, timed
-            start = self.clock()
-            state = world_step(command)
-            self._in_world[0] += self.clock() - start
-            return state
-
-        world.step = timed_step
+        self.env = env = TorchVectorEnv(config, self.n_fields, threads=self.threads)
+        self.core, self._in_world = env.core, [0.0]
+        # The cores this process steps (every shard on one core; the first ones on more): their worlds.
+        local = getattr(self.core, "local_cores", [self.core])
+        self._all_local = getattr(self.core, "threads", 1) == 1
+        for world in (core.world for core in local):
+            world.step = self._timed(world.step)
         generator = torch.Generator().manual_seed(self.seed)
         self._pool = [
             torch.rand(env.num_envs, env.num_actions, generator=generator) * 2 - 1 for _ in range(8)
@@ -276,11 +276,21 @@ class VectorRun:
         after = resident_bytes()
         self.memory_per_field = None if before is None else (after - before) / self.n_fields
 
-    def run(self, count: int) -> tuple[float, int, float]:
+    def _timed(self, world_step: Callable[[Any], Any]) -> Callable[[Any], Any]:
+        def timed_step(command: Any) -> Any:  # World.step, timed
+            start = self.clock()
+            state = world_step(command)
+            self._in_world[0] += self.clock() - start
+            return state
+
+        return timed_step
+
+    def run(self, count: int) -> tuple[float, int, float | None]:
         self._in_world[0], first, start = 0.0, self.core.control_steps, self.clock()
         for i in range(count):
             self.env.step(self._pool[i % len(self._pool)])
-        return self.clock() - start, self.core.control_steps - first, self._in_world[0]
+        in_world = self._in_world[0] if self._all_local else None
+        return self.clock() - start, self.core.control_steps - first, in_world
 
     @property
     def robots_per_field(self) -> int:
@@ -309,7 +319,7 @@ def bench_vector(
         "task": task,
         "frame_skip": frame_skip,
         "decisions_per_s": round(bench.env.num_envs * decisions / wall, 1),
-        "physics_share": round(physics / wall, 3),
+        "physics_share": None if physics is None else round(physics / wall, 3),
         "memory_kb_per_field": None if memory is None else round(memory / 1024, 1),
     }
     return BenchResult("vector", n_fields, bench.robots_per_field, n_fields * steps / wall, extra)
@@ -338,6 +348,40 @@ def sweep(
         for n in sorted(results):
             results[n].extra["per_field_vs_smallest"] = round(results[n].steps_per_s / smallest, 3)
             yield results[n]
+
+
+def scaling(
+    tasks: Sequence[str],
+    sizes: Sequence[int],
+    threads: Sequence[int],
+    frame_skip: int,
+    rounds: int = 20,
+    clock: Clock = time.perf_counter,
+) -> Iterator[BenchResult]:
+    """Each task at each N on each count of cores in ``threads`` (``VectorRun``): the counts' views built
+    side by side and timed in turn, ``rounds`` rounds of about ``SCALING_ROUND_ROBOT_STEPS`` robot-steps
+    each, the best round of each count. Each result adds ``threads`` and ``speedup``, its field-steps/s
+    over those of the first count."""
+    for task in tasks:
+        for n in sizes:
+            runs = {k: VectorRun(task, n, frame_skip, clock, threads=k) for k in threads}
+            robots = runs[threads[0]].robots_per_field
+            count = max(1, round(SCALING_ROUND_ROBOT_STEPS / (n * robots * frame_skip)))
+            best = dict.fromkeys(runs, 0.0)
+            for _ in range(rounds):
+                for k, run in runs.items():
+                    seconds, steps, _ = run.run(count)
+                    best[k] = max(best[k], n * steps / seconds)
+            for run in runs.values():
+                run.env.close()
+            for k in runs:
+                extra = {
+                    "task": task,
+                    "frame_skip": frame_skip,
+                    "threads": k,
+                    "speedup": round(best[k] / best[threads[0]], 3),
+                }
+                yield BenchResult("vector", n, robots, best[k], extra)
 
 
 def print_results(results: Iterator[BenchResult], as_json: bool) -> None:

@@ -214,7 +214,8 @@ def add_field(subparsers: argparse._SubParsersAction) -> None:
 def _field(args: argparse.Namespace) -> int:
     import math
 
-    from hier_ssl.deploy.field import Cameras, FieldServer
+    from hier_ssl.deploy.cameras import Cameras
+    from hier_ssl.deploy.field import FieldServer
     from hier_ssl.deploy.referee_script import parse_script, parse_xy
     from hier_ssl.envs import task_config
     from hier_ssl.world.field import get_field
@@ -246,7 +247,7 @@ def _field(args: argparse.Namespace) -> int:
         ball=None if args.ball is None else parse_xy(args.ball, "ball"),
     )
     ports = {"vision_port": args.vision_port, "grsim_port": server.grsim_port}
-    refereed = referee is not None or server.game  # a game scenario plays its own referee
+    refereed = referee is not None or server.referee.game  # a game scenario plays its own referee
     ports["referee_port"] = args.referee_port if refereed else None
     print(json.dumps({"task": args.task, **ports, "simulation_port": server.simulation_port}), flush=True)
     try:
@@ -254,7 +255,7 @@ def _field(args: argparse.Namespace) -> int:
     finally:
         server.close()
     if refereed:
-        print(json.dumps({"fouls": server.foul_counts()}), flush=True)
+        print(json.dumps({"fouls": server.referee.foul_counts()}), flush=True)
     return 0
 
 

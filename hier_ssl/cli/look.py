@@ -15,6 +15,7 @@ from hier_ssl.cli.deploy import add_bench_deploy
 from hier_ssl.config import ConfigError
 from hier_ssl.config.files import config_dir, config_names, load_yaml
 from hier_ssl.envs import TASKS, task_config
+from hier_ssl.envs.shards import resolve_threads
 from hier_ssl.evaluation.compare import compare
 from hier_ssl.evaluation.figures import episode_video, figure3, panel_title
 from hier_ssl.manager.planners import PLANNERS
@@ -72,6 +73,18 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
     vector.add_argument(
         "--frame-skip", type=positive_int, default=16, help="of the sweep (default: %(default)s)"
     )
+    vector.add_argument(
+        "--threads",
+        type=positive_int,
+        nargs="*",
+        metavar="K",
+        help="the scaling curve instead: each of --tasks at each of --sizes (default: 1024) on K cores for "
+        "each K given (none given: 1 up to the cores this process may use), alternated in one run, wall "
+        "clock, unpinned",
+    )
+    vector.add_argument(
+        "--rounds", type=positive_int, default=20, help="alternations of --threads (default: %(default)s)"
+    )
     versus = targets.add_parser(
         "compare", help="vector view beside VMAS (if installed), alternating; PettingZoo at frame skip 1"
     )
@@ -87,9 +100,11 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
     versus.add_argument(
         "--threads",
         type=positive_int,
-        default=1,
-        help="step the world's blocks in this many threads, VMAS on one: wall clock, unpinned "
-        "(default: 1, pinned to one core)",
+        nargs="+",
+        default=[1],
+        metavar="K",
+        help="hier_ssl on K cores for each K given, alternated with each other and VMAS (on one torch "
+        "thread): wall clock, unpinned above 1 (default: 1, pinned to one core)",
     )
     versus.set_defaults(func=_bench_compare)
     add_bench_deploy(
@@ -97,7 +112,17 @@ def add_bench(subparsers: argparse._SubParsersAction) -> None:
     )
 
 
+def _thread_counts(args: argparse.Namespace) -> list[int]:
+    """``--threads`` as counts (none given: 1 up to this process's cores); SystemExit with --cpu-time."""
+    counts = args.threads or list(range(1, resolve_threads("auto") + 1))
+    if max(counts) > 1 and args.cpu_time:
+        raise SystemExit("--cpu-time counts this thread alone: use the wall clock with --threads above 1")
+    return counts
+
+
 def _bench_view(args: argparse.Namespace) -> int:
+    if getattr(args, "threads", None) is not None:
+        return _bench_scaling(args)
     cpu = bench.pin_to_one_core()
     if not args.json:
         where = f"CPU {cpu}" if cpu is not None else "one thread"
@@ -108,15 +133,27 @@ def _bench_view(args: argparse.Namespace) -> int:
     return 0
 
 
-def _bench_compare(args: argparse.Namespace) -> int:
-    if args.threads > 1 and args.cpu_time:
-        raise SystemExit("--cpu-time counts this thread alone: use the wall clock with --threads above 1")
-    cpu = bench.pin_to_one_core() if args.threads == 1 else None
+def _bench_scaling(args: argparse.Namespace) -> int:
+    counts = _thread_counts(args)
     if not args.json:
-        where = f"CPU {cpu}" if cpu is not None else f"{args.threads} thread(s), unpinned"
+        print(
+            f"vector bench on {counts} cores, unpinned, {args.rounds} alternating rounds, best of each "
+            f"(this process may use {resolve_threads('auto')} cores)"
+        )
+    sizes = args.sizes or [1024]
+    results = bench.scaling(args.tasks, sizes, counts, args.frame_skip, args.rounds, _clock(args))
+    bench.print_results(results, args.json)
+    return 0
+
+
+def _bench_compare(args: argparse.Namespace) -> int:
+    counts = _thread_counts(args)
+    cpu = bench.pin_to_one_core() if counts == [1] else None
+    if not args.json:
+        where = f"CPU {cpu}" if cpu is not None else f"{counts} cores, unpinned"
         vmas = "beside VMAS" if side_by_side.vmas_installed() else "(VMAS not installed: hier_ssl alone)"
         print(f"compare on {where}, {args.rounds} alternating rounds, best of each, {vmas}")
-    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps, args.threads)
+    records = side_by_side.comparisons(args.sizes, args.rounds, _clock(args), args.steps, counts)
     side_by_side.print_comparisons(records, args.json)
     return 0
 

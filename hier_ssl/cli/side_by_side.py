@@ -11,10 +11,10 @@ simulated time in hier_ssl and 0.1 s in VMAS: the ratios are given per control s
 second.
 
 Without VMAS installed (``pip install hier_ssl[bench]``) only hier_ssl's figures are printed; the
-PettingZoo view's steps per second at frame skip 1 are printed in both cases. With ``threads`` > 1 the
-world steps its blocks in that many threads (wall clock on that many cores); VMAS keeps one torch
-thread, its best here (on two threads of this busy 2-core machine it fell to a quarter or less: OpenMP
-threads waiting on each other's cores).
+PettingZoo view's steps per second at frame skip 1 are printed in both cases. With several counts of
+``threads`` hier_ssl's view runs on each count of cores (``hier_ssl.envs.shards``; wall clock), the counts
+and VMAS alternated round by round; VMAS keeps one torch thread, its best here (on two threads of this
+busy 2-core machine it fell to a quarter or less: OpenMP threads waiting on each other's cores).
 """
 
 from __future__ import annotations
@@ -86,59 +86,72 @@ def compare_pair(
     rounds: int,
     clock: Clock,
     steps: int | None = None,
-    threads: int = 1,
-) -> dict[str, Any]:
-    """hier_ssl's ``task`` at frame skip 1 and, if installed, VMAS's ``scenario`` over ``n_fields``
-    fields, ``rounds`` alternating rounds of ``steps`` control steps each (None: 50,000 robot-steps, about
-    a tenth of a second), hier_ssl's world on ``threads`` threads: the best of each side in field-steps/s and
-    simulated seconds per second, and their ratios (hier_ssl over VMAS)."""
-    hier = VectorRun(task, n_fields, 1, clock, threads=threads)
+    threads: Sequence[int] = (1,),
+) -> Iterator[dict[str, Any]]:
+    """hier_ssl's ``task`` at frame skip 1 on each count of cores in ``threads`` and, if installed, VMAS's
+    ``scenario`` over ``n_fields`` fields, ``rounds`` alternating rounds of ``steps`` control steps each
+    (None: 50,000 robot-steps, about a tenth of a second): for each count, the best of each side in
+    field-steps/s and simulated seconds per second, their ratios (hier_ssl over VMAS) and ``speedup``
+    (over the first count)."""
+    hier = {k: VectorRun(task, n_fields, 1, clock, threads=k) for k in threads}
     vmas_run = VmasRun(scenario, n_fields, options, clock) if vmas_installed() else None
-    count = steps or max(5, round(ROUND_ROBOT_STEPS / (n_fields * hier.robots_per_field)))
-    best, best_vmas = 0.0, 0.0
+    robots = hier[threads[0]].robots_per_field
+    count = steps or max(5, round(ROUND_ROBOT_STEPS / (n_fields * robots)))
+    best, best_vmas = dict.fromkeys(hier, 0.0), 0.0
     for _ in range(rounds):
-        seconds, steps, _ = hier.run(count)
-        best = max(best, n_fields * steps / seconds)
+        for k, run in hier.items():
+            seconds, taken, _ = run.run(count)
+            best[k] = max(best[k], n_fields * taken / seconds)
         if vmas_run is not None:
             best_vmas = max(best_vmas, n_fields * count / vmas_run.run(count))
-    out = {
-        "bench": "compare",
-        "task": task,
-        "n_fields": n_fields,
-        "threads": threads,
-        "robots_per_field": hier.robots_per_field,
-        "steps_per_s": round(best, 1),
-        "sim_s_per_s": round(best * HIER_DT, 1),
-    }
-    if vmas_run is not None:
-        out |= {
-            "vmas": scenario + "".join(f" {k}={v}" for k, v in options.items()),
-            "vmas_steps_per_s": round(best_vmas, 1),
-            "vmas_sim_s_per_s": round(best_vmas * VMAS_DT, 1),
-            "ratio_per_step": round(best / best_vmas, 3),
-            "ratio_per_sim_s": round(best * HIER_DT / (best_vmas * VMAS_DT), 3),
+    for run in hier.values():
+        run.env.close()
+    for k in hier:
+        out = {
+            "bench": "compare",
+            "task": task,
+            "n_fields": n_fields,
+            "threads": k,
+            "robots_per_field": robots,
+            "steps_per_s": round(best[k], 1),
+            "sim_s_per_s": round(best[k] * HIER_DT, 1),
+            "speedup": round(best[k] / best[threads[0]], 3),
         }
-    return out
+        if vmas_run is not None:
+            out |= {
+                "vmas": scenario + "".join(f" {key}={v}" for key, v in options.items()),
+                "vmas_steps_per_s": round(best_vmas, 1),
+                "vmas_sim_s_per_s": round(best_vmas * VMAS_DT, 1),
+                "ratio_per_step": round(best[k] / best_vmas, 3),
+                "ratio_per_sim_s": round(best[k] * HIER_DT / (best_vmas * VMAS_DT), 3),
+            }
+        yield out
 
 
 def comparisons(
-    sizes: Sequence[int], rounds: int, clock: Clock, steps: int | None = None, threads: int = 1
+    sizes: Sequence[int],
+    rounds: int,
+    clock: Clock,
+    steps: int | None = None,
+    threads: Sequence[int] = (1,),
 ) -> Iterator[dict[str, Any]]:
     """The PettingZoo view at frame skip 1 for ``PETTINGZOO_TASKS`` (``bench_env``, best of ``rounds``
     rounds of ``PETTINGZOO_ROUND_STEPS`` steps, or ``steps``), then every pair at every N (``compare_pair``,
-    on ``threads`` threads)."""
+    on each count of cores in ``threads``)."""
     for task in PETTINGZOO_TASKS:
         decisions = steps or PETTINGZOO_ROUND_STEPS
         result = bench_env(1, task, decisions=decisions, repeats=rounds, clock=clock)
         yield {"bench": "env", "task": task, "n_fields": 1, "steps_per_s": round(result.steps_per_s, 1)}
     for n in sizes:
         for task, scenario, options in PAIRS:
-            yield compare_pair(task, scenario, options, n, rounds, clock, steps, threads)
+            yield from compare_pair(task, scenario, options, n, rounds, clock, steps, threads)
 
 
 def describe(record: dict[str, Any]) -> str:
     """One line of text for a record of ``comparisons``."""
     line = f"  {record['task']:>9} N = {record['n_fields']:5d}: {record['steps_per_s']:12,.0f} field-steps/s"
+    if "threads" in record:
+        line += f" on {record['threads']} core(s) ({record['speedup']:.2f}x)"
     if "sim_s_per_s" in record:
         line += f" ({record['sim_s_per_s']:,.0f} sim s/s)"
     if "vmas" in record:

@@ -13,7 +13,7 @@ import copy
 import difflib
 import re
 import typing
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, Field, ValidationError, model_validator
@@ -192,9 +192,11 @@ class TrainConfig(Strict):
     save_interval: int = Field(5_000, ge=1)  # vector steps between resumable checkpoints
     seed: int = 0
     device: str = "cpu"
-    # One torch thread: on a busy 2-core machine two OpenMP threads stall each other (90-200 ms per update
-    # measured, against 11 ms on one thread); on an idle machine two threads save about a third.
-    threads: int = Field(1, ge=1)
+    # The cores the run uses: torch's threads and the cores that step its fields' shards
+    # (``hier_ssl.envs.shards``; the same episodes for every count); "auto": the cores the process may run
+    # on. One by default: on a busy 2-core machine two OpenMP threads stall each other (90-200 ms per
+    # update measured, against 11 ms on one thread); on an idle machine two threads save about a third.
+    threads: Annotated[int, Field(ge=1)] | Literal["auto"] = 1
 
     @model_validator(mode="before")
     @classmethod

@@ -6,8 +6,10 @@
 - ``controller``: one control period, with the stop for robots not seen;
 - ``net`` and ``loop``: sockets, the real-time loop, the loopback control socket for targets;
 - ``assemble``: the pieces put together from command-line values;
-- ``field``: a loopback field server on hier_ssl's own world;
-- ``bench``: latency and through-the-wire success (``hier-ssl bench deploy``).
+- ``field``: a loopback field server on hier_ssl's own world, with ``cameras`` its cameras and
+  ``field_referee`` its referee and foul counting;
+- ``bench``: latency and through-the-wire success (``hier-ssl bench deploy``), ``wired`` a field server
+  and the loop run together for them.
 
 Needs the ``deploy`` extra (``protobuf``).
 """

@@ -1,13 +1,13 @@
 """A loopback field server: hier_ssl's own world standing in for grSim or a real field.
 
 One field of a task or scenario (``HierarchicalCore``, its obstacle behaviours and rules) steps every
-25 ms of wall-clock time. Cameras split the walled area along x into strips that overlap, each publishing
-an SSL-Vision detection frame at ``rate`` Hz of what it sees (the latest world step, with Gaussian noise,
-each detection dropped with probability ``drop``, sent ``latency`` s after capture), and a geometry packet
-once a second. The controlled robots are team ``team`` ids 0..M-1, the obstacles the other team's ids
-0..K-1. Commands arrive as grSim packets or simulation-protocol ``RobotControl`` (answered with a
-``RobotControlResponse``) on 127.0.0.1; a robot whose last command is older than ``COMMAND_TIMEOUT`` stops,
-as robot firmware does.
+25 ms of wall-clock time. Cameras (``hier_ssl.deploy.cameras``) split the walled area along x into strips
+that overlap, each publishing an SSL-Vision detection frame at ``rate`` Hz of what it sees (the latest
+world step, with Gaussian noise, each detection dropped with probability ``drop``, sent ``latency`` s after
+capture), and a geometry packet once a second. The controlled robots are team ``team`` ids 0..M-1, the
+obstacles the other team's ids 0..K-1. Commands arrive as grSim packets or simulation-protocol
+``RobotControl`` (answered with a ``RobotControlResponse``) on 127.0.0.1; a robot whose last command is
+older than ``COMMAND_TIMEOUT`` stops, as robot firmware does.
 
 Episodes: after a reset the robots stand for ``settle`` s while the cameras publish, then each controlled
 robot's target goes to the controller's control socket (JSON lines); the world steps from the first
@@ -24,14 +24,10 @@ ticks on the frames (``hier-ssl deploy --lockstep``). grSim and a real field run
 free-running mode is the one that stands in for them.
 
 Referee (``referee``, a script of ``hier_ssl.deploy.referee_script``): the field server plays the game
-controller too. Each time the world's clock moves on a period it sends the ``Referee`` message of the
-command the script has in force at the episode's time to 127.0.0.1:``referee_port`` (before the period's
-frames, so that the controller's tick on them is under it), and after each world step it calls the fouls
-of the step with the rules' functions the environments call (``hier_ssl.game.fouls.step_fouls``), for
-every robot of both teams: counted by robot and kind in each episode's records and in ``fouls`` over the
-run. A game scenario (``hier_ssl.envs.game``) plays its own referee: its state goes out the same way, its
-targets go to the controller again when its command changes them, and its fouls are its own (the team
-is then yellow, as the scenario's). The ball is the world's where the task's world has one (the game
+controller too, and calls the fouls of every robot of both teams (``hier_ssl.deploy.field_referee``). A
+game scenario (``hier_ssl.envs.game``) plays its own referee: its state goes out the same way, its targets
+go to the controller again when its command changes them, and its fouls are its own (the team is then
+yellow, as the scenario's). The ball is the world's where the task's world has one (the game
 scenarios), otherwise one lying still at ``ball`` (the centre spot unless given); either goes into the
 cameras' frames and the rules.
 """
@@ -46,19 +42,17 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from hier_ssl.config import TaskConfig
-from hier_ssl.deploy.game import labelled_lineup
+from hier_ssl.deploy.cameras import Cameras, camera_frames, camera_strips
+from hier_ssl.deploy.field_referee import REFEREE_PORT, FieldReferee
 from hier_ssl.deploy.net import LOOPBACK, receive
-from hier_ssl.deploy.referee_script import Call, GameController, ScriptedReferee
+from hier_ssl.deploy.referee_script import Call
 from hier_ssl.deploy.wire import (
     TEAMS,
-    Detection,
-    DetectionFrame,
     PacketError,
     encode_detection,
     encode_geometry,
@@ -67,73 +61,9 @@ from hier_ssl.deploy.wire import (
     parse_simulation,
 )
 from hier_ssl.envs.core import HierarchicalCore
-from hier_ssl.envs.game import FOULED, GameScenario
-from hier_ssl.game.fouls import KINDS, Motion, new_clocks, step_fouls
 
 STEP = 0.025  # s
 COMMAND_TIMEOUT = 0.1  # s
-REFEREE_PORT = 10003  # the game controller's port in the league (its multicast group's)
-
-
-@dataclass(frozen=True)
-class Cameras:
-    """``count`` cameras over strips of the walled area along x, overlapping by ``overlap`` m; ``rate``
-    frames/s each; noise (one standard deviation) ``pos_noise`` m and ``angle_noise`` rad; ``drop`` the
-    probability of missing a detection; ``latency`` s from capture to send."""
-
-    count: int = 2
-    overlap: float = 0.6
-    rate: float = 60.0
-    pos_noise: float = 0.002
-    angle_noise: float = 0.01
-    drop: float = 0.0
-    latency: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.count < 1 or not self.rate > 0 or not 0 <= self.drop < 1:
-            raise ValueError(f"cameras: count >= 1, rate > 0 and drop in [0, 1) expected, got {self}")
-        if min(self.overlap, self.pos_noise, self.angle_noise, self.latency) < 0:
-            raise ValueError(f"cameras: overlap, noise and latency must be >= 0, got {self}")
-
-
-def camera_strips(cameras: Cameras, half_extent: float) -> np.ndarray:
-    """(count, 2) x range each camera sees: equal strips of [-half_extent, half_extent], widened by half
-    the overlap on each inner side."""
-    edges = np.linspace(-half_extent, half_extent, cameras.count + 1)
-    strips = np.stack([edges[:-1], edges[1:]], axis=1)
-    strips[1:, 0] -= cameras.overlap / 2
-    strips[:-1, 1] += cameras.overlap / 2
-    return strips
-
-
-def camera_frames(
-    pos: np.ndarray,
-    angle: np.ndarray,
-    teams: list[tuple[str, int]],
-    cameras: Cameras,
-    strips: np.ndarray,
-    t_capture: float,
-    rng: np.random.Generator,
-    ball: tuple[float, float] | None = None,
-) -> list[DetectionFrame]:
-    """One frame per camera of robots at ``pos`` (R, 2) m, ``angle`` (R,) labelled ``teams``: each camera
-    reports the robots inside its strip, with noise and drops, and the ``ball`` (m; None: none) where it
-    lies inside the strip, as it is. Shapes of the outputs: a tuple per frame."""
-    frames = []
-    for c, (low, high) in enumerate(strips):
-        inside = (pos[:, 0] >= low) & (pos[:, 0] <= high) & (rng.random(len(pos)) >= cameras.drop)
-        noisy = pos + rng.normal(0.0, cameras.pos_noise, pos.shape)
-        turned = angle + rng.normal(0.0, cameras.angle_noise, angle.shape)
-        seen = tuple(
-            Detection(team, robot, float(noisy[i, 0]), float(noisy[i, 1]), float(turned[i]))
-            for i, (team, robot) in enumerate(teams)
-            if inside[i]
-        )
-        sees_ball = ball is not None and low <= ball[0] <= high
-        frames.append(
-            DetectionFrame(t_capture, t_capture + cameras.latency, c, seen, ball if sees_ball else None)
-        )
-    return frames
 
 
 class FieldServer:
@@ -190,17 +120,8 @@ class FieldServer:
         self.commanded = np.full(self.m, -np.inf)
         self.dropped = self.frames_sent = 0
         self.capture_time = time.time()
-        self.game = isinstance(self.core.scenario, GameScenario)  # it plays its own referee, calls its fouls
-        if self.game and (referee is not None or team != "yellow"):
-            raise ValueError(
-                f"{self.core.scenario.name}: a game scenario plays its own referee (no referee script) and "
-                f"its controlled robots are the yellow team (team 'yellow'), got team {team!r}"
-            )
-        self.referee = None if referee is None else ScriptedReferee(referee, fld)
-        self.game_controller, self.referee_to = GameController(), (LOOPBACK, referee_port)
+        self.referee = FieldReferee(self.core, self.labels, team, referee, referee_port, self.out, STEP)
         self.ball = (0.0, 0.0) if ball is None and referee is not None else ball
-        self.players = labelled_lineup(self.labels)
-        self.fouls = np.zeros((self.m + self.k, len(KINDS)), dtype=np.int64)  # by robot and kind, the run's
 
     @staticmethod
     def _listen(port: int) -> socket.socket:
@@ -266,7 +187,7 @@ class FieldServer:
                 continue
             next_step += STEP
             self.capture_time = time.time()  # the world as it stands now: stepped below, or still
-            self._call()
+            self.referee.call()
             if sent is None and now - start >= self.settle:
                 self._send_targets(control)
                 self._read_grsim()  # commands sent before the targets were taken: not the first ones
@@ -318,7 +239,7 @@ class FieldServer:
         camera's frames whose capture falls in the step's period at the camera's rate (one or two at 60
         Hz, always at least one: the controller ticks on them); the next frame number."""
         self.capture_time = epoch + step * STEP
-        self._call()
+        self.referee.call()
         t0, t1 = (round(k * STEP * self.cameras.rate, 9) for k in (step, step + 1))
         pending: list[tuple[float, int, bytes]] = []
         for _ in range(math.ceil(t1) - math.ceil(t0)):
@@ -334,69 +255,20 @@ class FieldServer:
         self.command[:] = 0.0
         self.outcome = {"success": np.zeros(self.m, bool), "collision": np.zeros(self.m, bool)}
         self.length = np.zeros(self.m, dtype=np.int64)
-        self.game_controller.restart()
-        if self.referee is not None:
-            self.clocks, self.episode_fouls = new_clocks(1, self.m + self.k), np.zeros_like(self.fouls)
-            self.touching = np.zeros_like(self.core.world.robot_contacts)
+        self.referee.restart()
         return np.ones((1, self.m), dtype=bool)
-
-    def _call(self) -> None:
-        """The referee's message at the episode's time, sent now: the script's or the game scenario's state
-        (neither: nothing)."""
-        if self.referee is not None:
-            self.rules = self.referee.at(self.core.steps[0] * STEP)
-        elif self.game:
-            self.rules = self.core.scenario.referee_of(None)
-        else:
-            return
-        wall = time.time()
-        self.out.sendto(self.game_controller.packet(self.rules, wall), self.referee_to)
 
     def _ball(self) -> tuple[float, float] | None:
         """Where the ball is: the world's first, where its world has balls, or the still one."""
         balls = self.core.world.ball
         return self.ball if balls is None else tuple(balls.pos[0, 0].tolist())
 
-    def _motion(self) -> Motion:
-        state = self.core.world.state
-        return Motion(state.pos.copy(), state.vel.copy())
-
-    def _call_fouls(self, before: Motion) -> None:
-        """The fouls of the world step from ``before`` (``step_fouls``), added to the episode's and the
-        run's counts; a contact is a crash's only in the step it begins."""
-        touching = np.triu(self.core.world.robot_contacts, 1)
-        began = np.argwhere(touching & ~self.touching)
-        self.touching = touching
-        self.clocks, report = step_fouls(
-            self.clocks,
-            self.rules,
-            self.players,
-            self.core.field,
-            before,
-            self._motion(),
-            np.array([self._ball()], dtype=float),
-            began,
-            STEP,
-        )
-        self.episode_fouls += report.by_robot[0]
-        self.fouls += report.by_robot[0]
-
-    def foul_counts(self, fouls: np.ndarray | None = None) -> dict[str, dict[str, int]]:
-        """``fouls`` (robots, kinds; default the run's) by robot ("blue 0") and kind, robots without any
-        left out."""
-        fouls = self.fouls if fouls is None else fouls
-        return {
-            f"{team} {robot}": {kind: int(n) for kind, n in zip(KINDS, row, strict=True) if n}
-            for (team, robot), row in zip(self.labels, fouls, strict=True)
-            if row.any()
-        }
-
     def _step(self, live: np.ndarray, now: float) -> tuple[np.ndarray, bool]:
         command = np.where((now - self.commanded <= COMMAND_TIMEOUT)[:, None], self.command, 0.0)
-        before = self._motion() if self.referee is not None else None
+        before = self.referee.motion() if self.referee.script is not None else None
         _, success, hit = self.core.control_step(live, worker_action=(command / self.scale)[None])
         if before is not None:
-            self._call_fouls(before)
+            self.referee.call_fouls(before, self._ball())
         self.length += live[0]
         self.outcome["success"] |= success[0]
         self.outcome["collision"] |= hit[0]
@@ -416,16 +288,7 @@ class FieldServer:
             }
             for i in range(self.m)
         ]
-        if self.game:  # the scenario's own fouls, which end a robot's episode
-            self.episode_fouls = np.zeros_like(self.fouls)
-            self.episode_fouls[: self.m] = self.core.scenario.fouls[0]
-            self.fouls += self.episode_fouls
-            for i, record in enumerate(records):
-                record["foul"] = bool(self.core.scenario.way[0, i] == FOULED)
-        if self.referee is not None or self.game:
-            fouls = self.foul_counts(self.episode_fouls)
-            for i, record in enumerate(records):
-                record["fouls"] = fouls.get(f"{self.team} {i}", {})
+        self.referee.add_fouls(records)
         return records
 
     def _capture(self, frame: int, pending: list, now: float) -> int:

@@ -34,6 +34,7 @@ from hier_ssl.envs.registry import (
 )
 from hier_ssl.envs.scenario import Placement, Scenario
 from hier_ssl.envs.scenarios import SCENARIOS
+from hier_ssl.envs.shards import ShardedCore, Threads, batched_core
 from hier_ssl.envs.tasks import TASKS
 
 if TYPE_CHECKING:
@@ -80,14 +81,17 @@ def vector_env(
     num_envs: int = 16,
     device: str = "cpu",
     worker: Any = None,
+    threads: Threads = 1,
     **settings: Any,
 ) -> TorchVectorEnv:
-    """The batched torch view over ``num_envs`` fields (one row each for a paper task)."""
+    """The batched torch view over ``num_envs`` fields (one row each for a paper task), stepped on
+    ``threads`` cores (an int, or "auto": those this process may use; ``hier_ssl.envs.shards``), the same
+    results for every count."""
     # here, not at the top: torch, for the torch views alone
     from hier_ssl.envs.vector import TorchVectorEnv
 
     settings, worker = _worker_apart(worker, settings)
-    return TorchVectorEnv(task_config(config, **settings), num_envs, device, worker=worker)
+    return TorchVectorEnv(task_config(config, **settings), num_envs, device, worker=worker, threads=threads)
 
 
 def manager_env(
@@ -105,13 +109,14 @@ def manager_vector_env(
     config: str | Path | TaskConfig | None = None,
     num_fields: int = 16,
     worker: Any = None,
+    threads: Threads = 1,
     **settings: Any,
 ) -> ManagerVectorEnv:
     """The batched view as a ``gymnasium.vector.VectorEnv``, numpy in and out, same-step autoreset: one
     row per (field, controlled robot), e.g. ``manager_vector_env(task="proposed", num_fields=8,
-    frame_skip=16)`` (``hier_ssl.envs.gym_vector``)."""
+    frame_skip=16)`` (``hier_ssl.envs.gym_vector``), on ``threads`` cores as ``vector_env``."""
     settings, worker = _worker_apart(worker, settings)
-    return ManagerVectorEnv(task_config(config, **settings), num_fields, worker=worker)
+    return ManagerVectorEnv(task_config(config, **settings), num_fields, worker=worker, threads=threads)
 
 
 def scenario_env(
@@ -132,14 +137,17 @@ def scenario_vector_env(
     num_fields: int = 16,
     device: str = "cpu",
     worker: Any = None,
+    threads: Threads = 1,
     **settings: Any,
 ) -> TorchVectorEnv:
-    """The batched torch view of a scenario for a shared policy: one row per (field, controlled robot)."""
+    """The batched torch view of a scenario for a shared policy: one row per (field, controlled robot),
+    on ``threads`` cores as ``vector_env``."""
     # here, not at the top: torch, for the torch views alone
     from hier_ssl.envs.vector import TorchVectorEnv
 
     settings, worker = _worker_apart(worker, settings)
-    return TorchVectorEnv(scenario_config(scenario, **settings), num_fields, device, worker=worker)
+    config = scenario_config(scenario, **settings)
+    return TorchVectorEnv(config, num_fields, device, worker=worker, threads=threads)
 
 
 def __getattr__(name: str) -> Any:
@@ -164,10 +172,12 @@ __all__ = [
     "RslRlVecEnv",
     "Scenario",
     "ScenarioConfig",
+    "ShardedCore",
     "StepResult",
     "TorchVectorEnv",
     "TorchView",
     "env",
+    "batched_core",
     "env_config",
     "load_config",
     "make_scenario",

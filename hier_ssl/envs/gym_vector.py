@@ -35,18 +35,21 @@ from gymnasium.vector.utils import batch_space
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.rows import RowView
+from hier_ssl.envs.shards import ShardedCore, Threads, batched_core, close_core
 
 
 class ManagerVectorEnv(VectorEnv):
     """``num_fields`` fields of a task or scenario for one shared manager policy; ``num_envs`` = N x M
-    rows. ``step(actions (rows, A) in [-1, 1])``; see the module docstring for the infos."""
+    rows. ``step(actions (rows, A) in [-1, 1])``; see the module docstring for the infos. ``threads`` (an
+    int, or "auto") steps the fields' shards on that many cores (``hier_ssl.envs.shards``), the same
+    results for every count; ``close()`` stops the worker processes that takes."""
 
     metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
     # Gymnasium's own vector envs also carry the mode as an attribute, and clients (TorchRL) read that.
     autoreset_mode = AutoresetMode.SAME_STEP
 
-    def __init__(self, config: TaskConfig, num_fields: int, worker: Any = None) -> None:
-        core = HierarchicalCore(config, num_fields, autoreset=True, worker=worker)
+    def __init__(self, config: TaskConfig, num_fields: int, worker: Any = None, threads: Threads = 1) -> None:
+        core = batched_core(config, num_fields, autoreset=True, worker=worker, threads=threads)
         self.config = core.config
         decisions = -(-self.config.max_steps // self.config.frame_skip)
         self.rows = RowView(core, core.obs_dim, (num_fields, core.num_agents, core.act_dim), decisions)
@@ -57,8 +60,12 @@ class ManagerVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
 
     @property
-    def core(self) -> HierarchicalCore:
+    def core(self) -> HierarchicalCore | ShardedCore:
         return self.rows.core
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop the shards' worker processes, if any (Gymnasium's ``close`` calls this)."""
+        close_core(self.core)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

@@ -13,18 +13,21 @@ import numpy as np
 from tqdm import tqdm
 
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.shards import ShardedCore
 
+# One core, or shards of one on several cores (``hier_ssl.envs.shards``).
+Core = HierarchicalCore | ShardedCore
 Policy = Callable[[np.ndarray], np.ndarray]
 """Manager observations (B, obs_dim) -> actions (B, act_dim) in [-1, 1], one row per live robot."""
 
 
 def play(
-    core: HierarchicalCore, policy: Policy, seed: int, record: Sequence[int] = (), progress: str | None = None
+    core: Core, policy: Policy, seed: int, record: Sequence[int] = (), progress: str | None = None
 ) -> dict[str, Any]:
     """Reset ``core`` (built without auto-reset) with ``seed``, one episode per field, and play every
     episode to its end; the policy acts for the live robots only (its input rows shrink as robots leave).
-    The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
-    evaluation and ``hier-ssl render`` all run it.
+    The one episode loop: training's model selection and data collection, ``hier-ssl eval``, the goToPoint
+    workers' evaluation and ``hier-ssl render`` all run it; ``record`` needs a ``HierarchicalCore``.
 
     Returns length (control steps), success, collision, cpad, cpad_public, distance (start to target, m),
     start_gap (to the nearest other robot at reset, m) and the scenario's ``stat_names`` (the game's
@@ -96,10 +99,10 @@ def play(
     }
 
 
-def start_distances(core: HierarchicalCore) -> tuple[np.ndarray, np.ndarray]:
+def start_distances(core: Core) -> tuple[np.ndarray, np.ndarray]:
     """After a reset: each controlled robot's distance to its target and its centre distance to the
     nearest other robot, m, (N, M) each."""
-    m, pos = core.active.shape[1], core.world.state.pos
+    m, pos = core.active.shape[1], core.state.pos
     start = pos[:, :m]
     distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
     # Under the collision distance the episode begins in contact (the public code's 0.2 m starts with a

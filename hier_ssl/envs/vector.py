@@ -15,8 +15,8 @@ from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
 from hier_ssl.config import TaskConfig
-from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.rows import RowView
+from hier_ssl.envs.shards import Threads, batched_core, close_core
 
 _NUMPY_DTYPES = {torch.float32: np.float32, torch.bool: np.bool_, torch.int64: np.int64}
 
@@ -95,16 +95,29 @@ class TorchVectorEnv(TorchView):
     steps, decisions, success, collision, cpad): "live" (rows,) bool, the rows whose transition is real,
     for learners that can mask; "control_steps" and "action_clipped" (rows,). A field resets once all its
     robots have left.
+
+    ``threads`` (an int, or "auto": the cores this process may use) steps the fields' shards on that many
+    cores (``hier_ssl.envs.shards``), with the same results for every count; ``close()`` stops the worker
+    processes that takes.
     """
 
     def __init__(
-        self, config: TaskConfig, num_fields: int, device: str | torch.device = "cpu", worker: Any = None
+        self,
+        config: TaskConfig,
+        num_fields: int,
+        device: str | torch.device = "cpu",
+        worker: Any = None,
+        threads: Threads = 1,
     ) -> None:
-        core = HierarchicalCore(config, num_fields, autoreset=True, worker=worker)
+        core = batched_core(config, num_fields, autoreset=True, worker=worker, threads=threads)
         self.config = core.config
         decisions = -(-self.config.max_steps // self.config.frame_skip)
         shape = (num_fields, core.num_agents, core.act_dim)
         super().__init__(core, core.obs_dim, shape, decisions, device)
+
+    def close(self) -> None:
+        """Stop the shards' worker processes, if any."""
+        close_core(self.core)
 
 
 class RslRlVecEnv(VecEnv):

@@ -32,17 +32,12 @@ from tqdm import tqdm
 from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig
 from hier_ssl.config.learners import CandidatePPOConfig
-from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
+from hier_ssl.envs.shards import batched_core, close_core
 from hier_ssl.envs.vector import TorchVectorEnv
 from hier_ssl.manager.planners import SamplingPlanner
-from hier_ssl.policies.candidate_graph import (
-    CandidateManager,
-    as_points,
-    candidate_geometry,
-    stored_features,
-)
+from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candidate_geometry, stored_features
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
 from hier_ssl.policies.networks import NumpyPolicy, mlp
@@ -112,6 +107,7 @@ class CandidateLearner:
         self.resumed: dict[str, Any] = {}  # the model.pt that ``load`` read
         self.phase = "dagger"
         self.on_checkpoint: OnCheckpoint | None = None
+        self.env: TorchVectorEnv | None = None
 
     def load(self, run_dir: str | Path) -> None:
         """Continue from ``run_dir``'s ``model.pt``, in the phase it was saved in."""
@@ -140,6 +136,8 @@ class CandidateLearner:
             self.on_checkpoint = None
             self.bar.close()
             self.writer.close()
+            if self.env is not None:  # the PPO phase's fields, with their worker processes
+                self.env.close()
 
     def policy(self) -> NumpyPolicy:
         """The greedy choice of the network over the planner's candidates, a live view of its weights."""
@@ -147,7 +145,7 @@ class CandidateLearner:
 
     def dagger(self, saved: dict[str, Any], rounds: int) -> None:
         """Phase 1: DAgger rounds until ``rounds``, from round ``saved["round"] + 1`` where given."""
-        settings, planner, geometry = self.settings, self.planner, self.geometry
+        config, settings, planner, geometry = self.config, self.settings, self.planner, self.geometry
         obs_parts = [saved["obs"].numpy()] if saved else []
         label_parts = [saved["labels"].numpy()] if saved else []
         # A scorer's features of each state, kept as they were met (a resume rebuilds them from the states).
@@ -183,8 +181,9 @@ class CandidateLearner:
 
         for round_ in range(first, rounds):
             began = time.perf_counter()
-            core = HierarchicalCore(self.config.task_config, settings.episodes, autoreset=False)
-            ends = play(core, labelling(self.net), _seed(self.config, 0, round_))
+            core = batched_core(config.task_config, settings.episodes, False, threads=config.threads)
+            ends = play(core, labelling(self.net), _seed(config, 0, round_))
+            close_core(core)  # its worker processes (on an error, when the core is collected)
             played = {"success_rate": ends["success"].mean(), "collision_rate": ends["collision"].mean()}
             x = torch.as_tensor(np.concatenate(obs_parts))
             p = torch.as_tensor(np.concatenate(label_parts))
@@ -221,7 +220,7 @@ class CandidateLearner:
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
-        self.env = TorchVectorEnv(self.config.task_config, settings.fields)
+        self.env = TorchVectorEnv(self.config.task_config, settings.fields, threads=self.config.threads)
         self.value = mlp(self.env.num_obs, settings.value_hidden, 1, nn.Tanh)
         self.optimizers = (
             torch.optim.Adam(net.parameters(), lr=settings.learning_rate),

@@ -25,6 +25,7 @@ from hier_ssl.config import ConfigError, TrainConfig, dump_config
 from hier_ssl.config.files import load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.gotopoint import GoToPointEnv, print_worker_summary, worker_summary
+from hier_ssl.envs.shards import resolve_threads
 from hier_ssl.envs.vector import TorchVectorEnv
 from hier_ssl.evaluation.evaluate import Policy, evaluate
 from hier_ssl.policies.actor import load_policy
@@ -123,16 +124,27 @@ def train(
 
     ``on_selection`` receives each row of the learning curve (curve.csv's columns) once it is written.
     """
-    torch.set_num_threads(config.threads)
+    threads = resolve_threads(config.threads)
+    torch.set_num_threads(threads)
     run_dir.mkdir(parents=True, exist_ok=True)
     if not resume:
         write_text(dump_config(config), run_dir / CONFIG_FILE)
     if config.kind == "worker":
         return _train_worker(config, run_dir, resume)
-    learner = _learner(config, run_dir, progress)
-    if resume:
-        learner.load(run_dir)
-    learner.learn(_budget(config), Selection(config, run_dir, on_selection))
+    # The learners' fields (candidates plays its own); SAC keeps the world on the CPU, its runner puts the
+    # learner on config.device.
+    env = None
+    if config.algo != "candidates":
+        env_device = "cpu" if config.algo == "sac" else config.device
+        env = TorchVectorEnv(config.task_config, config.num_envs, env_device, threads=threads)
+    try:
+        learner = _learner(config, run_dir, progress, env)
+        if resume:
+            learner.load(run_dir)
+        learner.learn(_budget(config), Selection(config, run_dir, on_selection))
+    finally:
+        if env is not None:
+            env.close()
     policy, train_wall_s = learner.policy(), learner.train_time_s
     # Both policies on the held-out episodes: the paper reports its final models, we keep the best.
     seed, held_out = EVALUATION_SEED + config.seed, f"held-out episodes ({config.eval_episodes})"
@@ -169,13 +181,10 @@ def _figures(result: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _learner(config: TrainConfig, run_dir: Path, progress: bool) -> Learner:
-    """The learner ``config.algo`` names, over a fresh environment."""
-    if config.algo == "candidates":  # plays its own fields: a fixed number per phase
+def _learner(config: TrainConfig, run_dir: Path, progress: bool, env: TorchVectorEnv | None) -> Learner:
+    """The learner ``config.algo`` names, over ``env`` (fresh; None for candidates)."""
+    if env is None:  # candidates plays its own fields: a fixed number per phase
         return CandidateLearner(config, run_dir, progress)
-    # SAC keeps the world on the CPU; its runner puts the learner on config.device.
-    env_device = "cpu" if config.algo == "sac" else config.device
-    env = TorchVectorEnv(config.task_config, config.num_envs, env_device)
     if config.algo == "ppo":
         return PPOLearner(
             env,

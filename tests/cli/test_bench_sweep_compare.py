@@ -6,7 +6,7 @@ import time
 import pytest
 
 from hier_ssl import cli
-from hier_ssl.cli import bench, side_by_side
+from hier_ssl.cli import bench, look, side_by_side
 
 
 @pytest.fixture(autouse=True)
@@ -60,24 +60,60 @@ def test_compare_without_vmas_prints_hier_ssl_alone(
         assert "vmas_steps_per_s" not in record
 
 
-def test_compare_in_threads_steps_the_world_in_them_on_the_wall_clock(
+def test_compare_on_several_core_counts_alternates_them_on_the_wall_clock(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setattr(side_by_side, "vmas_installed", lambda: False)
     monkeypatch.setattr(side_by_side, "PAIRS", side_by_side.PAIRS[:1])
-    built = []
-    monkeypatch.setattr(bench.World, "use_threads", lambda world, count: built.append(count))
-    argv = ["bench", "compare", "--json", "--sizes", "2", "--rounds", "1", "--steps", "3", "--threads", "2"]
+    cores = []
+
+    class Counted(bench.VectorRun):
+        def __post_init__(self) -> None:
+            super().__post_init__()
+            cores.append(self.core.threads)
+
+    monkeypatch.setattr(side_by_side, "VectorRun", Counted)
+    argv = [
+        "bench",
+        "compare",
+        "--json",
+        "--sizes",
+        "70",
+        "--rounds",
+        "1",
+        "--steps",
+        "3",
+        "--threads",
+        "1",
+        "2",
+    ]
     assert cli.main(argv) == 0
-    record = json.loads(capsys.readouterr().out.splitlines()[-1])
-    assert (record["task"], record["threads"], built) == ("obstacle", 2, [2])
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()][-2:]
+    assert [(r["task"], r["threads"]) for r in records] == [("obstacle", 1), ("obstacle", 2)]
+    assert cores == [1, 2] and records[0]["speedup"] == 1.0 and records[1]["speedup"] > 0
     with pytest.raises(SystemExit, match="--cpu-time counts this thread alone"):
         cli.main([*argv, "--cpu-time"])
 
 
+def test_vector_scaling_runs_each_core_count_up_to_this_process_cores(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(look, "resolve_threads", lambda threads: 2)
+    argv = ["bench", "vector", "--json", "--sizes", "70", "--tasks", "obstacle", "--frame-skip", "2"]
+    assert cli.main([*argv, "--rounds", "1", "--threads"]) == 0
+    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(r["task"], r["n_fields"], r["threads"]) for r in records] == [
+        ("obstacle", 70, 1),
+        ("obstacle", 70, 2),
+    ]
+    assert records[0]["speedup"] == 1.0 and all(r["steps_per_s"] > 0 for r in records)
+
+
 def test_compare_beside_vmas_gives_both_sides_and_their_ratios() -> None:
     pytest.importorskip("vmas")
-    record = side_by_side.compare_pair("obstacle", "navigation", {"n_agents": 2}, 2, 2, time.perf_counter, 3)
+    (record,) = side_by_side.compare_pair(
+        "obstacle", "navigation", {"n_agents": 2}, 2, 2, time.perf_counter, 3
+    )
     assert record["vmas"] == "navigation n_agents=2" and record["robots_per_field"] == 2
     ratio = record["steps_per_s"] / record["vmas_steps_per_s"]
     assert record["ratio_per_step"] == pytest.approx(ratio, rel=1e-2)

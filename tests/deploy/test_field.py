@@ -12,7 +12,8 @@ import pytest
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
-from hier_ssl.deploy.field import Cameras, FieldServer, camera_frames, camera_strips
+from hier_ssl.deploy.cameras import Cameras, camera_frames, camera_strips
+from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.loop import DeployLoop
 from hier_ssl.deploy.proto import ssl_simulation_pb2
 from hier_ssl.deploy.view import manager_task

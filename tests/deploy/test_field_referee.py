@@ -12,7 +12,8 @@ import pytest
 from hier_ssl.cli import main
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
-from hier_ssl.deploy.field import STEP, Cameras, FieldServer
+from hier_ssl.deploy.cameras import Cameras
+from hier_ssl.deploy.field import STEP, FieldServer
 from hier_ssl.deploy.referee import parse_referee
 from hier_ssl.deploy.referee_script import START, Call, GameController, ScriptedReferee, parse_script
 from hier_ssl.envs import task_config
@@ -102,7 +103,7 @@ def test_the_field_server_calls_a_stop_speed_foul_with_the_envs_rules(speed: flo
         live = server._reset(0)
         server.command[0] = (speed, 0.0, -speed)
         for _ in range(round((0.1 + GRACE) / STEP) + 25):
-            server._call()
+            server.referee.call()
             now = time.monotonic()
             server.commanded[:] = now
             live, over = server._step(live, now)
@@ -110,7 +111,7 @@ def test_the_field_server_calls_a_stop_speed_foul_with_the_envs_rules(speed: flo
     finally:
         server.close()
     assert not over and record["fouls"] == fouls
-    assert server.foul_counts() == ({"blue 0": fouls} if fouls else {})
+    assert server.referee.foul_counts() == ({"blue 0": fouls} if fouls else {})
 
 
 class Refereed:
@@ -216,7 +217,7 @@ def test_our_robots_leave_the_opponents_ball_placement_within_2_s_under_the_fiel
 
     assert gap(game.during(1.0, 2.0)[0]).min() < PLACEMENT_DISTANCE  # some drove into it meanwhile
     assert gap(game.during(1.0 + GRACE)[0]).min() >= PLACEMENT_DISTANCE  # rules 8.4.3: none after 2 s
-    assert game.server.foul_counts() == {}  # so no interference either
+    assert game.server.referee.foul_counts() == {}  # so no interference either
 
 
 def test_the_cameras_see_the_worlds_ball_where_the_task_has_one_and_the_still_one_otherwise() -> None:

@@ -20,8 +20,9 @@ import pytest
 
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
+from hier_ssl.deploy.cameras import Cameras
 from hier_ssl.deploy.controller import Controller
-from hier_ssl.deploy.field import Cameras, FieldServer
+from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.game import SILENCE, RefereeInput
 from hier_ssl.deploy.guard import RELEARN
 from hier_ssl.deploy.loop import DeployLoop

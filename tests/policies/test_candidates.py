@@ -17,7 +17,7 @@ from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.candidate_graph import as_points, candidate_geometry
 from hier_ssl.policies.candidate_nets import Scorer, chooser_from_state, soft_choice
-from hier_ssl.policies.candidates import candidate_manager
+from hier_ssl.policies.candidates import CandidateLearner, candidate_manager
 from hier_ssl.runs.train import resume_config, train
 
 SHIPPED = load_yaml(config_dir() / "obstacle" / "candidates.yaml")
@@ -195,7 +195,6 @@ def test_ppo_takes_the_classifier_past_the_obstacle_where_imitation_left_it(
 
 
 def test_a_ppo_update_over_rows_that_do_not_split_evenly_stays_finite(tmp_path: Path) -> None:
-    from hier_ssl.policies.candidates import CandidateLearner
     from hier_ssl.policies.networks import mlp
 
     learner = CandidateLearner(parse_config(_config()), tmp_path, progress=False)
@@ -266,3 +265,17 @@ def test_a_candidate_learner_stops_at_its_step_budget_and_goes_on_from_there(tmp
     later.learn(3, lambda c: steps.append(c.step))  # the second round, then one PPO iteration of two
     saved = torch.load(tmp_path / "model.pt")
     assert steps == [1, 2, 3] and saved["phase"] == "ppo" and saved["iteration"] == 1
+
+
+def test_dagger_collects_the_same_states_and_labels_on_one_and_two_cores(tmp_path: Path) -> None:
+    # 70 episodes are two shards (hier_ssl.envs.shards): the second plays in a worker process on two cores.
+    collected = []
+    for threads in (1, 2):
+        data = {**_config(rounds=1, episodes=70), "threads": threads}
+        data["env"] = {**SHIPPED["env"], "max_steps": 160}
+        learner = CandidateLearner(parse_config(data), tmp_path / str(threads), progress=False)
+        learner.dagger({}, 1)
+        learner.writer.close()
+        collected.append((learner.dagger_obs, learner.dagger_labels))
+    (obs, labels), (obs_2, labels_2) = collected
+    assert len(obs) > 70 and torch.equal(obs, obs_2) and torch.equal(labels, labels_2)

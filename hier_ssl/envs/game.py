@@ -118,6 +118,7 @@ class GameScenario(GamePlaces):
     """Base of the game scenarios (module docstring): subclasses set ``name``, ``Options``, ``defaults``
     and the boxes of starts, targets and the ball (``GamePlaces``)."""
 
+    Options = GameOptions
     stat_names = ("foul", *(f"foul_{kind}" for kind in KINDS))
     rules_in_observation = True
     ssl_teams = True

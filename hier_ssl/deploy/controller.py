@@ -16,17 +16,13 @@ from hier_ssl.deploy.game import game_rules, labelled_lineup
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
-from hier_ssl.game.legal import RowRules, cap_speed
+from hier_ssl.game.legal import SPEED_MARGIN, RowRules, cap_speed
 from hier_ssl.game.referee import RefereeState
 from hier_ssl.world.physics import RobotState
 
 MAX_AGE = 0.05  # s: a robot unseen for longer is stopped (the loop ticks at most 35 ms apart: < 100 ms)
 OTHERS_AGE = 0.5  # s: an other robot unseen for longer is no longer an obstacle
 FEEDBACK = ("command", "tracked", "model")
-# The share of a speed limit the commands are capped at: the robots reach their commands within the
-# acceleration limits and vision measures their speed with noise; a robot at the limit itself would be
-# called for the smallest overshoot.
-LIMIT_SHARE = 0.9
 BALL_AGE = 1.0  # s: a ball unseen for longer is not known (out of sight, or picked up)
 
 
@@ -152,7 +148,7 @@ class Controller:
         self.was_live = live
         self.sent = np.where(grid[..., None], view.commands(self._feedback(state)), 0.0)
         if rules is not None:
-            limit = LIMIT_SHARE * rules.speed.reshape(view.n, view.m)
+            limit = SPEED_MARGIN * rules.speed.reshape(view.n, view.m)
             self.sent[..., 0:2] = cap_speed(self.sent[..., 0:2], limit)
         self.model_vel, self.model_spin = view.respond(
             self.model_vel, self.model_spin, self.sent, state.angle[:, : view.m]
@@ -203,4 +199,4 @@ class Controller:
         return [(robot, 0.0, 0.0, 0.0) for robot in self.robots]
 
 
-__all__ = ["BALL_AGE", "FEEDBACK", "LIMIT_SHARE", "MAX_AGE", "Controller", "check_target"]
+__all__ = ["BALL_AGE", "FEEDBACK", "MAX_AGE", "Controller", "check_target"]

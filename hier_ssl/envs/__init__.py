@@ -5,7 +5,7 @@ Baseline, Proposed and Obstacle tasks from an ``EnvConfig``, the multi-robot sce
 ``ScenarioConfig``. The torch views (``vector_env``, ``TorchVectorEnv``, ``RslRlVecEnv``) bring torch and
 rsl-rl with them and are loaded on first use; the PettingZoo and Gymnasium views (``manager_env``, and
 ``manager_vector_env``, a ``gymnasium.vector.VectorEnv``) need neither. The SSL game's scenarios
-(``hier_ssl.envs.game``) are registered here, with the shipped ones.
+(``hier_ssl.envs.game_scenarios``, over ``hier_ssl.envs.game``) are registered here, with the shipped ones.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from pettingzoo.utils.conversions import parallel_to_aec
 
+import hier_ssl.envs.game_scenarios  # noqa: F401  (the four game scenarios register themselves on import)
 from hier_ssl.config import EnvConfig, ScenarioConfig, TaskConfig
 from hier_ssl.envs.core import HierarchicalCore, StepResult
 from hier_ssl.envs.game import GameScenario

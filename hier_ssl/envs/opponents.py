@@ -58,11 +58,6 @@ FREE_ATTACK = 0.5  # chance a free robot looks for its spot in the half BLUE att
 NEIGHBOURS = 5
 
 
-def _fields(referee: RefereeState, index: np.ndarray) -> RefereeState:
-    """The referee's state of the fields ``index`` alone."""
-    return RefereeState(*(getattr(referee, f.name)[index] for f in dataclasses.fields(referee)))
-
-
 def _check(name: str, value: np.ndarray, shape: tuple[int, ...]) -> None:
     if np.shape(value) != shape:
         raise ValueError(f"OpponentTeam.commands: {name} must have shape {shape}, got {np.shape(value)}")
@@ -222,7 +217,7 @@ class OpponentTeam:
         scene = Scene(target, own, vel, near, near_vel)
         rules = None
         if self.obey_rules:
-            ref = _fields(referee, rows)
+            ref = referee.fields(rows)
             team = Lineup(lineup.team[m:], lineup.robot_id[m:])
             rules = row_rules(forbidden_zones(ref, ball[rows], self.field, team), speed_limit(ref))
         self.subgoal[rows] = self._plan(scene, rows, rules, rng).reshape(len(rows), k, 5)

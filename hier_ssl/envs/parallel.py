@@ -221,6 +221,7 @@ class HierarchicalSSLEnv(ParallelEnv):
             subgoals=self.core.subgoal,
             trails=[trail[:, i] for i in range(m)],
             team=[0] * m + [1] * k,
+            ssl_teams=self.core.scenario.ssl_teams,
             extra=functools.partial(self.core.scenario.extra_render, field_index=0),
             balls=None if self.core.world.ball is None else self.core.world.ball.pos,
             ball=self.core.world.ball_spec,

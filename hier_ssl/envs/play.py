@@ -47,14 +47,7 @@ def play(
     obs = core.reset(seed)
     recorder = Recorder(core, record) if record else None
     shape = core.active.shape
-    pos = core.state.pos
-    start = pos[:, : shape[1]]
-    distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
-    # Centre distance to the nearest other robot at reset: under the collision distance the episode
-    # begins in contact (the public code's 0.2 m starts with a midpoint obstacle allow it).
-    gaps = np.linalg.norm(start[:, :, None] - pos[:, None], axis=-1)
-    gaps[:, np.arange(shape[1]), np.arange(shape[1])] = np.inf
-    start_gap = gaps.min(axis=2, initial=np.inf)
+    distance, start_gap = start_distances(core)
     ends = {
         "length": np.zeros(shape, dtype=np.int64),
         "success": np.zeros(shape, dtype=bool),
@@ -106,6 +99,19 @@ def play(
     }
 
 
+def start_distances(core: Core) -> tuple[np.ndarray, np.ndarray]:
+    """After a reset: each controlled robot's distance to its target and its centre distance to the
+    nearest other robot, m, (N, M) each."""
+    m, pos = core.active.shape[1], core.state.pos
+    start = pos[:, :m]
+    distance = np.linalg.norm(start - core.target[..., 0:2], axis=2)
+    # Under the collision distance the episode begins in contact (the public code's 0.2 m starts with a
+    # midpoint obstacle allow it).
+    gaps = np.linalg.norm(start[:, :, None] - pos[:, None], axis=-1)
+    gaps[:, np.arange(m), np.arange(m)] = np.inf
+    return distance, gaps.min(axis=2, initial=np.inf)
+
+
 def check_record(record: Sequence[int], episodes: int) -> list[int]:
     """Episode indices to record, as ints; ValueError naming them if any is out of range."""
     record = [int(i) for i in record]
@@ -123,6 +129,8 @@ class Recorder:
         self.target = core.target[self.fields].copy()
         s = core.world.state
         self.pos, self.angle, self.subgoal = [s.pos[self.fields]], [s.angle[self.fields]], []
+        self.balls, self.drawings = [], []
+        self._scene()
         self._step = core.control_step
         core.control_step = self.control_step  # instance attribute: only this core is affected
 
@@ -132,13 +140,27 @@ class Recorder:
         self.pos.append(s.pos[self.fields])
         self.angle.append(s.angle[self.fields])
         self.subgoal.append(self.core.subgoal[self.fields])
+        self._scene()
         return out
+
+    def _scene(self) -> None:
+        """The balls and the scenario's drawing (``Scenario.drawing``) of the recorded fields now."""
+        ball = self.core.world.ball
+        if ball is not None:
+            self.balls.append(ball.pos[self.fields])
+        self.drawings.append([self.core.scenario.drawing(int(i)) for i in self.fields])
 
     def episode(self, j: int, length: int) -> dict[str, object]:
         """Recorded field ``j`` over its ``length`` control steps, M controlled robots (robots 0..M-1) of
         R: ``controlled`` M; target (M, 5); robots (T+1, R, 2) and angles (T+1, R) from the reset on;
-        subgoal (T, M, 5), the sub-goals in force at each control step. Metres, radians, field frame."""
+        subgoal (T, M, 5), the sub-goals in force at each control step; balls (T+1, B, 2) where the world
+        has balls; drawings (T+1), the scenario's ``drawing`` of each step; ssl_teams, the scenario's.
+        Metres, radians, field frame."""
+        balls = {"balls": np.stack([b[j] for b in self.balls[: length + 1]])} if self.balls else {}
         return {
+            **balls,
+            "drawings": [d[j] for d in self.drawings[: length + 1]],
+            "ssl_teams": self.core.scenario.ssl_teams,
             "field": int(self.fields[j]),
             "controlled": self.target.shape[1],
             "target": self.target[j],
@@ -148,4 +170,4 @@ class Recorder:
         }
 
 
-__all__ = ["Policy", "Recorder", "check_record", "play"]
+__all__ = ["Policy", "Recorder", "check_record", "play", "start_distances"]

@@ -10,8 +10,9 @@ obstacle robots (K) a field holds, how the obstacles move (``groups``: obstacles
   names, ``hier_ssl.envs.observations``);
 - ``decision_terms`` and ``score``: each control step's reward and ending, success and collision (by
   default the rules of the task ``reward_task`` names, ``hier_ssl.envs.rules``, compiled);
-- ``post_reset``, ``pre_step``, ``post_step`` and ``extra_render``: hooks after a reset has placed some
-  fields, before and after the world steps and for drawing, which do nothing by default;
+- ``post_reset``, ``pre_step``, ``post_step`` and ``extra_render`` (with ``drawing``, for later): hooks
+  after a reset has placed some fields, before and after the world steps and for drawing, which do
+  nothing by default;
 - ``episode_stats``: what a robot's episode statistics add to the core's (``stat_names``), none by
   default.
 
@@ -25,6 +26,8 @@ config (``EnvConfig`` or ``ScenarioConfig``); ``hier_ssl.envs.registry.make_scen
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, ClassVar
@@ -86,6 +89,8 @@ class Scenario:
     # The observation ends with the game's columns (``hier_ssl.manager.game_observation``): a scripted
     # planner reads its rules there (``make_planner``).
     rules_in_observation: ClassVar[bool] = False
+    # Drawn as an SSL game: the controlled robots in the yellow team's colour, the others in the blue's.
+    ssl_teams: ClassVar[bool] = False
 
     def __init__(self, config: TaskSettings, num_agents: int, groups: list[ObstacleGroup]) -> None:
         self.config = config
@@ -213,6 +218,13 @@ class Scenario:
     def extra_render(self, ax: Any, field_index: int) -> None:
         """Draw what the scenario adds to field ``field_index`` (matplotlib ``ax``, field coordinates in m)
         under the robots. Nothing by default."""
+
+    def drawing(self, field_index: int) -> Callable[[Any], None]:
+        """What ``extra_render`` draws of field ``field_index`` now, to draw later on an ``ax`` (a recorded
+        episode's frames, ``hier_ssl.envs.play.Recorder``). By default ``extra_render`` itself, called
+        then: right for what does not change within an episode; a scenario whose drawing does binds a copy
+        of its state."""
+        return functools.partial(self.extra_render, field_index=field_index)
 
     def scatter(
         self,

@@ -44,8 +44,9 @@ def evaluate(
     speed and acceleration limits, robots that succeeded), time_to_target_s_median (robots that
     succeeded, seconds), robots (episodes x M), the per-robot arrays (E, M) under "per_robot" (length,
     success, collision, cpad, cpad_public, distance; foul in a game scenario), in a game scenario
-    foul_rate (share of robots that left for a foul; collision_rate then counts contacts alone) and fouls
-    (every foul committed, by kind of ``hier_ssl.game.KINDS``), and
+    foul_rate (share of robots that left for a foul; collision_rate then counts contacts alone), fouls
+    (every foul committed, by kind of ``hier_ssl.game.KINDS``), robot_minutes (the time every robot
+    played, summed) and fouls_per_robot_minute (fouls by kind over robot_minutes), and
     eval_wall_s. With ``progress`` (its label) a progress bar shows on stderr (``play``). With ``record``
     (episode indices), "trajectories" holds one dict per recorded episode
     (``hier_ssl.envs.play.Recorder.episode``), every control step of it.
@@ -83,6 +84,13 @@ def evaluate(
     if "foul" in ends:  # a game scenario: robots that left for a foul, and every foul by kind
         summary["foul_rate"] = float(ends["foul"].mean())
         summary["fouls"] = {kind: int(ends[f"foul_{kind}"].sum()) for kind in KINDS}
+        # A rate over the time robots played: a robot that leaves early (a foul, its target) commits no
+        # more, so a count per robot-episode would reward ending soon.
+        minutes = float(length.sum() * dt / 60.0)
+        summary["robot_minutes"] = minutes
+        summary["fouls_per_robot_minute"] = {
+            kind: count / minutes if minutes else nan for kind, count in summary["fouls"].items()
+        }
         summary["per_robot"]["foul"] = ends["foul"] > 0
     if record:
         summary["trajectories"] = ends["trajectories"]

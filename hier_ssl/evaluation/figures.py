@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from hier_ssl.envs.game_render import FOUL, ZONE
 from hier_ssl.manager.success import COLLISION_DISTANCE
 from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec, RobotState
@@ -54,8 +55,9 @@ def _panel(
 ) -> np.ndarray:
     """One recorded episode (``hier_ssl.envs.play.Recorder.episode``) drawn up to control step ``step``
     (default: its end) as an RGB image (H, W, 3): every controlled robot's target, sub-goals so far as dots
-    and path so far as a line, the obstacles' paths, and the robots where they are at step ``robots_at``
-    (default: ``step``)."""
+    and path so far as a line, the obstacles' paths, the robots where they are at step ``robots_at``
+    (default: ``step``), and the ball and what the scenario draws (a game's zones, referee's command and
+    fouls) as they were at step ``step``."""
     # here, not at the top: matplotlib, for drawing alone
     from hier_ssl.world.render import render_fields
 
@@ -73,6 +75,7 @@ def _panel(
         owner += [i] * int(keep.sum())
     dots = np.concatenate(dots) if owner else None
     hits = [(i, point) for i, t, point in collisions(episode) if t <= end]
+    balls = episode.get("balls")
     return render_fields(
         field,
         state,
@@ -85,6 +88,9 @@ def _panel(
         robot=robot,
         collisions=np.array([point for _, point in hits]).reshape(-1, 2) if hits else None,
         collision_robot=[i for i, _ in hits],
+        extra=episode["drawings"][end] if "drawings" in episode else None,
+        balls=None if balls is None else balls[end][None],
+        ssl_teams=episode.get("ssl_teams", False),
     )
 
 
@@ -121,23 +127,36 @@ def panel_title(name: str, episode: dict[str, Any]) -> str:
     return f"{name}\n{reached}/{len(outcomes)} reached, {len(hit)} collided{which}{fouls}, {steps} steps"
 
 
-def legend_entries() -> list[tuple[str, dict[str, Any]]]:
-    """(label, matplotlib ``Line2D`` keywords) of what the panels draw, for a legend."""
+def legend_entries(ssl_teams: bool = False) -> list[tuple[str, dict[str, Any]]]:
+    """(label, matplotlib ``Line2D`` keywords) of what the panels draw, for a legend; with ``ssl_teams``
+    (a game's panels) the two teams, the zones and the fouls."""
     # here, not at the top: matplotlib, for drawing alone
-    from hier_ssl.world.render import COLLISION_MARKER, SUBGOAL, TARGET, TEAM_COLORS
+    from hier_ssl.world.render import COLLISION_MARKER, SSL_BLUE, SSL_YELLOW, SUBGOAL, TARGET, TEAM_COLORS
 
     point = {"linestyle": "none", "markersize": 7}
     cross = {"marker": COLLISION_MARKER, "color": TARGET, "markeredgecolor": "#101010"}
-    return [
+    entries = [
         ("target", {**point, "marker": "o", "markerfacecolor": "none", "markeredgecolor": TARGET}),
         ("sub-goals", {**point, "marker": ".", "color": SUBGOAL}),
-        ("robot, path", {"marker": "o", "color": TEAM_COLORS[0], "markersize": 6}),
-        ("obstacle, path", {"marker": "o", "color": TEAM_COLORS[1], "markersize": 6}),
+    ]
+    if not ssl_teams:
+        return [
+            *entries,
+            ("robot, path", {"marker": "o", "color": TEAM_COLORS[0], "markersize": 6}),
+            ("obstacle, path", {"marker": "o", "color": TEAM_COLORS[1], "markersize": 6}),
+            ("collision", {**point, **cross}),
+        ]
+    return [
+        *entries,
+        ("ours, path", {"marker": "o", "color": SSL_YELLOW, "markersize": 6}),
+        ("theirs, path", {"marker": "o", "color": SSL_BLUE, "markersize": 6}),
         ("collision", {**point, **cross}),
+        ("zone", {**point, "marker": "s", "color": ZONE, "alpha": 0.3, "markersize": 9}),
+        ("foul", {**point, "marker": "x", "color": FOUL, "markeredgewidth": 2.5}),
     ]
 
 
-def legend_columns(width_in: float, fontsize: float = 8) -> int:
+def legend_columns(width_in: float, fontsize: float = 8, ssl_teams: bool = False) -> int:
     """How many of ``legend_entries`` fit side by side in ``width_in`` inches of figure, measured by
     drawing them (at least 1): a narrow picture (one panel) wraps its legend onto more rows instead of
     cutting it at both edges."""
@@ -146,8 +165,8 @@ def legend_columns(width_in: float, fontsize: float = 8) -> int:
 
     fig = Figure(figsize=(width_in, 1), dpi=100)
     renderer = FigureCanvasAgg(fig).get_renderer()
-    for columns in range(len(legend_entries()), 1, -1):
-        legend = _legend(fig, columns, fontsize, loc="center")
+    for columns in range(len(legend_entries(ssl_teams)), 1, -1):
+        legend = _legend(fig, columns, fontsize, ssl_teams, loc="center")
         fits = legend.get_window_extent(renderer).width <= fig.bbox.width
         legend.remove()
         if fits:
@@ -155,12 +174,12 @@ def legend_columns(width_in: float, fontsize: float = 8) -> int:
     return 1
 
 
-def _legend(fig: Any, columns: int, fontsize: float = 8, **where: Any) -> Any:
+def _legend(fig: Any, columns: int, fontsize: float = 8, ssl_teams: bool = False, **where: Any) -> Any:
     """The legend of ``legend_entries`` in ``columns`` columns on ``fig``, placed by ``where``
     (``Figure.legend``)."""
     from matplotlib.lines import Line2D
 
-    handles = [Line2D([], [], label=label, **style) for label, style in legend_entries()]
+    handles = [Line2D([], [], label=label, **style) for label, style in legend_entries(ssl_teams)]
     return fig.legend(
         handles=handles, ncol=columns, frameon=False, fontsize=fontsize, handletextpad=0.3, **where
     )
@@ -180,7 +199,9 @@ def figure3(
     added. Target: red ring with a heading tick; sub-goals: orange dots; the robot's path: blue line
     (from the robot, drawn where it started); the obstacles' paths: yellow lines (from where they
     started, so a still obstacle is a disc without a line); a collision: a cross where it happened. With
-    several controlled robots each has its own colour. A legend below the panels says so.
+    several controlled robots each has its own colour. A game's panels (``ssl_teams``) draw ours yellow and
+    theirs blue, the ball, the zones and the referee's command of the episode's end, and a red cross
+    where each foul happened. A legend below the panels says so.
     """
     # here, not at the top: matplotlib, for drawing alone
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -194,8 +215,9 @@ def figure3(
     cols = min(len(panels), 4)
     rows = -(-len(panels) // cols)
     fig_width = max(cols * width / 100, 4.4)
-    columns = legend_columns(fig_width)
-    legend_in = 0.3 * -(-len(legend_entries()) // columns)
+    ssl = ssl_teams(panels)
+    columns = legend_columns(fig_width, ssl_teams=ssl)
+    legend_in = 0.3 * -(-len(legend_entries(ssl)) // columns)
     fig_height = rows * (height / 100 + 0.55) + (0.3 if title else 0) + legend_in
     fig = Figure(figsize=(fig_width, fig_height), dpi=100)
     FigureCanvasAgg(fig)
@@ -207,7 +229,7 @@ def figure3(
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout(rect=(0, legend_in / fig_height, 1, 1))
-    _legend(fig, columns, loc="lower center")
+    _legend(fig, columns, ssl_teams=ssl, loc="lower center")
     fig.savefig(path)
     return path
 
@@ -242,16 +264,22 @@ def episode_video(
     stride = max(2, -(-longest // max_frames))
     steps = [*range(0, longest, stride), longest]
     strips: dict[tuple[str, ...], np.ndarray] = {}  # one per set of finished panels, not one per frame
-    columns = legend_columns(len(panels) * size[0] / 100, fontsize)  # the strip's width never changes
+    ssl = ssl_teams(panels)
+    columns = legend_columns(len(panels) * size[0] / 100, fontsize, ssl)  # the strip's width never changes
     frames = []
     for step in tqdm(steps, desc=f"drawing {path.name}", unit="frame", disable=not progress, leave=False):
         names = frame_labels(panels, step)
         if names not in strips:
-            strips[names] = _strip(names, size[0], fontsize, columns)
+            strips[names] = _strip(names, size[0], fontsize, columns, ssl)
         row = np.concatenate([_panel(field, e, step, size, robot) for _, e in panels], axis=1)
         frames.append(np.concatenate([strips[names][:, : row.shape[1]], row], axis=0))
     iio.imwrite(path, np.stack(frames), duration=1000 / fps, loop=0)
     return path
+
+
+def ssl_teams(panels: Sequence[tuple[str, dict[str, Any]]]) -> bool:
+    """Whether the panels show an SSL game (their episodes' ``ssl_teams``): the legend names its teams."""
+    return any(episode.get("ssl_teams", False) for _, episode in panels)
 
 
 def frame_labels(panels: Sequence[tuple[str, dict[str, Any]]], step: int) -> tuple[str, ...]:
@@ -264,7 +292,9 @@ def frame_labels(panels: Sequence[tuple[str, dict[str, Any]]], step: int) -> tup
     )
 
 
-def _strip(names: Sequence[str], panel_width: int, fontsize: float, columns: int) -> np.ndarray:
+def _strip(
+    names: Sequence[str], panel_width: int, fontsize: float, columns: int, ssl_teams: bool = False
+) -> np.ndarray:
     """An RGB image strip, ``panel_width`` pixels a name: each name over its panel and the legend whole
     below them in ``columns`` (``legend_columns``), on as many rows as it needs."""
     # here, not at the top: matplotlib, for drawing alone
@@ -272,14 +302,14 @@ def _strip(names: Sequence[str], panel_width: int, fontsize: float, columns: int
     from matplotlib.figure import Figure
 
     width_in = len(names) * panel_width / 100
-    rows = -(-len(legend_entries()) // columns)
+    rows = -(-len(legend_entries(ssl_teams)) // columns)
     line_in = fontsize / 72 * 1.6
     fig = Figure(figsize=(width_in, line_in * (1 + rows) + 0.1), dpi=100, facecolor="white")
     canvas = FigureCanvasAgg(fig)
     top = 1 - line_in / 2 / fig.get_figheight()
     for i, name in enumerate(names):
         fig.text((i + 0.5) / len(names), top, name, ha="center", va="center", fontsize=fontsize)
-    _legend(fig, columns, fontsize, loc="lower center", bbox_to_anchor=(0.5, 0.0))
+    _legend(fig, columns, fontsize, ssl_teams, loc="lower center", bbox_to_anchor=(0.5, 0.0))
     canvas.draw()
     return np.asarray(canvas.buffer_rgba())[..., :3]
 
@@ -331,5 +361,6 @@ __all__ = [
     "panel_title",
     "path_spread",
     "pick_episode",
+    "ssl_teams",
     "start_distance",
 ]

@@ -39,12 +39,15 @@ RECORD_KEYS = (
     "eval_wall_s",
 )
 
+# A game scenario's keys of a record (``hier_ssl.evaluation.evaluate.evaluate``).
+GAME_KEYS = ("foul_rate", "fouls", "robot_minutes", "fouls_per_robot_minute")
+
 
 def make_record(manager: str, result: dict[str, Any], **context: Any) -> dict[str, Any]:
     """The JSON record of one evaluation: ``result`` is ``hier_ssl.evaluation.evaluate.evaluate``'s dict,
     ``context`` holds worker, task and anything else to keep (frame_skip, seed)."""
     record = {"manager": manager, **context}
-    for key in (*RECORD_KEYS[3:], "time_to_target_s_median", "foul_rate", "fouls"):
+    for key in (*RECORD_KEYS[3:], "time_to_target_s_median", *GAME_KEYS):
         if key in result or key in RECORD_KEYS:
             record[key] = result[key]
     return record
@@ -112,8 +115,18 @@ def markdown_table(records: Sequence[dict[str, Any]]) -> str:
         lines.append("")
         for r in records:
             fouls = ", ".join(f"{kind} {count}" for kind, count in r["fouls"].items() if count) or "none"
-            lines.append(f"fouls of {r['manager']}: {fouls}")
+            lines.append(f"fouls of {r['manager']}: {fouls}{_per_minute(r)}")
     return "\n".join(lines) + "\n"
+
+
+def _per_minute(record: dict[str, Any]) -> str:
+    """``record``'s fouls per robot-minute, all and by kind committed, as the end of its fouls' line."""
+    rates = record.get("fouls_per_robot_minute")
+    if rates is None:  # a record written before the rates were
+        return ""
+    kinds = "".join(f", {kind} {rate:.3f}" for kind, rate in rates.items() if record["fouls"][kind])
+    total = sum(rates.values())
+    return f"; per robot-minute ({record['robot_minutes']:.1f} played): all {total:.3f}{kinds}"
 
 
 CSV_COLUMNS = (
@@ -131,15 +144,23 @@ CSV_COLUMNS = (
 
 
 def csv_table(records: Sequence[dict[str, Any]]) -> str:
-    """The records as CSV, one number per column (the table's IQR cell split into median, q1, q3)."""
+    """The records as CSV, one number per column (the table's IQR cell split into median, q1, q3); records
+    of a game scenario add the median time to the target, the foul rate, the robot-minutes played and the
+    fouls per robot-minute by kind."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
+    game = all("fouls_per_robot_minute" in r for r in records)
+    kinds = list(records[0]["fouls_per_robot_minute"]) if game and records else []
+    game_columns = ["foul_rate", "robot_minutes", *(f"fouls_per_robot_minute_{kind}" for kind in kinds)]
+    writer.writerow([*CSV_COLUMNS, "time_to_target_s_median", *game_columns] if game else CSV_COLUMNS)
     for r in records:
         row = [r["manager"], r.get("worker", ""), r.get("task", ""), r.get("frame_skip", ""), r["episodes"]]
         row += [r["episode_length"][k] for k in ("median", "q1", "q3", "max", "min")]
         row += [r["cpad"][k] for k in ("median", "q1", "q3", "max", "min")]
         row += [r["collision_rate"], r["success_rate"], r["optimal_ratio_median"]]
+        if game:
+            row += [r["time_to_target_s_median"], r["foul_rate"], r["robot_minutes"]]
+            row += [r["fouls_per_robot_minute"][kind] for kind in kinds]
         writer.writerow(row)
     return out.getvalue()
 

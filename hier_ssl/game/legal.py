@@ -34,6 +34,11 @@ import numpy as np
 from hier_ssl.game.zones import BOX, CAPSULE, KEEP_IN, Zones, point_segment, signed_distance, zone_distance
 
 SLACK = 1e-9  # m a projected point keeps beyond the clearance: the rounding of a projection is ~1e-16 m
+# The share of a speed limit a robot's own software caps its commands at (``cap_speed``), as every SSL
+# team's does: the robots reach their commands within the acceleration limits and vision measures their
+# speed with noise; a robot at the limit itself would be called for the smallest overshoot. The deploy
+# controller and the game scenarios' ``speed_guard`` share it.
+SPEED_MARGIN = 0.9
 
 
 @dataclass(frozen=True)
@@ -370,6 +375,7 @@ def cap_speed(velocity: np.ndarray, limit: np.ndarray) -> np.ndarray:
 
 __all__ = [
     "SLACK",
+    "SPEED_MARGIN",
     "RowRules",
     "cap_speed",
     "distances",

@@ -4,6 +4,7 @@ targets, sub-goals and trails, drawn with matplotlib's Agg canvas (headless, no 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -26,6 +27,11 @@ ROBOT_COLORS = (
     "#1d4ed8", "#e03131", "#9c36b5", "#15aabf", "#f783ac", "#fd7e14",
     "#8b5a2b", "#b197fc", "#1c2f6e", "#74c0fc", "#868e96",
 )  # fmt: skip
+# An SSL game (``ssl_teams``): the controlled robots are the yellow team, the others the blue, each disc in
+# its team's colour; several controlled robots are ringed each in a colour of their own (neither blue nor
+# yellow), which their paths, targets and sub-goals share.
+SSL_YELLOW, SSL_BLUE = "#f5c400", "#1d4ed8"
+GAME_ROBOT_COLORS = tuple(c for c in ROBOT_COLORS if c not in (SSL_BLUE, "#1c2f6e", "#74c0fc"))
 TARGET, SUBGOAL = "#e03131", "#ff922b"
 COLLISION_MARKER = "X"  # where a controlled robot hit another, in that robot's colour with a dark edge
 _LINE_WIDTH_M = 0.02  # SSL field lines are 10 mm wide; drawn a little wider so they survive small images
@@ -50,6 +56,7 @@ def render_fields(
     extra: Callable[[Axes], None] | None = None,
     balls: np.ndarray | None = None,
     ball: BallSpec | None = None,  # the balls' radius (default: ``BallSpec()``)
+    ssl_teams: bool = False,
 ) -> np.ndarray:
     """Field ``field_index`` of a batched state as an image of ``size`` = (W, H) pixels, (H, W, 3) uint8.
 
@@ -66,6 +73,9 @@ def render_fields(
     else in the colour of the robot ``collision_robot[c]`` (an index among the controlled ones; default 0).
     ``extra`` draws on the axes (field frame, m) what a scenario adds, above the field's lines and under
     everything else. ``balls`` (N, B, 2) (a ``BallState``'s ``pos``) are orange discs above the robots.
+    With ``ssl_teams`` the field is an SSL game: the controlled robots (team 0) are drawn as the yellow
+    team, the others as the blue (``SSL_YELLOW``, ``SSL_BLUE``), several controlled robots ringed each in
+    its own colour of ``GAME_ROBOT_COLORS``.
     """
     num_fields, num_robots = state.angle.shape
     if not 0 <= field_index < num_fields:
@@ -77,8 +87,9 @@ def render_fields(
     if teams.shape != (num_robots,):
         raise ValueError(f"team has shape {teams.shape}, expected ({num_robots},)")
     radius = (robot or RobotSpec()).radius
-    colors, controlled = _robot_colors(teams)
     canvas, ax, line_pt = _canvas(field, width, height)
+    palette = GAME_ROBOT_COLORS if ssl_teams else ROBOT_COLORS
+    colors, controlled = _robot_colors(teams, palette, (SSL_YELLOW, SSL_BLUE) if ssl_teams else TEAM_COLORS)
     _draw_field(ax, field, line_pt)
     if extra is not None:
         extra(ax)
@@ -86,22 +97,16 @@ def render_fields(
         _draw_trails(ax, trails, trail_robot, colors, line_pt)
     if subgoals is not None:
         points = _per_field(subgoals, field_index, "subgoals")
-        dot_colors = _owned(SUBGOAL, len(points), len(controlled), subgoal_robot)
+        dot_colors = _owned(SUBGOAL, len(points), len(controlled), palette, subgoal_robot)
         ax.scatter(
             points[:, 0], points[:, 1], s=(2.2 * line_pt) ** 2, c=dot_colors, edgecolors="none", zorder=5
         )
     if targets is not None:
         points = _per_field(targets, field_index, "targets")
-        _draw_targets(ax, points, _owned(TARGET, len(points), len(controlled)), radius, line_pt)
+        _draw_targets(ax, points, _owned(TARGET, len(points), len(controlled), palette), radius, line_pt)
     pos, angle = state.pos[field_index], state.angle[field_index]
-    discs = PatchCollection(
-        [Circle(tuple(p), radius) for p in pos],
-        facecolors=colors,
-        edgecolors="#101010",
-        linewidths=0.6 * line_pt,
-        zorder=6,
-    )
-    ax.add_collection(discs)
+    style = _disc_style(teams, colors, controlled, ssl_teams, line_pt)
+    ax.add_collection(PatchCollection([Circle(tuple(p), radius) for p in pos], **style, zorder=6))
     ax.add_collection(_ticks(pos, angle, radius, "#101010", 1.2 * line_pt, zorder=7))
     if balls is not None:
         _draw_balls(ax, _per_field(balls, field_index, "balls"), (ball or BallSpec()).radius, line_pt)
@@ -141,26 +146,44 @@ def _draw_collisions(
     ax.scatter(points[:, 0], points[:, 1], s=(12 * line_pt) ** 2, c=cross, **marks)
 
 
-def _robot_colors(teams: np.ndarray) -> tuple[list[str], np.ndarray]:
-    """Each robot's colour: its team's, or with several controlled robots (team 0) a colour of its own
-    for each of them. Also the indices of the controlled robots."""
-    colors = [TEAM_COLORS[t % len(TEAM_COLORS)] for t in teams]
+def _robot_colors(
+    teams: np.ndarray, palette: Sequence[str], team_colors: Sequence[str]
+) -> tuple[list[str], np.ndarray]:
+    """Each robot's colour: its team's of ``team_colors``, or with several controlled robots (team 0) a
+    colour of ``palette`` of its own for each of them. Also the indices of the controlled robots."""
+    colors = [team_colors[t % len(team_colors)] for t in teams]
     controlled = np.flatnonzero(teams == 0)
     if len(controlled) > 1:
         for j, i in enumerate(controlled):
-            colors[i] = ROBOT_COLORS[j % len(ROBOT_COLORS)]
+            colors[i] = palette[j % len(palette)]
     return colors, controlled
 
 
-def _owned(default: str, rows: int, controlled: int, owner: Sequence[int] | None = None) -> list[str]:
-    """Colours of ``rows`` target or sub-goal rows: the owning robot's, of ``controlled`` robots, where
-    there are several."""
+def _disc_style(
+    teams: np.ndarray, colors: list[str], controlled: np.ndarray, ssl_teams: bool, line_pt: float
+) -> dict[str, Any]:
+    """The robots' discs' ``PatchCollection`` colours and widths: each in its colour of ``colors`` with a
+    dark edge; in an SSL game each in its team's colour, several controlled robots ringed in their own."""
+    faces, edges, widths = colors, ["#101010"] * len(teams), np.full(len(teams), 0.6 * line_pt)
+    if ssl_teams:
+        faces = [SSL_YELLOW if t == 0 else SSL_BLUE for t in teams]
+        if len(controlled) > 1:
+            for i in controlled:
+                edges[i], widths[i] = colors[i], 2.0 * line_pt
+    return {"facecolors": faces, "edgecolors": edges, "linewidths": widths}
+
+
+def _owned(
+    default: str, rows: int, controlled: int, palette: Sequence[str], owner: Sequence[int] | None = None
+) -> list[str]:
+    """Colours of ``rows`` target or sub-goal rows: the owning robot's of ``palette``, of ``controlled``
+    robots, where there are several."""
     if controlled <= 1:
         return [default] * rows
     owner = range(rows) if owner is None else owner
     if len(owner) != rows or not all(0 <= j < controlled for j in owner):
         raise ValueError(f"subgoal_robot: {list(owner)} does not name one of {controlled} robots per row")
-    return [ROBOT_COLORS[j % len(ROBOT_COLORS)] for j in owner]
+    return [palette[j % len(palette)] for j in owner]
 
 
 def _canvas(field: Field, width: int, height: int) -> tuple[FigureCanvasAgg, object, float]:

@@ -21,7 +21,7 @@ import pytest
 from hier_ssl.deploy import wire
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.cameras import Cameras
-from hier_ssl.deploy.controller import LIMIT_SHARE, Controller
+from hier_ssl.deploy.controller import Controller
 from hier_ssl.deploy.field import FieldServer
 from hier_ssl.deploy.game import SILENCE, RefereeInput
 from hier_ssl.deploy.guard import RELEARN
@@ -30,6 +30,7 @@ from hier_ssl.deploy.referee import RefereeMessage, encode_referee
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.envs import task_config
+from hier_ssl.game.legal import SPEED_MARGIN
 from hier_ssl.game.referee import HALT, STOP, referee_state
 from hier_ssl.game.zones import STOP_SPEED, defense_box
 from hier_ssl.world.field import get_field
@@ -146,7 +147,7 @@ def test_halt_sends_zero_commands_and_stop_caps_the_commanded_speed() -> None:
     controller.referee = referee_state(STOP, field)
     _see(controller, 1.0, (0, -2.0, 0.0))
     [(_, forward, left, _)] = controller.tick(1.001)
-    assert np.hypot(forward, left) <= LIMIT_SHARE * STOP_SPEED + 1e-9
+    assert np.hypot(forward, left) <= SPEED_MARGIN * STOP_SPEED + 1e-9
     controller.referee = referee_state(HALT, field)
     assert controller.tick(1.002) == [(0, 0.0, 0.0, 0.0)]
 

@@ -20,9 +20,10 @@ from hier_ssl.envs.game import (
     rest_point,
 )
 from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.play import play
 from hier_ssl.evaluation.evaluate import evaluate
-from hier_ssl.evaluation.figures import label_outcomes, panel_title
-from hier_ssl.evaluation.report import make_record, markdown_table
+from hier_ssl.evaluation.figures import _panel, label_outcomes, panel_title
+from hier_ssl.evaluation.report import csv_table, make_record, markdown_table
 from hier_ssl.game import (
     DIRECT_FREE_BLUE,
     FORCE_START,
@@ -32,7 +33,8 @@ from hier_ssl.game import (
     signed_distance,
     speed_limit,
 )
-from hier_ssl.game.legal import row_rules
+from hier_ssl.game.legal import SPEED_MARGIN, row_rules
+from hier_ssl.game.zones import STOP_SPEED
 from hier_ssl.manager.game_observation import (
     GAME_OBS_DIM,
     GAME_OBS_SLICES,
@@ -91,6 +93,21 @@ def test_halt_stops_every_robot_ours_and_theirs() -> None:
     core.step(np.ones((1, 2, core.act_dim)))  # sub-goals in a corner: the workers would drive
     np.testing.assert_array_equal(core.state.vel, 0.0)
     np.testing.assert_allclose(core.state.pos, pos, atol=1e-9)
+
+
+@pytest.mark.parametrize(("guard", "top"), [(SPEED_MARGIN, SPEED_MARGIN * STOP_SPEED), (None, 2.2)])
+def test_the_speed_guard_caps_our_robots_under_stop_as_the_deploy_controller_does(
+    guard: float | None, top: float
+) -> None:
+    core = _core("game_stop", fields=4, options={"command_at": [0.0, 0.0], "speed_guard": guard})
+    action, fastest = np.ones((4, 2, core.act_dim)), 0.0
+    action[..., 1] = -1.0  # sub-goals in a far corner: the worker drives at its own cap, 2.2 m/s
+    for _ in range(40):
+        live = core.active.copy()
+        core.step(action)
+        fastest = max(fastest, np.linalg.norm(core.state.vel[:, :2], axis=-1)[live].max(initial=0.0))
+    assert (core.scenario.referee.command == STOP).all()
+    assert fastest == pytest.approx(top, abs=1e-9)
 
 
 def _place(core: HierarchicalCore, pos: np.ndarray, vel: np.ndarray, ball: tuple[float, float]) -> None:
@@ -220,8 +237,18 @@ def test_evaluation_reports_fouls_by_kind() -> None:
     per = result["per_robot"]
     assert not (per["foul"] & per["collision"]).any()
     assert result["foul_rate"] == per["foul"].mean()
-    table = markdown_table([make_record("direct", result)])
+    # Fouls per robot-minute: over the time each robot played, 25 ms a control step.
+    assert result["robot_minutes"] == pytest.approx(per["length"].sum() * 0.025 / 60)
+    for kind, count in result["fouls"].items():
+        assert result["fouls_per_robot_minute"][kind] * result["robot_minutes"] == pytest.approx(count)
+    record = make_record("direct", result)
+    table = markdown_table([record])
     assert table.splitlines()[0].endswith("| Foul |") and "fouls of direct: " in table
+    assert f"per robot-minute ({result['robot_minutes']:.1f} played): all " in table
+    header, row = csv_table([record]).splitlines()
+    values = dict(zip(header.split(","), row.split(","), strict=True))
+    for kind, rate in result["fouls_per_robot_minute"].items():
+        assert float(values[f"fouls_per_robot_minute_{kind}"]) == rate
 
 
 def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() -> None:
@@ -230,6 +257,23 @@ def test_the_observation_of_some_fields_is_theirs_in_the_observation_of_all() ->
     np.testing.assert_array_equal(core.observe(np.array([2, 0])), core.observe()[[2, 0]])
     referee = core.scenario.referee.fields([2, 0])
     np.testing.assert_array_equal(referee.placement, core.scenario.referee.placement[[2, 0]])
+
+
+def test_a_recorded_game_episode_draws_the_ball_and_the_referee_as_they_were() -> None:
+    config = scenario_config("game_stop", **{**SMALL, "options": {"command_at": [0.25, 0.25]}})
+    core = HierarchicalCore(config, 1, autoreset=False)
+    episode = play(core, make_planner("direct", config), 0, record=[0])["trajectories"][0]
+    steps = len(episode["robots"])
+    assert (
+        episode["ssl_teams"] and episode["balls"].shape == (steps, 1, 2) and len(episode["drawings"]) == steps
+    )
+    commands = [int(d.keywords["referee"].command[0]) for d in episode["drawings"]]
+    assert commands[:11] == [FORCE_START] * 11 and set(commands[11:]) == {STOP}  # STOP at step 10
+    assert not np.array_equal(episode["balls"][0], episode["balls"][-1])  # the ball rolled
+    episode["outcome"], episode["cpad"] = ["timeout"] * 2, [0.0] * 2
+    drawn = _panel(core.field, episode)
+    bare = _panel(core.field, {k: v for k, v in episode.items() if k not in ("balls", "drawings")})
+    assert (drawn != bare).any(axis=-1).mean() > 0.01  # the zones, the ball and the command's name
 
 
 def test_a_fouled_robot_is_labelled_a_foul_in_figures() -> None:

@@ -72,6 +72,22 @@ def test_several_controlled_robots_each_get_their_own_colour() -> None:
         render_fields(world.field, world.state, trails=[np.zeros((2, 2))] * 4)
 
 
+@pytest.mark.parametrize("team", [[0, 1, 1], [0, 0, 1]])
+def test_an_ssl_game_draws_ours_yellow_and_theirs_blue(team: list[int]) -> None:
+    from hier_ssl.world.render import GAME_ROBOT_COLORS, SSL_BLUE, SSL_YELLOW
+
+    world = _world()
+    image = render_fields(world.field, world.state, team=team, ssl_teams=True, size=(330, 230))
+    hx, hy = world.field.wall_half_extent
+    px_per_m = 1 / max(2 * (hx + 0.05) / 330, 2 * (hy + 0.05) / 230)
+    for (x, y), t in zip([(-1.5, 0.5), (1.0, -1.0), (2.0, 1.2)], team, strict=True):
+        col, row = round(165 + px_per_m * x), round(115 - px_per_m * y)
+        pixel = image[row - 2, col - 2].astype(int)  # inside the disc, within its ring
+        assert np.abs(pixel - _rgb(SSL_YELLOW if t == 0 else SSL_BLUE)).max() < 40, (t, pixel)
+    # Several of ours each keep a colour of their own, which the blue team's is not.
+    assert SSL_BLUE not in GAME_ROBOT_COLORS and SSL_YELLOW not in GAME_ROBOT_COLORS
+
+
 def test_render_marks_collisions_in_the_colliding_robots_colours() -> None:
     world = World(1, 3)
     world.set_state([0], np.array([[[-1.5, 0.5], [1.0, -1.0], [2.0, 1.2]]]), np.zeros((1, 3)))

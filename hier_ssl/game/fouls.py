@@ -8,12 +8,23 @@ increments of each team's foul counter. ``crash_verdicts`` is the crashing rule 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
-from hier_ssl.game.referee import HALT, STOP, Lineup, RefereeState, is_free_kick, is_placement
+from hier_ssl.game.referee import (
+    BALL_PLACEMENT_BLUE,
+    BALL_PLACEMENT_YELLOW,
+    DIRECT_FREE_YELLOW,
+    HALT,
+    INDIRECT_FREE_BLUE,
+    STOP,
+    Lineup,
+    RefereeState,
+)
 from hier_ssl.game.zones import (
     BALL,
     BOUNDARY,
@@ -127,29 +138,6 @@ def crash_verdicts(
     return crash & (drawn | (speed_a > speed_b)), crash & (drawn | (speed_b > speed_a))
 
 
-def _per_team(robot: np.ndarray, robots: Lineup) -> np.ndarray:
-    """(N, 2) how many robots of each team have ``robot`` (N, M) set."""
-    return np.einsum("nm,mt->nt", robot.astype(np.int64), robots.team_mask.astype(np.int64))
-
-
-def _first_of_team(robot: np.ndarray, robots: Lineup, team_called: np.ndarray) -> np.ndarray:
-    """(N, M) the lowest slot of each team with ``robot`` set, where ``team_called`` (N, 2): rules 8.4.3,
-    "If multiple robots commit the same foul within 2 seconds, only the first foul counts"."""
-    of_team = robot[:, :, None] & robots.team_mask[None]
-    first = np.zeros_like(of_team)
-    np.put_along_axis(first, np.argmax(of_team, axis=1)[:, None], True, axis=1)
-    return (first & of_team & team_called[:, None, :]).any(axis=-1)
-
-
-def _team_graced(robot: np.ndarray, robots: Lineup, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rules 8.4.3's grace of 2 s per team for robots committing a foul ``robot`` (N, M), ``last`` (N, 2) s
-    after the team's last: the robots whose foul counts (N, M) and the teams' clocks after them (N, 2)."""
-    if not robot.any():  # the usual step: no robot of either team commits this foul
-        return np.zeros_like(robot), last
-    first = _first_of_team(robot, robots, last > GRACE)
-    return first, np.where(_per_team(first, robots) > 0, 0.0, last)
-
-
 def _crashes(
     before: Motion, contacts: np.ndarray, robots: Lineup, by_robot: np.ndarray, collisions: np.ndarray
 ) -> None:
@@ -194,88 +182,116 @@ def step_fouls(
       of the team's grace while it stays; one interference a placement goes on the foul counter (8.4.3).
     """
     n, m = referee.command.shape[0], robots.team.shape[0]
-    command = referee.command
-    changed = command != clocks.command
-    since = np.where(changed, 0.0, clocks.since + dt)
     broken = violates(forbidden_zones(referee, ball, field, robots, radius), after.pos)
     by_robot = np.zeros((n, m, len(KINDS)), np.int64)
     collisions = np.zeros(n, np.int64)
     _crashes(before, np.asarray(contacts, np.int64).reshape(-1, 3), robots, by_robot, collisions)
-
-    in_own = broken[..., OWN_DEFENSE]
-    by_robot[..., OWN_DEFENSE_AREA] = in_own & ~clocks.in_own_defense
-    outside = broken[..., BOUNDARY]
-    by_robot[..., LEFT_FIELD] = outside & ~clocks.outside
-
-    # 8.4.1: the team's grace starts with the command and again after each of its fouls.
-    defense = np.where(changed[:, None], 0.0, clocks.defense + dt)
-    too_near = broken[..., OPPONENT_DEFENSE]
-    team_near = (_per_team(too_near, robots) > 0) & (defense > GRACE)
-    by_robot[..., OPPONENT_DEFENSE_AREA] = too_near & team_near[:, robots.team]
-    defense = np.where(team_near, 0.0, defense)
-
-    first_fast, last_speed, called = _stop_speed(clocks, command, since, after.vel, robots, dt)
-    by_robot[..., STOP_SPEED_FOUL] = first_fast
-    # 8.4.3 Defender Too Close To Ball: the BALL zone of the other team during a free kick.
-    close = broken[..., BALL] & is_free_kick(command)[:, None]
-    by_robot[..., DEFENDER_TOO_CLOSE], last_close = _team_graced(close, robots, clocks.last_too_close + dt)
-
-    placement, in_placement, last_interference, counted, interferences = _interference(
-        clocks, changed, broken[..., BALL] & is_placement(command)[:, None], robots, dt
+    old = tuple(getattr(clocks, name) for name in _CLOCKS)
+    new = tuple(np.empty_like(value) for value in old)
+    by_team = np.zeros((n, 2, len(KINDS)), np.int64)
+    counter, interferences = np.zeros((n, 2), np.int64), np.zeros((n, 2), np.int64)
+    _rule_fouls(
+        referee.command,
+        old,
+        new,
+        broken,
+        after.vel,
+        robots.team,
+        dt,
+        by_robot,
+        by_team,
+        counter,
+        interferences,
     )
-    by_robot[..., PLACEMENT_INTERFERENCE] = placement
-
-    by_team = np.einsum("nmk,mt->ntk", by_robot, robots.team_mask.astype(np.int64))
-    # One foul for the team however many of its robots were too close (8.4.1).
-    by_team[..., OPPONENT_DEFENSE_AREA] = team_near
-    counter = by_team[..., _COUNTED].sum(axis=-1) + counted
-    report = FoulReport(by_team, by_robot, counter, collisions, interferences)
-    return replace(
-        clocks,
-        command=command.copy(),
-        since=since,
-        defense=defense,
-        last_stop_speed=last_speed,
-        last_too_close=last_close,
-        last_interference=last_interference,
-        speed_called=called | first_fast,
-        in_placement=in_placement,
-        placement_counted=(clocks.placement_counted & ~changed[:, None]) | (counted > 0),
-        in_own_defense=in_own,
-        outside=outside,
-    ), report
+    return FoulClocks(*new), FoulReport(by_team, by_robot, counter, collisions, interferences)
 
 
-def _stop_speed(
-    clocks: FoulClocks, command: np.ndarray, since: np.ndarray, vel: np.ndarray, robots: Lineup, dt: float
-) -> tuple[np.ndarray, ...]:
-    """Rules 8.4.3 "Robot Stop Speed", above 1.5 m/s after 2 s of STOP, once per robot and stoppage: the
-    robots whose foul counts (N, M), the teams' time since their last (N, 2), the robots called this
-    stoppage before the step (N, M). A stoppage lasts through HALT, STOP and ball placement."""
-    stopped = (command == HALT) | (command == STOP) | is_placement(command)
-    called = clocks.speed_called & stopped[:, None]
-    if not stopped.any():  # the game runs on every field: nobody called, nobody fast
-        return called, clocks.last_stop_speed + dt, called.copy()
-    fast = (np.linalg.norm(vel, axis=-1) > STOP_SPEED) & ~called
-    fast &= ((command == STOP) & (since > GRACE))[:, None]
-    first, last = _team_graced(fast, robots, clocks.last_stop_speed + dt)
-    return first, last, called
+_CLOCKS = tuple(FoulClocks.__dataclass_fields__)  # the clocks in the order ``_rule_fouls`` unpacks them
 
 
-def _interference(
-    clocks: FoulClocks, changed: np.ndarray, inside: np.ndarray, robots: Lineup, dt: float
-) -> tuple[np.ndarray, ...]:
-    """Rules 8.4.3 "Ball Placement Interference" for robots ``inside`` (N, M) the stadium: the robots that
-    interfere (N, M), each robot's time in the stadium after the step (N, M), the teams' time since their
-    last interference (N, 2), each team's foul-counter increment (N, 2) and its interferences (N, 2). A robot
-    that stays in the stadium interferes again once the team's 2 s of grace (8.4.3) have passed."""
-    last = clocks.last_interference + dt
-    if not inside.any():  # outside a ball placement, every step: nobody in, nothing counted
-        nothing = np.zeros(last.shape, np.int64)
-        return np.zeros_like(inside), np.zeros(inside.shape), last, nothing, nothing.copy()
-    time_in = np.where(inside & ~changed[:, None], clocks.in_placement + dt, 0.0)
-    first, last = _team_graced(inside & (time_in > GRACE), robots, last)
-    teams = _per_team(first, robots)
-    counted_before = clocks.placement_counted & ~changed[:, None]
-    counted = (teams > 0) & ~counted_before
-    return first, time_in, last, counted.astype(np.int64), teams
+# One compiled loop over fields and robots in place of a numpy call or more per rule: the game calls the
+# fouls every control step. Each field's clocks and fouls depend on that field alone.
+@numba.njit(cache=True)
+def _rule_fouls(
+    command: np.ndarray,
+    old: tuple[np.ndarray, ...],
+    new: tuple[np.ndarray, ...],
+    broken: np.ndarray,
+    vel: np.ndarray,
+    team: np.ndarray,
+    dt: float,
+    by_robot: np.ndarray,
+    by_team: np.ndarray,
+    counter: np.ndarray,
+    interferences: np.ndarray,
+) -> None:
+    """``step_fouls`` after the crashes: writes the clocks ``new`` (``FoulClocks``'s fields, in order) after
+    ``old``, every kind but the crashes into ``by_robot`` (N, M, K), and ``by_team`` (N, 2, K), ``counter``
+    and ``interferences`` (N, 2), for the zones each robot ``broken`` (N, M, S) and its velocity (N, M, 2)."""
+    (last_command, since0, defense0, speed0, close0, interference0, called0, in_placement0, counted0, own0,
+     outside0) = old  # fmt: skip
+    (command1, since, defense, last_speed, last_close, last_interference, speed_called, in_placement,
+     placement_counted, in_own, outside) = new  # fmt: skip
+    flags = np.zeros((4, team.shape[0]), np.bool_)  # a field's robots: each row, one rule's
+    near, fast, close, inside = flags[0], flags[1], flags[2], flags[3]
+    for n in range(command.shape[0]):
+        c = command[n]
+        changed = c != last_command[n]
+        command1[n] = c
+        since[n] = 0.0 if changed else since0[n] + dt
+        placing = BALL_PLACEMENT_YELLOW <= c <= BALL_PLACEMENT_BLUE
+        stopped = c == HALT or c == STOP or placing
+        free_kick = DIRECT_FREE_YELLOW <= c <= INDIRECT_FREE_BLUE
+        # 8.4.1: the team's grace starts with the command and again after each of its fouls.
+        team_near = np.zeros(2, np.bool_)
+        for t in range(2):
+            defense[n, t] = 0.0 if changed else defense0[n, t] + dt
+            last_speed[n, t], last_close[n, t] = speed0[n, t] + dt, close0[n, t] + dt
+            last_interference[n, t] = interference0[n, t] + dt
+        for i in range(team.shape[0]):
+            in_own[n, i], outside[n, i] = broken[n, i, OWN_DEFENSE], broken[n, i, BOUNDARY]
+            by_robot[n, i, OWN_DEFENSE_AREA] = in_own[n, i] and not own0[n, i]
+            by_robot[n, i, LEFT_FIELD] = outside[n, i] and not outside0[n, i]
+            near[i] = broken[n, i, OPPONENT_DEFENSE]
+            team_near[team[i]] |= near[i] and defense[n, team[i]] > GRACE
+            speed_called[n, i] = called0[n, i] and stopped
+            speed = math.sqrt(vel[n, i, 0] * vel[n, i, 0] + vel[n, i, 1] * vel[n, i, 1])
+            fast[i] = speed > STOP_SPEED and not speed_called[n, i] and c == STOP and since[n] > GRACE
+            close[i] = broken[n, i, BALL] and free_kick
+            inside[i] = broken[n, i, BALL] and placing
+            in_placement[n, i] = in_placement0[n, i] + dt if inside[i] and not changed else 0.0
+            inside[i] &= in_placement[n, i] > GRACE
+        for i in range(team.shape[0]):
+            by_robot[n, i, OPPONENT_DEFENSE_AREA] = near[i] and team_near[team[i]]
+        _first_of_team(fast, team, last_speed[n], by_robot[n, :, STOP_SPEED_FOUL])
+        _first_of_team(close, team, last_close[n], by_robot[n, :, DEFENDER_TOO_CLOSE])
+        _first_of_team(inside, team, last_interference[n], by_robot[n, :, PLACEMENT_INTERFERENCE])
+        for i in range(team.shape[0]):
+            speed_called[n, i] |= by_robot[n, i, STOP_SPEED_FOUL] > 0
+            for k in range(by_robot.shape[2]):
+                by_team[n, team[i], k] += by_robot[n, i, k]
+        for t in range(2):
+            if team_near[t]:
+                defense[n, t] = 0.0
+            # One foul for the team however many of its robots were too close (8.4.1).
+            by_team[n, t, OPPONENT_DEFENSE_AREA] = team_near[t]
+            interferences[n, t] = by_team[n, t, PLACEMENT_INTERFERENCE]
+            before = counted0[n, t] and not changed
+            counted = interferences[n, t] > 0 and not before
+            placement_counted[n, t] = before or counted
+            counter[n, t] = counted
+            for k in _COUNTED:
+                counter[n, t] += by_team[n, t, k]
+
+
+@numba.njit(cache=True)
+def _first_of_team(robot: np.ndarray, team: np.ndarray, last: np.ndarray, out: np.ndarray) -> None:
+    """Rules 8.4.3's grace of 2 s per team for robots committing a foul ``robot`` (M,), ``last`` (2,) s after
+    the team's last: "if multiple robots commit the same foul within 2 seconds, only the first foul counts".
+    Marks the lowest slot of each team past its grace in ``out`` (M,) and restarts its clock in ``last``."""
+    for t in range(2):
+        if last[t] > GRACE:
+            for i in range(team.shape[0]):
+                if robot[i] and team[i] == t:
+                    out[i], last[t] = 1, 0.0
+                    break

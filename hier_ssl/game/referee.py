@@ -11,7 +11,6 @@ and its vision id.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
@@ -161,13 +160,6 @@ class Lineup:
 
     team: np.ndarray
     robot_id: np.ndarray
-
-    @cached_property
-    def team_mask(self) -> np.ndarray:
-        """(M, 2) bool, read-only: slot i plays for team t (made once: the fouls read it every step)."""
-        mask = self.team[:, None] == np.array([YELLOW, BLUE])
-        mask.flags.writeable = False
-        return mask
 
 
 def lineup(team: np.ndarray, robot_id: np.ndarray, field: Field | None = None) -> Lineup:

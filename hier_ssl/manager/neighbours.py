@@ -19,6 +19,9 @@ approaches and the neighbour in the robot -> target frame, ``hier_ssl.manager.en
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -32,8 +35,6 @@ from hier_ssl.manager.observation import (
     slot_slice,
     slots_dim,
 )
-from hier_ssl.manager.rewards import vector_length
-from hier_ssl.world.frames import as_complex
 
 NEIGHBOUR_OBS_DIM = 6
 
@@ -67,13 +68,28 @@ def nearest(pos: np.ndarray, others_pos: np.ndarray, k: int) -> tuple[np.ndarray
         present False).
     """
     b, j = others_pos.shape[:2]
-    dist = vector_length(others_pos - pos[:, None, :])
-    order = np.argsort(dist, axis=1, kind="stable")[:, :k]
     index = np.zeros((b, k), dtype=np.int64)
-    index[:, : order.shape[1]] = order
+    _nearest(np.asarray(pos, np.float64), np.asarray(others_pos, np.float64), index)
     present = np.zeros((b, k), dtype=bool)
     present[:, :j] = True
     return index, present
+
+
+# One compiled loop, not a numpy call per step of it: the game scenarios ask this every control step. The
+# lengths are ``vector_length``'s, sqrt(dx^2 + dy^2), and the sort is as stable as numpy's, so the order is
+# the one numpy's ``argsort(kind="stable")`` of those lengths gave.
+@numba.njit(cache=True)
+def _nearest(pos: np.ndarray, others_pos: np.ndarray, index: np.ndarray) -> None:
+    """Writes ``nearest``'s ``index`` (B, k) of ``pos`` (B, 2) and ``others_pos`` (B, J, 2); slots past J
+    keep their 0."""
+    dist = np.empty(others_pos.shape[1])
+    for row in range(pos.shape[0]):
+        for j in range(others_pos.shape[1]):
+            dx, dy = others_pos[row, j, 0] - pos[row, 0], others_pos[row, j, 1] - pos[row, 1]
+            dist[j] = math.sqrt(dx * dx + dy * dy)
+        order = np.argsort(dist, kind="mergesort")
+        for slot in range(min(index.shape[1], order.shape[0])):
+            index[row, slot] = order[slot]
 
 
 def neighbour_observation(
@@ -121,32 +137,59 @@ def neighbour_observation(
     )
     b = base.shape[0]
     index, present = nearest(pos, others_pos, k)
-    # Each row's neighbours by one take from the flattened (B * J) others, as complex x + iy: a fifth of
-    # the cost of indexing with (rows, index). A complex difference is the two real ones, bit for bit.
-    picked = np.arange(b)[:, None] * others_pos.shape[1] + index
-    rel_pos = _as_float(as_complex(others_pos).ravel().take(picked) - as_complex(pos)[:, None])
-    rel_vel = _as_float(as_complex(others_vel).ravel().take(picked) - as_complex(vel)[:, None])
-    # Written straight into the float32 rows; padding slots are all zeros, whatever robot their
-    # placeholder index points at (a product with ``present``, as a float64 block then cast would be).
     obs = np.empty((b, base.shape[1] + neighbour_obs_dim(k, encounters) - MANAGER_OBS_BASE_DIM), np.float32)
     obs[:, : base.shape[1]] = base
     slots = obs[:, base.shape[1] : base.shape[1] + NEIGHBOUR_OBS_DIM * k].reshape(b, k, NEIGHBOUR_OBS_DIM)
-    mask = present[..., None]
-    slots[..., 0:2] = np.clip(rel_pos / max_pos, -clip, clip) * mask
-    slots[..., 2:4] = np.clip(rel_vel / max_v, -clip, clip) * mask
-    slots[..., 4] = teammate.ravel().take(picked) & present
-    slots[..., 5] = present
+    rel_pos, rel_vel = np.empty((b, k, 2)), np.empty((b, k, 2))
+    _neighbour_slots(
+        (np.asarray(pos, np.float64), np.asarray(vel, np.float64)),
+        (np.asarray(others_pos, np.float64), np.asarray(others_vel, np.float64), np.asarray(teammate, bool)),
+        index,
+        (float(max_pos), float(max_v), float(clip)),
+        rel_pos,
+        rel_vel,
+        slots,
+    )
     if encounters:
         to_target = (target[:, 0:2] - pos)[:, None]
         columns = encounter_columns(rel_pos, rel_vel, vel[:, None], to_target, max_pos=max_pos, clip=clip)
         tail = obs[:, base.shape[1] + NEIGHBOUR_OBS_DIM * k :].reshape(b, k, ENCOUNTER_DIM)
-        tail[...] = np.stack(columns, axis=2) * mask
+        tail[...] = np.stack(columns, axis=2) * present[..., None]
     return obs
 
 
-def _as_float(z: np.ndarray) -> np.ndarray:
-    """Complex numbers (...) as float pairs (..., 2), a view."""
-    return z[..., None].view(np.float64)
+# The slots in one compiled loop, not some 20 numpy calls a control step. Each value is the numpy expression
+# the layout describes in float64 (a relative value is the neighbour's minus the robot's own), rounded to
+# float32 once on writing; a padding slot's values are multiplied by 0, as the numpy code this replaced did.
+@numba.njit(cache=True)
+def _neighbour_slots(
+    own: tuple[np.ndarray, np.ndarray],
+    others: tuple[np.ndarray, np.ndarray, np.ndarray],
+    index: np.ndarray,
+    scales: tuple[float, float, float],
+    rel_pos: np.ndarray,
+    rel_vel: np.ndarray,
+    slots: np.ndarray,
+) -> None:
+    """Writes ``rel_pos``, ``rel_vel`` (B, k, 2) and ``slots`` (B, k, 6) of the neighbours ``index`` (B, k)
+    (``nearest``) of robots at ``own`` = (pos, vel) (B, 2) each among ``others`` = (pos, vel (B, J, 2),
+    teammate (B, J)); ``scales``: (max_pos, max_v, clip)."""
+    pos, vel = own
+    others_pos, others_vel, teammate = others
+    max_pos, max_v, clip = scales
+    j = others_pos.shape[1]
+    for row in range(index.shape[0]):
+        for slot in range(index.shape[1]):
+            present = slot < j
+            at, keep = index[row, slot], 1.0 if present else 0.0
+            for axis in range(2):
+                dp = others_pos[row, at, axis] - pos[row, axis] if j else 0.0
+                dv = others_vel[row, at, axis] - vel[row, axis] if j else 0.0
+                rel_pos[row, slot, axis], rel_vel[row, slot, axis] = dp, dv
+                slots[row, slot, axis] = min(max(dp / max_pos, -clip), clip) * keep
+                slots[row, slot, 2 + axis] = min(max(dv / max_v, -clip), clip) * keep
+            slots[row, slot, 4] = present and teammate[row, at]
+            slots[row, slot, 5] = present
 
 
 def drop_encounters(obs: np.ndarray) -> np.ndarray:

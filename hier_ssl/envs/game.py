@@ -27,7 +27,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from hier_ssl.config import ScenarioConfig, Strict
-from hier_ssl.envs.game_places import MARK_DISTANCE, GamePlacement, GamePlaces, rest_point, robot_zones
+from hier_ssl.envs.game_places import MARK_DISTANCE, GamePlacement, GamePlaces, rest_point
 from hier_ssl.envs.game_render import draw_game
 from hier_ssl.envs.opponents import OpponentTeam
 from hier_ssl.envs.scenario import Placement
@@ -297,7 +297,7 @@ class GameScenario(GamePlaces):
         m, ball = self.num_agents, self.world.ball
         ball = ball if fields is None else ball.fields(fields)
         referee = self.referee_of(fields)
-        zones = robot_zones(forbidden_zones(referee, ball.pos[:, 0], self.field, self.lineup), slice(0, m))
+        zones = forbidden_zones(referee, ball.pos[:, 0], self.field, self.ours)
         scales = self.scales
         game = game_columns(
             referee,

@@ -44,11 +44,6 @@ def rest_point(pos: np.ndarray, vel: np.ndarray, deceleration: float, field: Fie
     return np.clip(rolled, [-field.half_length, -field.half_width], [field.half_length, field.half_width])
 
 
-def robot_zones(zones: Zones, robots: slice) -> Zones:
-    """The zones (N, R', S) of the robots ``robots`` among zones (N, R, S)."""
-    return Zones(zones.kind[:, robots], zones.shape[:, robots], zones.clearance[:, robots])
-
-
 class GamePlaces(FieldScenario):
     """The resets of the game scenarios: subclasses set the boxes of starts, targets and the ball, and
     (``GameScenario``) the teams' ``lineup`` and ``ours``, the ``command`` they play and the range of
@@ -133,7 +128,7 @@ class GamePlaces(FieldScenario):
         opponents at ``theirs`` (F, K, 2): the keeper before its goal, a share marking opponents
         (``_marks``), the others in ``target_box``, all legal, facing the ball, at rest."""
         m = self.num_agents
-        zones = robot_zones(forbidden_zones(referee, ball, self.field, self.lineup), slice(0, m))
+        zones = forbidden_zones(referee, ball, self.field, self.ours)
         low, high = (np.array(a) for a in self._box(self.target_box, m))
         keeper = self.options.keeper
         if 0 <= keeper < m:  # the keeper's box: 0.25 m before the goal line, within the goal's width
@@ -165,10 +160,10 @@ class GamePlaces(FieldScenario):
             first, self.field, placement=placement, keeper=keepers, blue_on_positive_half=blue_positive
         )
         zones = forbidden_zones(start, ball[:, 0], self.field, self.lineup)
-        ours = self._spread(rng, self._box(self.start_box, m), mirror, robot_zones(zones, slice(0, m)), ball)
+        ours = self._spread(rng, self._box(self.start_box, m), mirror, zones.take(np.s_[:, :m]), ball)
         placed = np.concatenate([ball, ours], axis=1)
         theirs = self._spread(
-            rng, self._box(self.opponent_box, k), mirror, robot_zones(zones, slice(m, None)), placed
+            rng, self._box(self.opponent_box, k), mirror, zones.take(np.s_[:, m:]), placed
         )
         played = RefereeState(
             np.full(f, self.command), start.placement, start.keeper, start.blue_on_positive_half
@@ -190,4 +185,4 @@ class GamePlaces(FieldScenario):
         return rng.uniform(*self._box(self.placement_box, 1), (len(mirror), 1, 2))[:, 0] * mirror[:, 0]
 
 
-__all__ = ["MARK_DISTANCE", "Box", "GamePlacement", "GamePlaces", "rest_point", "robot_zones"]
+__all__ = ["MARK_DISTANCE", "Box", "GamePlacement", "GamePlaces", "rest_point"]

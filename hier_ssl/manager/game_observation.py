@@ -43,7 +43,17 @@ from hier_ssl.game.referee import (
     RefereeState,
     own_side,
 )
-from hier_ssl.game.zones import BOX, CAPSULE, KEEP_IN, NONE, SLOTS, Zones, speed_limit, zone_distance
+from hier_ssl.game.zones import (
+    BOX,
+    CAPSULE,
+    KEEP_IN,
+    NONE,
+    SLOTS,
+    STOP_SPEED,
+    Zones,
+    speed_limit,
+    zone_distance,
+)
 from hier_ssl.manager.observation import MANAGER_OBS_SLICES
 
 REFEREE_FLAGS = (
@@ -188,7 +198,7 @@ def _game_columns(
                 row[col + 8] = min(max(away / max_pos, -clip), clip)
 
 
-def game_rules(columns: np.ndarray, robot_pos: np.ndarray, max_pos: float, max_v: float) -> RowRules:
+def game_rules(columns: np.ndarray, robot_pos: np.ndarray, max_pos: float) -> RowRules:
     """The rules B robots read from their game columns (B, ``GAME_OBS_DIM``), the robots at ``robot_pos``
     (B, 2) m: their zones (B, S) and speed limits (B,) as a planner takes them (``RowRules``)."""
     b, s = len(columns), GAME_OBS_SLICES
@@ -198,8 +208,10 @@ def game_rules(columns: np.ndarray, robot_pos: np.ndarray, max_pos: float, max_v
     kind = np.where(one_hot.any(axis=-1), np.array(ZONE_KINDS)[one_hot.argmax(axis=-1)], NONE)
     shape = slots[..., z["shape"]] * (2 * max_pos) + np.tile(robot_pos, 2)[:, None]
     clearance = slots[..., z["clearance"]][..., 0] * max_pos
-    limit = columns[:, s["speed_limit"]][:, 0].astype(np.float64)
-    speed = np.where(limit >= 1.0, np.inf, limit * max_v)
+    # The limit from the referee's one-hot, not from column 7: that one is capped at max_v and float32,
+    # so a robot no faster than STOP's limit would read "no limit", and 1.5 m/s would come back above it.
+    halt, stop = (columns[:, s["referee"]][:, k] > 0.5 for k in (0, 1))
+    speed = np.where(halt, 0.0, np.where(stop, STOP_SPEED, np.inf))
     return RowRules(Zones(kind, shape, clearance), speed)
 
 
@@ -223,7 +235,7 @@ class RuledPlanner:
     def __call__(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Actions (B, A) for observations (B, O) (of the robots ``rows``, for a planner that remembers)."""
         base, columns = obs[:, :-GAME_OBS_DIM], obs[:, -GAME_OBS_DIM:]
-        rules = game_rules(columns, robot_position(obs, self.max_pos), self.max_pos, self.max_v)
+        rules = game_rules(columns, robot_position(obs, self.max_pos), self.max_pos)
         if rows is None:
             return self.planner(base, rules=rules)
         return self.planner(base, rows=rows, rules=rules)

@@ -48,4 +48,19 @@ def check_inside(method: str, kind: str, fields: np.ndarray, pos: np.ndarray, re
         )
 
 
-__all__ = ["check_inside", "checked_arrays", "checked_fields"]
+def check_outside_boxes(
+    method: str, kind: str, fields: np.ndarray, pos: np.ndarray, boxes: np.ndarray
+) -> None:
+    """A ValueError naming the first entity of ``pos`` (F, E, 2) whose centre lies inside one of ``boxes``
+    (G, 4) x0, x1, y0, y1: the goal walls, grown by the ball's radius, which the ball's sweep assumes it
+    starts outside of (a ball inside one leaves through the wall)."""
+    x, y = pos[..., 0, None], pos[..., 1, None]
+    inside = ((x > boxes[:, 0]) & (x < boxes[:, 1]) & (y > boxes[:, 2]) & (y < boxes[:, 3])).any(axis=-1)
+    if np.count_nonzero(inside):
+        f, i = np.argwhere(inside)[0]
+        raise ValueError(
+            f"{method}: {kind} {i} of field {fields[f]} at {pos[f, i].tolist()} is inside a goal wall"
+        )
+
+
+__all__ = ["check_inside", "check_outside_boxes", "checked_arrays", "checked_fields"]

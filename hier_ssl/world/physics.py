@@ -24,7 +24,7 @@ import pymunk
 
 from hier_ssl.world.ball import BallSpec, BallState
 from hier_ssl.world.blocks import BALL, ROBOT, FieldBlock, block_bounds
-from hier_ssl.world.checks import check_inside, checked_arrays, checked_fields
+from hier_ssl.world.checks import check_inside, check_outside_boxes, checked_arrays, checked_fields
 from hier_ssl.world.entities import Entities, robots
 from hier_ssl.world.exchange import ball_rows, unpack_balls, unpack_rows, velocity_rows
 from hier_ssl.world.field import Field, get_field
@@ -334,6 +334,7 @@ class World:
         vel = np.zeros(shape) if vel is None else vel
         checked = checked_arrays("set_balls", "ball", fields, {"pos": (pos, shape), "vel": (vel, shape)})
         check_inside("set_balls", "ball", fields, checked["pos"], self._ball_limits[2:4])
+        check_outside_boxes("set_balls", "ball", fields, checked["pos"], self._goal_boxes)
         rows = np.concatenate([checked["pos"] + self.offsets[fields, None, :], checked["vel"]], axis=-1)
         for f, field_rows in zip(fields.tolist(), rows, strict=True):
             self._ball_read[f] = self.blocks[self._block_of[f]].place_balls(f, field_rows)

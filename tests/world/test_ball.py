@@ -166,6 +166,16 @@ def test_set_balls_names_the_bad_value() -> None:
         world.set_balls([1], far)
     with pytest.raises(ValueError, match=r"field index \[2\] out of range"):
         world.set_balls([2], np.zeros((1, 2, 2)))
+    # Inside the back wall of the goal at +x (Division B: goal line 4.5 m, 0.18 m deep, 0.02 m walls), where
+    # the ball's sweep, which assumes a ball starts outside every wall, would let it out through the wall.
+    in_wall = np.array([[[0.0, 0.0], [4.69, 0.0]]])  # 4.5 + 0.18 + 0.01
+    with pytest.raises(
+        ValueError, match=r"set_balls: ball 1 of field 0 at \[4.69, 0.0\] is inside a goal wall"
+    ):
+        world.set_balls([0], in_wall)
+    in_goal = np.array([[[0.0, 0.0], [4.5 + 0.09, 0.0]]])
+    world.set_balls([0], in_goal)  # inside the goal, between its walls, is a place a ball can be
+    np.testing.assert_array_equal(world.ball.pos[0], in_goal[0])
 
 
 def test_a_world_with_balls_pickles_and_steps_as_its_copy() -> None:

@@ -1,23 +1,22 @@
 """N fields on K cores: the fields in shards of one pymunk block each, every shard a ``HierarchicalCore`` of
 its own, stepped by this process and K - 1 worker processes over shared memory.
 
-Threads do not get there: Chipmunk's step releases Python's lock, but the compiled per-robot loops, the
-observation, the rules and the core's book-keeping hold it, and two threads stepping two halves of
-`obstacle` at N = 1024 gave 1.2x one (docs/guide/benchmarks.md). A process per core holds its own
-lock; the calling process steps the first shards itself and waits for the rest.
+Threads do not get there: Chipmunk's step releases Python's lock, but the per-robot loops, the observation,
+the rules and the book-keeping hold it (two threads on two halves of `obstacle` at N = 1024: 1.2x one,
+docs/guide/benchmarks.md). A process per core holds its own lock; this one steps the first shards itself.
 
 **Same seed, same results, for every K.** The shards are the blocks of ``block_bounds(N)`` (at most
 ``FIELDS_PER_SPACE`` fields each), whatever K is; a reset's seed gives each shard a seed of its own
 (``shard_seeds``), and each shard's core, its draws and its physics are those of a core of its fields
-alone, wherever it runs. K only says how many processes share the shards out. A field's episodes depend
-on the shard it is in, so N above one block does not replay the episodes of one core over all N fields;
-N within one block is one core, bit for bit as it always was (``batched_core`` returns it).
+alone, wherever it runs; K only says how many processes share them. So N above one block does not replay
+the episodes of one core over all N fields; N within one block is one core (``batched_core`` returns it).
 
 **The processes.** Workers fork from a ``forkserver`` (a clean process, started once with this module
 preloaded): none inherits the threads torch or OpenMP started in the caller. Every per-field array of a
 step lives in one shared buffer, each shard's rows at its own fields; a pipe per worker carries the
 command and the episode statistics of robots that left. ``close()`` (also on garbage collection and at
-exit) stops the workers; a worker whose parent dies sees its pipe close and exits.
+exit) stops the workers; a worker whose parent dies sees its pipe close and exits. A command that fails
+part-way (a worker's error) leaves the shards out of step: the core then refuses all but ``close()``.
 """
 
 from __future__ import annotations
@@ -228,8 +227,7 @@ class ShardedCore:
     The interface is the part of ``HierarchicalCore`` the views and ``play`` use: ``reset(seed)``,
     ``step(action (N, M, A))`` with the same ``StepResult`` (``info`` without what a view does not read:
     the core's ``step`` info keys, ``task`` concatenated in field order), ``observe()``, and copies of
-    ``active``, ``steps``, ``decisions``, ``target``, ``subgoal`` and ``state``. ``close()`` stops the
-    worker processes.
+    ``active``, ``steps``, ``decisions``, ``target``, ``subgoal`` and ``state``; ``close()`` ends the workers.
     """
 
     def __init__(
@@ -275,7 +273,7 @@ class ShardedCore:
             theirs.close()
             self._processes.append(process)
             self._conns.append(mine)
-        self.control_steps = 0
+        self.control_steps, self._broken = 0, None  # _broken: why commands are refused
         self._await()
 
     # -- the commands ------------------------------------------------------------------------------------
@@ -283,13 +281,17 @@ class ShardedCore:
     def _send(self, command: str, seeds: list[int | None]) -> list[dict[str, np.ndarray] | None]:
         """Run ``command`` on every lane, this process's while the workers run theirs; the shards' episode
         statistics in shard order."""
+        if self._broken is not None:
+            raise RuntimeError(f"{self._broken}; close() this core and build a new one")
         shard_seeds_of = [[seeds[k] for k in shards] for shards in self._lanes]
+        self._broken = f"ShardedCore: a {command!r} failed part-way"
         for conn, lane_seeds in zip(self._conns, shard_seeds_of[1:], strict=True):
             conn.send((command, lane_seeds))
         try:
             stats = self._lane.run(command, shard_seeds_of[0])
         finally:
             replies = self._await()
+        self._broken = None
         self.control_steps = max([self._lane.control_steps, *(steps for _, steps in replies)])
         return stats + [entry for lane_stats, _ in replies for entry in lane_stats]
 

@@ -121,6 +121,27 @@ def test_a_finished_sharded_core_asks_for_a_reset() -> None:
         core.step(np.zeros((70, 1, core.act_dim)))
 
 
+def test_a_command_that_fails_part_way_leaves_the_core_refusing_all_but_close() -> None:
+    core = ShardedCore(task_config("proposed"), 130, threads=2)
+    core.reset(seed=0)
+    action = np.zeros((130, 1, core.act_dim))
+    run = core._lane.run
+
+    def fails(*args: object) -> None:  # this process's shards fail after the worker's have stepped
+        raise OSError("lost")
+
+    core._lane.run = fails
+    with pytest.raises(OSError, match="lost"):
+        core.step(action)
+    core._lane.run = run
+    with pytest.raises(RuntimeError, match=r"a 'step' failed part-way; close\(\) this core"):
+        core.step(action)
+    with pytest.raises(RuntimeError, match="failed part-way"):
+        core.reset(seed=0)
+    core.close()
+    assert not multiprocessing.active_children()
+
+
 def test_the_gymnasium_vector_view_steps_alike_and_closes_its_workers() -> None:
     envs = [
         hier_ssl.manager_vector_env(task="proposed", num_fields=70, frame_skip=4, threads=k) for k in (1, 2)

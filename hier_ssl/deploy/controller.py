@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import fields
 
 import numpy as np
 
@@ -45,6 +46,13 @@ def check_target(robot: object, target: object, robots: Sequence[int], reach: np
             f"target of robot {robot} at {values[0:2].tolist()} is outside the walls (+-{reach.tolist()} m)"
         )
     return values
+
+
+def same_call(a: RefereeState | None, b: RefereeState | None) -> bool:
+    """Whether two referee states say the same (None: no referee); a placement not given is NaN in both."""
+    if a is None or b is None:
+        return a is b
+    return all(np.array_equal(getattr(a, f.name), getattr(b, f.name), equal_nan=True) for f in fields(a))
 
 
 class Controller:
@@ -165,8 +173,10 @@ class Controller:
         referee, held_ball, _ = self._rules
         if referee is not self.referee or held_ball != ball:
             rules = game_rules(self.referee, self.view.field, self.players, ball)
-            # A new command: decide under it now; a ball that moved: the next decision plans round it.
-            self.decide_now = self.decide_now or referee is not self.referee
+            # A new call (command, keepers, sides, placement): decide under it now; a ball that moved: the
+            # next decision plans round it. Compared by value: each message is a new object (a field server
+            # sends one a period), and deciding on each would decide every period, not every frame_skip.
+            self.decide_now = self.decide_now or not same_call(referee, self.referee)
             self._rules = (self.referee, ball, rules)
         return self._rules[2]
 

@@ -31,7 +31,7 @@ from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.envs import task_config
 from hier_ssl.game.legal import SPEED_MARGIN
-from hier_ssl.game.referee import HALT, STOP, referee_state
+from hier_ssl.game.referee import FORCE_START, HALT, STOP, referee_state
 from hier_ssl.game.zones import STOP_SPEED, defense_box
 from hier_ssl.world.field import get_field
 
@@ -133,6 +133,22 @@ def test_the_keeper_named_by_the_referee_may_enter_its_defense_area_and_a_new_ke
         subgoal = controller.view.subgoal[0, 0, 0:2]
         in_box = box[0] <= subgoal[0] <= box[2] and box[1] <= subgoal[1] <= box[3]
         assert in_box == (keeper == 0), (keeper, subgoal)
+
+
+def test_a_referee_repeating_itself_leaves_the_decisions_every_frame_skip_and_a_new_command_decides() -> None:
+    # A field server sends its state every period, each message a new object: the decisions keep their
+    # period, as in the direct loop, and only a new call brings one forward.
+    config = manager_task("direct", "proposed", frame_skip=4, worker="paper")
+    controller = Controller(DeployView("direct", 1, config), Tracker(), "blue", [0], feedback="command")
+    field = controller.view.field
+    controller.set_target(0, [2.0, 0.0, 0.0])
+    decided = []
+    for k in range(10):
+        controller.referee = referee_state(STOP if k >= 6 else FORCE_START, field)
+        _see(controller, k * 0.025, (0, -2.0, 0.0))
+        controller.tick(k * 0.025 + 0.001)
+        decided.append(controller.since_decision == 1)
+    assert np.flatnonzero(decided).tolist() == [0, 4, 6]
 
 
 def test_halt_sends_zero_commands_and_stop_caps_the_commanded_speed() -> None:

@@ -1,19 +1,26 @@
 """Gymnasium ids of the single-agent manager tasks, registered when ``hier_ssl`` is imported.
 
-=========================  ========================================================================
-id                         environment (``gymnasium.make(id, **settings)``; settings as
-                           ``hier_ssl.manager_env`` takes them: ``frame_skip=16``, ``worker=...``)
-=========================  ========================================================================
-``hier_ssl/Baseline-v0``   the paper's Baseline task (robot-centric reward)
-``hier_ssl/Proposed-v0``   the paper's Proposed task (action-centric reward)
-``hier_ssl/Obstacle-v0``   the paper's Obstacle task (one obstacle at the midpoint)
-``hier_ssl/Crowd-v0``      the ``crowd`` scenario: one robot across a band of 8 random-walking obstacles
-=========================  ========================================================================
+=================================  ================================================================
+id                                 environment (``gymnasium.make(id, **settings)``; settings as
+                                   ``hier_ssl.manager_env`` takes them: ``frame_skip=16``, ...)
+=================================  ================================================================
+``hier_ssl/Baseline-v0``           the paper's Baseline task (robot-centric reward)
+``hier_ssl/Proposed-v0``           the paper's Proposed task (action-centric reward)
+``hier_ssl/Obstacle-v0``           the paper's Obstacle task (one obstacle at the midpoint)
+``hier_ssl/Crowd-v0``              the ``crowd`` scenario: one robot across a band of 8 random-walking
+                                   obstacles
+``hier_ssl/GameStop-v0``           ``game_stop``: one robot of ours against the six opponents
+``hier_ssl/GameFreeKick-v0``       ``game_free_kick``: one robot of ours against the six opponents
+``hier_ssl/GameBallPlacement-v0``  ``game_ball_placement``: one robot of ours against the six
+``hier_ssl/GameMatch-v0``          ``game_match``: one robot of ours against the eleven opponents
+=================================  ================================================================
 
 A Gymnasium env has one agent, so only the tasks with one controlled robot have ids: the paper's three
 and ``crowd`` (one robot by default). ``crossing`` and ``formation`` are about several robots meeting
 (6 each by default); with one robot they are not the scenario any more, so they stay PettingZoo
-environments (``hier_ssl.scenario_env``).
+environments (``hier_ssl.scenario_env``). The game scenarios are about one team among the other: their
+ids play one robot of ours (``num_agents=1``) among all the opponents, who mark it and the ball; the
+whole team is the PettingZoo environment (``hier_ssl.scenario_env("game_stop")``).
 
 Each id's default settings are the task's own (``frame_skip`` 1 for the paper's tasks, 16 for
 ``crowd``). One step is one manager decision, so the number of steps before a truncation depends on
@@ -43,7 +50,13 @@ IDS = {
     "hier_ssl/Proposed-v0": "proposed",
     "hier_ssl/Obstacle-v0": "obstacle",
     "hier_ssl/Crowd-v0": "crowd",
+    "hier_ssl/GameStop-v0": "game_stop",
+    "hier_ssl/GameFreeKick-v0": "game_free_kick",
+    "hier_ssl/GameBallPlacement-v0": "game_ball_placement",
+    "hier_ssl/GameMatch-v0": "game_match",
 }
+# Settings an id makes its task with besides the task's own defaults: one robot of ours for a game's.
+ID_SETTINGS = {env_id: {"num_agents": 1} for env_id, name in IDS.items() if name.startswith("game_")}
 
 
 def make_env(config: Any = None, render_mode: str | None = None, worker: Any = None, **settings: Any):
@@ -80,8 +93,8 @@ def register_envs() -> None:
             env_id,
             entry_point=f"{__name__}:make_env",
             vector_entry_point=f"{__name__}:make_vector_env",
-            kwargs={"config": name},
+            kwargs={"config": name, **ID_SETTINGS.get(env_id, {})},
         )
 
 
-__all__ = ["IDS", "make_env", "make_vector_env", "register_envs"]
+__all__ = ["IDS", "ID_SETTINGS", "make_env", "make_vector_env", "register_envs"]

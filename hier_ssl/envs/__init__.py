@@ -4,7 +4,8 @@ Every task is a scenario (``hier_ssl.envs.scenario``) of the core (``hier_ssl.en
 Baseline, Proposed and Obstacle tasks from an ``EnvConfig``, the multi-robot scenarios from a
 ``ScenarioConfig``. The torch views (``vector_env``, ``TorchVectorEnv``, ``RslRlVecEnv``) bring torch and
 rsl-rl with them and are loaded on first use; the PettingZoo and Gymnasium views (``manager_env``, and
-``manager_vector_env``, a ``gymnasium.vector.VectorEnv``) need neither.
+``manager_vector_env``, a ``gymnasium.vector.VectorEnv``) need neither. The SSL game's scenarios
+(``hier_ssl.envs.game``) are registered here, with the shipped ones.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pettingzoo.utils.conversions import parallel_to_aec
 
 from hier_ssl.config import EnvConfig, ScenarioConfig, TaskConfig
 from hier_ssl.envs.core import HierarchicalCore, StepResult
+from hier_ssl.envs.game import GameScenario
 from hier_ssl.envs.gym_vector import ManagerVectorEnv
 from hier_ssl.envs.parallel import HierarchicalSSLEnv, ManagerEnv
 from hier_ssl.envs.play import Policy, play
@@ -151,6 +153,7 @@ __all__ = [
     "SCENARIOS",
     "TASKS",
     "EnvConfig",
+    "GameScenario",
     "HierarchicalCore",
     "HierarchicalSSLEnv",
     "ManagerEnv",

@@ -92,6 +92,7 @@ class HierarchicalCore:
         kind = type(scenario)
         self._pre_step = None if kind.pre_step is Scenario.pre_step else scenario.pre_step
         self._post_step = None if kind.post_step is Scenario.post_step else scenario.post_step
+        self._post_reset = None if kind.post_reset is Scenario.post_reset else scenario.post_reset
         self.rng = np.random.default_rng()
         self.control_steps = 0  # world steps taken since construction, for throughput figures
         self.interrupted = False  # an exception stopped a decision part-way: no step until reset()
@@ -167,6 +168,14 @@ class HierarchicalCore:
         for behaviour, robots in self.obstacles:
             count = robots.stop - robots.start
             behaviour.reset((fields[:, None] * count + np.arange(count)).ravel(), self.rng)
+        if self._post_reset is not None:
+            self._post_reset(self, fields, placement)
+        self._update_terms()
+
+    def set_targets(self, fields: np.ndarray, target: np.ndarray) -> None:
+        """New targets (F, M, 5) for ``fields`` (F,) ints in mid-episode (a scenario's hook, when the
+        referee's command changes what the robots must reach)."""
+        self.target[fields] = target
         self._update_terms()
 
     def _update_terms(self) -> None:
@@ -182,7 +191,7 @@ class HierarchicalCore:
         s = self.world.state if state is None else state
         s = s if fields is None else s.fields(fields)
         target = self.target if fields is None else self.target[fields]
-        return self.scenario.observation(target, s)
+        return self.scenario.observation(target, s, fields)
 
     def observe_worker(self) -> np.ndarray:
         """Worker observations (N, M, 9) float32."""
@@ -265,7 +274,8 @@ class HierarchicalCore:
         ``action_clipped``, ``subgoal`` (N, M, 5) and ``live`` (the robots this decision acted for);
         ``final_obs`` (N, M, O), the observation before any auto-reset; and ``task``, the task's episode
         statistics, one entry per robot that left: ``field``, ``agent``, ``return``, ``length`` (control
-        steps), ``decisions``, ``success``, ``collision``, ``cpad``. (Not ``episode``: Gymnasium's
+        steps), ``decisions``, ``success``, ``collision``, ``cpad``, and the scenario's ``stat_names``
+        (``Scenario.episode_stats``: the game scenarios' fouls). (Not ``episode``: Gymnasium's
         ``RecordEpisodeStatistics`` and SB3's ``Monitor`` write that key; every view passes ``task`` on.)
         """
         cfg = self.config
@@ -369,6 +379,7 @@ class HierarchicalCore:
             "success": success.take(rows).astype(np.float64),
             "collision": collision.take(rows).astype(np.float64),
             "cpad": self.ep_cpad.take(rows),
+            **self.scenario.episode_stats(rows),
         }
 
 

@@ -26,8 +26,9 @@ def play(
     The one episode loop: training's model selection, ``hier-ssl eval``, the goToPoint workers'
     evaluation and ``hier-ssl render`` all run it.
 
-    Returns length (control steps), success, collision, cpad, cpad_public, distance (start to target, m)
-    and start_gap (to the nearest other robot at reset, m), arrays (N, M) of the controlled robots, and
+    Returns length (control steps), success, collision, cpad, cpad_public, distance (start to target, m),
+    start_gap (to the nearest other robot at reset, m) and the scenario's ``stat_names`` (the game's
+    ``foul`` and ``foul_<kind>``), arrays (N, M) of the controlled robots, and
     "trajectories": the ``record`` fields' episodes (``Recorder.episode``). ``cpad`` is the paper's
     definition (the sum of the sub-goal's moves); ``cpad_public`` what the paper's public code computed for
     its tables, the square root of the sum of the squared moves (``hier_ssl.manager.metrics.cpad``).
@@ -56,6 +57,8 @@ def play(
         "success": np.zeros(shape, dtype=bool),
         "collision": np.zeros(shape, dtype=bool),
         "cpad": np.zeros(shape),
+        # The scenario's own statistics (the game's fouls), as its episode statistics give them.
+        **{name: np.zeros(shape) for name in core.scenario.stat_names},
     }
     action = np.zeros(shape + (core.act_dim,))
     squared_moves = np.zeros(shape)

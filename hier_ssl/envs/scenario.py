@@ -10,8 +10,10 @@ obstacle robots (K) a field holds, how the obstacles move (``groups``: obstacles
   names, ``hier_ssl.envs.observations``);
 - ``decision_terms`` and ``score``: each control step's reward and ending, success and collision (by
   default the rules of the task ``reward_task`` names, ``hier_ssl.envs.rules``, compiled);
-- ``pre_step``, ``post_step`` and ``extra_render``: hooks before and after the world steps and for
-  drawing, which do nothing by default.
+- ``post_reset``, ``pre_step``, ``post_step`` and ``extra_render``: hooks after a reset has placed some
+  fields, before and after the world steps and for drawing, which do nothing by default;
+- ``episode_stats``: what a robot's episode statistics add to the core's (``stat_names``), none by
+  default.
 
 The core (``hier_ssl.envs.core``) runs every scenario the same way: hold sub-goals, worker, hooks, world,
 score, end, reset. Robot order in every field: controlled robots 0..M-1, then obstacles M..M+K-1.
@@ -81,6 +83,9 @@ class Scenario:
     reward_task: str = "obstacle"
     # Sub-goal velocities are forced to 0 (the Proposed task's constraint; pose4 has none anyway).
     zero_velocity: bool = True
+    # The observation ends with the game's columns (``hier_ssl.manager.game_observation``): a scripted
+    # planner reads its rules there (``make_planner``).
+    rules_in_observation: ClassVar[bool] = False
 
     def __init__(self, config: TaskSettings, num_agents: int, groups: list[ObstacleGroup]) -> None:
         self.config = config
@@ -151,9 +156,12 @@ class Scenario:
         """Length of each manager action."""
         return action_dim(self.config.action_form)
 
-    def observation(self, target: np.ndarray, state: RobotState) -> np.ndarray:
-        """The managers' observations (F, M, obs_dim) float32 of fields with targets (F, M, 5) and robots
-        ``state`` (F, R): of the world's robots, or of tracked ones in the deploy view."""
+    def observation(
+        self, target: np.ndarray, state: RobotState, fields: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The managers' observations (F, M, obs_dim) float32 of ``fields`` (F,) ints (None: every field)
+        with targets (F, M, 5) and robots ``state`` (F, R): of the world's robots, or of tracked ones in the
+        deploy view. The default layouts read the robots alone, not which fields they are in."""
         return self.observation_layout(target, state)
 
     # -- reward and ending ---------------------------------------------------------------------------------
@@ -180,6 +188,19 @@ class Scenario:
         return self.rules(terms, target, subgoal, pos, angle, vel, self.others_of(s.pos), touching)
 
     # -- hooks ---------------------------------------------------------------------------------------------
+
+    # The per-robot episode statistics ``episode_stats`` adds to the core's ``info["task"]``.
+    stat_names: ClassVar[tuple[str, ...]] = ()
+
+    def episode_stats(self, rows: np.ndarray) -> dict[str, np.ndarray]:
+        """Statistics (E,) of the robots at flat ``rows`` (E,) (row = field * M + robot) whose episode ended
+        in the step just taken, before any reset: the ``stat_names`` columns, which the core adds to its
+        own in ``info["task"]``, and any of the core's own it replaces. None by default."""
+        return {}
+
+    def post_reset(self, core: Any, fields: np.ndarray, placement: Placement) -> None:
+        """After the core has placed ``fields`` (F,) ints as ``placement`` says, before their first
+        observation: the scenario's own per-field state of them starts afresh. Nothing by default."""
 
     def pre_step(self, core: Any, command: np.ndarray) -> None:
         """Before the world of ``core`` (the ``HierarchicalCore`` running this scenario, which imports this

@@ -164,7 +164,7 @@ def compare(
     ``frame_skip`` and the worker applied as to the run), so they meet that run's episodes; without a run
     they take the paper ``task``'s default environment (default "proposed"). Figures are per robot.
     Each evaluation's ``result`` carries ``trajectories`` of the ``record`` episodes, each with its
-    robots' ``outcome`` ("success", "collision", "timeout") and ``cpad`` added, for figures. With
+    robots' ``outcome`` ("success", "collision", "foul", "timeout") and ``cpad`` added, for figures. With
     ``progress`` each evaluation shows a progress bar on stderr.
 
     ``workers`` are specs (``"paper"``, ``"my_pkg.control:Ctrl+latency=2"``, a run directory), None (each
@@ -194,7 +194,7 @@ def compare(
         bar = f"{name} ({i + 1}/{len(jobs)})" if progress else None
         result = evaluate(policy, acting, episodes, seed, record=record, worker=obj, progress=bar)
         per = result["per_robot"]
-        label_outcomes(result, per["success"], per["collision"], per["cpad"])
+        label_outcomes(result, per["success"], per["collision"], per["cpad"], per.get("foul"))
         context = {
             "worker": label,
             "task": acting.scenario_name,

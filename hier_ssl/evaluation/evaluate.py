@@ -16,6 +16,7 @@ import numpy as np
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import Policy, play
+from hier_ssl.game import KINDS
 from hier_ssl.manager import min_time_to_pose, summarize
 from hier_ssl.world.physics import RobotSpec
 
@@ -42,7 +43,9 @@ def evaluate(
     max}, optimal_ratio_median (time to the target over the analytic rest-to-rest minimum under the robot's
     speed and acceleration limits, robots that succeeded), time_to_target_s_median (robots that
     succeeded, seconds), robots (episodes x M), the per-robot arrays (E, M) under "per_robot" (length,
-    success, collision, cpad, cpad_public, distance), and
+    success, collision, cpad, cpad_public, distance; foul in a game scenario), in a game scenario
+    foul_rate (share of robots that left for a foul; collision_rate then counts contacts alone) and fouls
+    (every foul committed, by kind of ``hier_ssl.game.KINDS``), and
     eval_wall_s. With ``progress`` (its label) a progress bar shows on stderr (``play``). With ``record``
     (episode indices), "trajectories" holds one dict per recorded episode
     (``hier_ssl.envs.play.Recorder.episode``), every control step of it.
@@ -77,6 +80,10 @@ def evaluate(
             "distance": distance,
         },
     }
+    if "foul" in ends:  # a game scenario: robots that left for a foul, and every foul by kind
+        summary["foul_rate"] = float(ends["foul"].mean())
+        summary["fouls"] = {kind: int(ends[f"foul_{kind}"].sum()) for kind in KINDS}
+        summary["per_robot"]["foul"] = ends["foul"] > 0
     if record:
         summary["trajectories"] = ends["trajectories"]
     summary["eval_wall_s"] = time.perf_counter() - start

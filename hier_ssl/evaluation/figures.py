@@ -20,20 +20,26 @@ from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotSpec, RobotState
 
 
-def outcome(success: bool, collision: bool) -> str:
-    return "success" if success else "collision" if collision else "timeout"
+def outcome(success: bool, collision: bool, foul: bool = False) -> str:
+    return "success" if success else "collision" if collision else "foul" if foul else "timeout"
 
 
 def label_outcomes(
-    result: dict[str, Any], success: np.ndarray, collision: np.ndarray, cpad: np.ndarray
+    result: dict[str, Any],
+    success: np.ndarray,
+    collision: np.ndarray,
+    cpad: np.ndarray,
+    foul: np.ndarray | None = None,
 ) -> None:
     """Give every recorded episode of ``result`` (its "trajectories") the ``outcome`` of each of its
-    controlled robots ("success", "collision", "timeout") and their ``cpad``, for figures. Shapes:
-    (episodes, M) per robot."""
+    controlled robots ("success", "collision", "foul" in a game scenario, "timeout") and their ``cpad``,
+    for figures. Shapes: (episodes, M) per robot; ``foul`` None where no robot can commit one."""
+    foul = np.zeros_like(success) if foul is None else foul
     for episode in result.get("trajectories", []):
         i = episode["field"]
         episode["outcome"] = [
-            outcome(bool(s), bool(c)) for s, c in zip(success[i], collision[i], strict=True)
+            outcome(bool(s), bool(c), bool(f))
+            for s, c, f in zip(success[i], collision[i], foul[i], strict=True)
         ]
         episode["cpad"] = [float(x) for x in cpad[i]]
 
@@ -110,7 +116,9 @@ def panel_title(name: str, episode: dict[str, Any]) -> str:
     reached = outcomes.count("success")
     hit = [str(i) for i, label in enumerate(outcomes) if label == "collision"]
     which = f" (robot{'s' * (len(hit) > 1)} {', '.join(hit)})" if hit else ""
-    return f"{name}\n{reached}/{len(outcomes)} reached, {len(hit)} collided{which}, {steps} steps"
+    fouled = outcomes.count("foul")
+    fouls = f", {fouled} fouled" if fouled else ""
+    return f"{name}\n{reached}/{len(outcomes)} reached, {len(hit)} collided{which}{fouls}, {steps} steps"
 
 
 def legend_entries() -> list[tuple[str, dict[str, Any]]]:

@@ -44,7 +44,7 @@ def make_record(manager: str, result: dict[str, Any], **context: Any) -> dict[st
     """The JSON record of one evaluation: ``result`` is ``hier_ssl.evaluation.evaluate.evaluate``'s dict,
     ``context`` holds worker, task and anything else to keep (frame_skip, seed)."""
     record = {"manager": manager, **context}
-    for key in (*RECORD_KEYS[3:], "time_to_target_s_median"):
+    for key in (*RECORD_KEYS[3:], "time_to_target_s_median", "foul_rate", "fouls"):
         if key in result or key in RECORD_KEYS:
             record[key] = result[key]
     return record
@@ -100,9 +100,19 @@ def table_cells(record: dict[str, Any]) -> list[str]:
 
 
 def markdown_table(records: Sequence[dict[str, Any]]) -> str:
-    """The records as a Markdown table (lengths in control steps of 25 ms, CPAD in m)."""
-    lines = ["| " + " | ".join(HEADERS) + " |", "|" + "---|" * len(HEADERS)]
-    lines += ["| " + " | ".join(table_cells(r)) + " |" for r in records]
+    """The records as a Markdown table (lengths in control steps of 25 ms, CPAD in m); records of a game
+    scenario add a "Foul" column (robots that left for a foul) and a line of their fouls by kind."""
+    game = all("foul_rate" in r for r in records)
+    headers = (*HEADERS, "Foul") if game else HEADERS
+    lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
+    for r in records:
+        cells = table_cells(r) + ([f"{100 * r['foul_rate']:.2f} %"] if game else [])
+        lines.append("| " + " | ".join(cells) + " |")
+    if game:
+        lines.append("")
+        for r in records:
+            fouls = ", ".join(f"{kind} {count}" for kind, count in r["fouls"].items() if count) or "none"
+            lines.append(f"fouls of {r['manager']}: {fouls}")
     return "\n".join(lines) + "\n"
 
 

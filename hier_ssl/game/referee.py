@@ -107,6 +107,12 @@ class RefereeState:
     keeper: np.ndarray
     blue_on_positive_half: np.ndarray
 
+    def fields(self, idx: np.ndarray | list[int]) -> RefereeState:
+        """The state of the fields ``idx`` (F,) ints alone (copies)."""
+        return RefereeState(
+            self.command[idx], self.placement[idx], self.keeper[idx], self.blue_on_positive_half[idx]
+        )
+
 
 def referee_state(
     command: np.ndarray | int,

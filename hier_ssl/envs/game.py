@@ -396,8 +396,8 @@ class GameScenario(FieldScenario):
             theirs = world.state.pos[came, self.num_agents :]
             core.set_targets(came, self._targets(core.rng, referee, rest, mirror, theirs))
         state = world.state
-        theirs = self.team.commands(state, world.ball.pos[:, 0], self.referee, self.lineup, steps, core.rng)
-        np.copyto(command[:, self.num_agents :], theirs, where=playing[:, None, None])
+        moves = self.team.commands(state, world.ball.pos[:, 0], self.referee, self.lineup, steps, core.rng)
+        np.copyto(command[:, self.num_agents :], moves, where=playing[:, None, None])
         command[self.referee.command == HALT] = 0.0
         self._before = Motion(state.pos, state.vel)
 

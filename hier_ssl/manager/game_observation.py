@@ -55,6 +55,7 @@ from hier_ssl.game.zones import (
     zone_distance,
 )
 from hier_ssl.manager.observation import MANAGER_OBS_SLICES
+from hier_ssl.manager.scene import Scene, ruled_scene
 
 REFEREE_FLAGS = (
     "halt",
@@ -232,13 +233,32 @@ class RuledPlanner:
     def __getattr__(self, name: str) -> Any:
         return getattr(self.planner, name)
 
+    def rules(self, obs: np.ndarray) -> tuple[np.ndarray, RowRules]:
+        """Observations (B, O) split into the "neighbours" layout the planner reads (B, O - ``GAME_OBS_DIM``)
+        and the rules of their robots."""
+        base, columns = obs[:, :-GAME_OBS_DIM], obs[:, -GAME_OBS_DIM:]
+        return base, game_rules(columns, robot_position(obs, self.max_pos), self.max_pos)
+
+    def read_ruled(self, obs: np.ndarray) -> tuple[Scene, RowRules]:
+        """The scene the planner ranks its candidates in for observations (B, O), its target where the rules
+        let the robot go (``ruled_scene``, as ``plan`` moves it), and the rules it ranks them under."""
+        base, rules = self.rules(obs)
+        return ruled_scene(self.planner.read(base), rules, self.planner.zone_margin), rules
+
     def __call__(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Actions (B, A) for observations (B, O) (of the robots ``rows``, for a planner that remembers)."""
-        base, columns = obs[:, :-GAME_OBS_DIM], obs[:, -GAME_OBS_DIM:]
-        rules = game_rules(columns, robot_position(obs, self.max_pos), self.max_pos)
+        base, rules = self.rules(obs)
         if rows is None:
             return self.planner(base, rules=rules)
         return self.planner(base, rows=rows, rules=rules)
+
+
+def ruled_read(planner: Any, obs: np.ndarray) -> tuple[Scene, RowRules | None]:
+    """The scene a ``sampling`` or ``RuledPlanner`` ``planner`` ranks its candidates in for observations
+    (B, O), and the rules it ranks them under (None: a planner outside the game)."""
+    if isinstance(planner, RuledPlanner):
+        return planner.read_ruled(obs)
+    return planner.read(obs), None
 
 
 __all__ = [
@@ -252,4 +272,5 @@ __all__ = [
     "game_rules",
     "referee_flags",
     "robot_position",
+    "ruled_read",
 ]

@@ -15,7 +15,8 @@ import torch
 from torch import nn
 
 from hier_ssl.checkpoints.actor import linear_layers, mean_actor
-from hier_ssl.manager.planners import SamplingPlanner, Scene
+from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
+from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.networks import mlp
 
 NETWORKS = ("classifier", "scorer")
@@ -58,11 +59,15 @@ def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Module:
     return scorer
 
 
-def soft_choice(planner: SamplingPlanner, scene: Scene, cand: np.ndarray, tau: float) -> np.ndarray:
-    """The planner's soft choice (N, C) over its candidates ``cand`` (N, C) complex in ``scene``, rows
-    summing to 1, which the networks are fitted to: a softmax of its ``score`` / ``tau`` (over the best
-    tier it would choose from, by arrival time)."""
-    score = planner.score(scene, cand)
+def soft_choice(
+    planner: SamplingPlanner | RuledPlanner, obs: np.ndarray, cand: np.ndarray, tau: float
+) -> np.ndarray:
+    """The planner's soft choice (N, C) over its candidates ``cand`` (N, C) complex for observations ``obs``
+    (N, O) (a game's: under the rules they carry, ``ruled_read``), rows summing to 1, which the networks are
+    fitted to: a softmax of its ``score`` / ``tau`` (over the best tier it would choose from, by arrival
+    time)."""
+    scene, rules = ruled_read(planner, obs)
+    score = planner.score(scene, cand, rules)
     weight = np.exp((score - score.max(1, keepdims=True)) / tau)
     return weight / weight.sum(1, keepdims=True)
 

@@ -9,7 +9,7 @@ over the observation or a scorer over each candidate's features (``candidate_net
 1. DAgger (Ross et al., 2011): round 0 plays the planner, every later round the network; every state met
    is labelled with the planner's soft choice (``soft_choice``) and the network refitted on all of them.
 2. PPO on the logits' categorical policy, from the DAgger fit, rewarded by outcomes alone (time, success,
-   collision), a KL penalty towards the fit, a value fitted alone at first: what can pass the planner.
+   collision or the game's foul), a KL penalty towards the fit, a value fitted alone at first.
 
 At every decision it runs the planner's candidate geometry (not its rollouts, where the planner's time
 goes), in torch: the whole decision is one graph (``hier_ssl.policies.candidate_graph``), which training,
@@ -36,6 +36,7 @@ from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
 from hier_ssl.envs.shards import batched_core, close_core
 from hier_ssl.envs.vector import TorchVectorEnv
+from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candidate_geometry, stored_features
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
@@ -45,8 +46,8 @@ from hier_ssl.policies.ppo import clipped_surrogate, gae, minibatches, normalize
 from hier_ssl.policies.sac_runner import MODEL_FILE
 
 
-def candidate_planner(config: TrainConfig) -> SamplingPlanner:
-    """The ``sampling`` planner of the run's task: its candidates are the manager's classes."""
+def candidate_planner(config: TrainConfig) -> SamplingPlanner | RuledPlanner:
+    """The run's ``sampling`` planner (a game's: ``RuledPlanner``): its candidates are the classes."""
     return make_planner("sampling", config.task_config)
 
 
@@ -166,7 +167,7 @@ class CandidateLearner:
             def policy(obs: np.ndarray) -> np.ndarray:
                 x = torch.as_tensor(obs, dtype=torch.float32)
                 read = geometry(x)  # the candidates the network chooses among are the ones labelled
-                soft = soft_choice(planner, planner.read(obs), as_points(read[5]), settings.tau)
+                soft = soft_choice(planner, obs, as_points(read[5]), settings.tau)
                 obs_parts.append(x.numpy())
                 label_parts.append(soft.astype(np.float32))
                 if manager is not None:  # the student reads the candidates and features built here
@@ -279,9 +280,8 @@ class CandidateLearner:
                 read.append(inputs)
             next_obs, _, terminated, truncated, info = env.step_rows(action)
             stats, rows = info["task"], info["task_rows"]
-            reward = outcome_reward(
-                settings, info["control_steps"], rows, stats["success"], stats["collision"]
-            )
+            failed = stats["collision"] + stats.get("foul", 0.0)  # a game's foul costs as a collision
+            reward = outcome_reward(settings, info["control_steps"], rows, stats["success"], failed)
             # A truncated episode would have gone on: its last decision bootstraps from the value of the
             # observation it ended on.
             cut = truncated & ~terminated
@@ -289,7 +289,7 @@ class CandidateLearner:
                 with torch.no_grad():
                     final = value(torch.as_tensor(info["final_obs"][cut], dtype=torch.float32))[:, 0]
                 reward[cut] += settings.gamma * final.numpy()
-            ended += [stats["success"].sum(), stats["collision"].sum(), len(rows)]
+            ended += [stats["success"].sum(), failed.sum(), len(rows)]
             for key, item in zip(
                 keys, (obs, choice, log_prob, reward, terminated | truncated, real), strict=True
             ):

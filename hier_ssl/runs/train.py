@@ -215,13 +215,15 @@ def _budget(config: TrainConfig) -> int:
 
 
 def _warn_if_only_warm_up(config: TrainConfig) -> None:
-    transitions = config.total_steps * config.num_envs
+    # One row, one transition a step, per robot of each field (a paper task's config has no num_agents).
+    rows = config.num_envs * getattr(config.task_config, "num_agents", 1)
+    transitions = config.total_steps * rows
     if transitions < config.sac.learning_starts:
         warnings.warn(
-            f"this run collects total_steps {config.total_steps} x num_envs {config.num_envs} = "
-            f"{transitions} transitions, fewer than sac.learning_starts = {config.sac.learning_starts}: it "
-            "only takes warm-up actions and never updates the policy; raise total_steps or lower "
-            "sac.learning_starts",
+            f"this run collects total_steps {config.total_steps} x {rows} rows (num_envs {config.num_envs} "
+            f"fields) = {transitions} transitions, fewer than sac.learning_starts = "
+            f"{config.sac.learning_starts}: it only takes warm-up actions and never updates the policy; "
+            "raise total_steps or lower sac.learning_starts",
             stacklevel=4,
         )
 

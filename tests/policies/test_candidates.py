@@ -37,12 +37,12 @@ def test_the_soft_choice_peaks_on_the_planners_own_choice() -> None:
     # The candidates the network chooses among (torch, from the observation) are the planner's own.
     cand = as_points(candidate_geometry(parse_config(SHIPPED), planner)(torch.as_tensor(obs))[5])
     np.testing.assert_allclose(cand, planner.candidates(scene), rtol=0, atol=1e-12)
-    soft = soft_choice(planner, scene, cand, tau=0.05)
+    soft = soft_choice(planner, obs, cand, tau=0.05)
     np.testing.assert_allclose(soft.sum(1), 1.0, rtol=1e-9)
     chosen = cand[np.arange(len(cand)), soft.argmax(1)]
     np.testing.assert_allclose(planner.subgoals(scene, chosen), planner.plan(scene))
     # At a high temperature the choice spreads over the planner's best tier (where it has more than one).
-    sharp, spread = soft.max(1), soft_choice(planner, scene, cand, tau=10.0).max(1)
+    sharp, spread = soft.max(1), soft_choice(planner, obs, cand, tau=10.0).max(1)
     assert (spread <= sharp + 1e-12).all() and (spread < 0.9).sum() > len(obs) // 2
 
 

@@ -333,6 +333,16 @@ def test_a_run_shorter_than_its_warm_up_says_so(tmp_path: Path) -> None:
         train(config, tmp_path, progress=False)
 
 
+@pytest.mark.filterwarnings("error:this run collects")
+def test_a_scenario_runs_warm_up_counts_every_robots_row(tmp_path: Path) -> None:
+    # 60 steps x 2 fields x 3 robots = 360 transitions, past a warm-up of 200 (60 x 2 fields alone is not).
+    train(
+        parse_config({**SCENARIO, "sac": {**SCENARIO["sac"], "learning_starts": 200}}),
+        tmp_path,
+        progress=False,
+    )
+
+
 def test_eval_and_export_fall_back_to_the_final_policy_without_a_best_one(tmp_path: Path) -> None:
     from hier_ssl.checkpoints.actor import load_actor
     from hier_ssl.policies.export import export_manager

@@ -1,22 +1,19 @@
-"""N fields on K cores: the fields in shards of one pymunk block each, every shard a ``HierarchicalCore`` of
-its own, stepped by this process and K - 1 worker processes over shared memory.
+"""N fields on K cores: the fields in shards of ``SHARD_BLOCKS`` pymunk blocks each, every shard a
+``HierarchicalCore`` of its own, stepped by this process and K - 1 worker processes over shared memory.
 
-Threads do not get there: Chipmunk's step releases Python's lock, but the per-robot loops, the observation,
-the rules and the book-keeping hold it (two threads on two halves of `obstacle` at N = 1024: 1.2x one,
-docs/guide/benchmarks.md). A process per core holds its own lock; this one steps the first shards itself.
+Not threads: Chipmunk's step releases Python's lock, but the per-robot loops, the observation, the rules
+and the book-keeping hold it (two threads on halves of `obstacle`, N = 1024: 1.2x one, benchmarks.md).
 
-**Same seed, same results, for every K.** The shards are the blocks of ``block_bounds(N)`` (at most
-``FIELDS_PER_SPACE`` fields each), whatever K is; a reset's seed gives each shard a seed of its own
-(``shard_seeds``), and each shard's core, its draws and its physics are those of a core of its fields
-alone, wherever it runs; K only says how many processes share them. So N above one block does not replay
-the episodes of one core over all N fields; N within one block is one core (``batched_core`` returns it).
+**Same seed, same results, for every K.** The shards are ``block_groups(N, SHARD_BLOCKS)``, whatever K
+is; a reset's seed gives each shard its own (``shard_seeds``), and each shard's core, draws and physics
+are those of a core of its fields alone, wherever it runs. So N above one shard does not replay one core
+over all N fields; N within one shard is one core (``batched_core`` returns it).
 
-**The processes.** Workers fork from a ``forkserver`` (a clean process, started once with this module
-preloaded): none inherits the threads torch or OpenMP started in the caller. Every per-field array of a
-step lives in one shared buffer, each shard's rows at its own fields; a pipe per worker carries the
-command and the episode statistics of robots that left. ``close()`` (also on garbage collection and at
-exit) stops the workers; a worker whose parent dies sees its pipe close and exits. A command that fails
-part-way (a worker's error) leaves the shards out of step: the core then refuses all but ``close()``.
+**The processes.** Workers fork from a ``forkserver`` (started once, this module preloaded): none inherits
+the threads torch or OpenMP started in the caller. Every per-field array of a step lives in one shared
+buffer; a pipe per worker carries the command and the statistics of robots that left. ``close()`` (also
+on garbage collection and at exit) stops the workers; a worker whose parent dies exits. A command that
+fails part-way leaves the shards out of step: the core then refuses all but ``close()``.
 """
 
 from __future__ import annotations
@@ -37,7 +34,7 @@ from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore, StepResult
 from hier_ssl.envs.registry import make_scenario
 from hier_ssl.envs.scenario import Scenario
-from hier_ssl.world.blocks import block_bounds
+from hier_ssl.world.blocks import block_groups
 from hier_ssl.world.robot import RobotState
 
 Threads = int | Literal["auto"]
@@ -55,6 +52,9 @@ def resolve_threads(threads: Threads) -> int:
     if isinstance(threads, bool) or not isinstance(threads, int | np.integer) or threads < 1:
         raise ValueError(f"threads must be an integer >= 1 or 'auto', got {threads!r}")
     return int(threads)
+
+
+SHARD_BLOCKS = 4  # a core's per-step overhead paid once for 4 blocks: 1-block shards cost one core 25 %
 
 
 def shard_seeds(seed: int | None, count: int) -> list[int | None]:
@@ -220,7 +220,7 @@ def _stop(processes: list[Any], conns: list[Connection]) -> None:
 
 
 class ShardedCore:
-    """N fields of one task or scenario as shards of one block each (``block_bounds``), stepped on
+    """N fields of one task or scenario in shards (``block_groups(N, SHARD_BLOCKS)``), stepped on
     ``threads`` cores (an int, or "auto": the cores this process may use): this process steps the first
     shards, K - 1 worker processes the others, K at most the number of shards.
 
@@ -240,7 +240,7 @@ class ShardedCore:
     ) -> None:
         scenario = task if isinstance(task, Scenario) else make_scenario(task)
         kind, config = type(scenario), scenario.config
-        bounds = block_bounds(num_fields)
+        bounds = block_groups(num_fields, SHARD_BLOCKS)
         lanes = [
             list(part)
             for part in np.array_split(np.arange(len(bounds)), min(resolve_threads(threads), len(bounds)))
@@ -389,10 +389,10 @@ def batched_core(
     worker: Any = None,
     threads: Threads = 1,
 ) -> HierarchicalCore | ShardedCore:
-    """N fields on ``threads`` cores: one ``HierarchicalCore`` where they are one shard (N up to a block:
-    nothing to share out), else a ``ShardedCore``."""
+    """N fields on ``threads`` cores: one ``HierarchicalCore`` where they are one shard (nothing to share
+    out), else a ``ShardedCore``."""
     resolve_threads(threads)
-    if len(block_bounds(num_fields)) == 1:
+    if len(block_groups(num_fields, SHARD_BLOCKS)) == 1:
         return HierarchicalCore(task, num_fields, autoreset, worker)
     return ShardedCore(task, num_fields, autoreset, worker, threads)
 

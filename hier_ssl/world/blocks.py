@@ -52,6 +52,13 @@ def block_bounds(num_fields: int) -> list[tuple[int, int]]:
     return list(zip(edges[:-1], edges[1:], strict=True))
 
 
+def block_groups(num_fields: int, size: int) -> list[tuple[int, int]]:
+    """The (start, stop) field ranges of ``block_bounds(num_fields)``'s blocks taken ``size`` at a time (the
+    last group may hold fewer)."""
+    blocks = block_bounds(num_fields)
+    return [(blocks[k][0], blocks[min(k + size, len(blocks)) - 1][1]) for k in range(0, len(blocks), size)]
+
+
 def _wall_ends(offset: np.ndarray, wx: float, wy: float) -> list[tuple[tuple[float, float], ...]]:
     """The (start, end) points of a field's four wall segments around ``offset`` (2,), half extents wx, wy."""
     ox, oy = offset

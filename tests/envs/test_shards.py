@@ -10,9 +10,16 @@ import pytest
 import torch
 
 import hier_ssl
-from hier_ssl.envs import HierarchicalCore, ShardedCore, batched_core, play, task_config
+from hier_ssl.envs import HierarchicalCore, ShardedCore, batched_core, play, shards, task_config
 from hier_ssl.envs.shards import resolve_threads, shard_seeds
-from hier_ssl.world.blocks import block_bounds
+from hier_ssl.world.blocks import block_bounds, block_groups
+
+
+@pytest.fixture(autouse=True)
+def one_block_shards(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Shards of one block (64 fields), so that a few hundred fields make several shards; the shipped
+    four-block shards are tested alone below."""
+    monkeypatch.setattr(shards, "SHARD_BLOCKS", 1)
 
 
 def _trajectory(env, steps: int, seed: int = 3) -> list[list[np.ndarray]]:
@@ -154,3 +161,13 @@ def test_the_gymnasium_vector_view_steps_alike_and_closes_its_workers() -> None:
     for env in envs:
         env.close()
     assert workers and not any(w.is_alive() for w in workers)
+
+
+def test_the_shipped_shards_are_four_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(shards, "SHARD_BLOCKS", 4)
+    assert block_groups(1024, 4) == [(0, 256), (256, 512), (512, 768), (768, 1024)]
+    assert block_groups(300, 4) == [(0, 240), (240, 300)]  # 5 blocks of 60: four, then one
+    assert isinstance(batched_core(task_config("proposed"), 256, threads=2), HierarchicalCore)
+    core = batched_core(task_config("proposed"), 257, threads=1)
+    assert isinstance(core, ShardedCore) and core._bounds == block_groups(257, 4)
+    core.close()

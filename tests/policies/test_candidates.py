@@ -10,7 +10,7 @@ import yaml
 from hier_ssl.checkpoints.actor import load_actor
 from hier_ssl.config import ConfigError
 from hier_ssl.config.files import config_dir, load_yaml
-from hier_ssl.envs import parse_config
+from hier_ssl.envs import parse_config, shards
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.evaluation.evaluate import evaluate
@@ -267,8 +267,12 @@ def test_a_candidate_learner_stops_at_its_step_budget_and_goes_on_from_there(tmp
     assert steps == [1, 2, 3] and saved["phase"] == "ppo" and saved["iteration"] == 1
 
 
-def test_dagger_collects_the_same_states_and_labels_on_one_and_two_cores(tmp_path: Path) -> None:
-    # 70 episodes are two shards (hier_ssl.envs.shards): the second plays in a worker process on two cores.
+def test_dagger_collects_the_same_states_and_labels_on_one_and_two_cores(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # 70 episodes in shards of one block are two shards (hier_ssl.envs.shards): the second plays in a worker
+    # process on two cores (the shipped shards of four blocks would need 257 episodes for two).
+    monkeypatch.setattr(shards, "SHARD_BLOCKS", 1)
     collected = []
     for threads in (1, 2):
         data = {**_config(rounds=1, episodes=70), "threads": threads}

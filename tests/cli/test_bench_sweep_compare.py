@@ -7,6 +7,7 @@ import pytest
 
 from hier_ssl import cli
 from hier_ssl.cli import bench, game_bench, look, side_by_side
+from hier_ssl.envs import shards
 
 
 @pytest.fixture(autouse=True)
@@ -65,6 +66,7 @@ def test_compare_on_several_core_counts_alternates_them_on_the_wall_clock(
 ) -> None:
     monkeypatch.setattr(side_by_side, "vmas_installed", lambda: False)
     monkeypatch.setattr(side_by_side, "PAIRS", side_by_side.PAIRS[:1])
+    monkeypatch.setattr(shards, "SHARD_BLOCKS", 1)  # 70 fields: two shards of a block, so two cores
     cores = []
 
     class Counted(bench.VectorRun):

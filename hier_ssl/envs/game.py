@@ -58,6 +58,7 @@ from hier_ssl.world.physics import RobotState, World
 COMMAND_NUMBERS = {name: number for number, name in COMMANDS.items()}
 # How a robot's episode ended, per robot: still in play, at its target, in a collision, by a foul.
 IN_PLAY, SUCCEEDED, COLLIDED, FOULED = 0, 1, 2, 3
+_NO_CONTACTS = np.empty((0, 3), np.int64)  # step_fouls' contacts where none began (never written)
 
 
 class GameOptions(Strict):
@@ -110,7 +111,7 @@ def game_outcome(
     counts = success & in_force & ~fouled
     collided = hit & ~fouled
     reward = reward - success_bonus * (success & ~counts) + hit_penalty * (fouled & ~hit)
-    way = np.select([fouled, collided, counts], [FOULED, COLLIDED, SUCCEEDED], IN_PLAY)
+    way = np.where(fouled, FOULED, np.where(collided, COLLIDED, np.where(counts, SUCCEEDED, IN_PLAY)))
     return reward, counts, collided | fouled, way
 
 
@@ -239,8 +240,9 @@ class GameScenario(GamePlaces):
         """The step's fouls (``step_fouls``), counted for our robots still in play."""
         world, m = core.world, self.num_agents
         began = world.robot_contacts & ~self._touching
-        self._touching = world.robot_contacts.copy()
-        contacts = np.argwhere(np.triu(began, k=1))
+        np.copyto(self._touching, world.robot_contacts)
+        # Most control steps begin no contact: the pairs' search only where one did.
+        contacts = np.argwhere(np.triu(began, k=1)) if began.any() else _NO_CONTACTS
         after = Motion(world.state.pos, world.state.vel)
         ball = world.ball.pos[:, 0]
         self.clocks, report = step_fouls(

@@ -45,8 +45,12 @@ def _trajectory(env, steps: int, seed: int = 3) -> list[list[np.ndarray]]:
         lambda k: hier_ssl.scenario_vector_env(
             "formation", num_fields=70, frame_skip=4, max_steps=48, threads=k
         ),
+        # A game (6 v 6, the ball, the referee, the opponents' planners) over two shards.
+        lambda k: hier_ssl.scenario_vector_env(
+            "game_stop", num_fields=70, frame_skip=4, max_steps=48, threads=k
+        ),
     ],
-    ids=["obstacle", "formation"],
+    ids=["obstacle", "formation", "game_stop"],
 )
 def test_one_and_two_cores_give_identical_trajectories(make) -> None:
     one, two = make(1), make(2)

@@ -40,7 +40,7 @@ from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candidate_geometry, stored_features
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
-from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy, mlp
 from hier_ssl.policies.ppo import clipped_surrogate, gae, minibatches, normalized, value_loss
 from hier_ssl.policies.sac_runner import MODEL_FILE
@@ -183,7 +183,8 @@ class CandidateLearner:
         for round_ in range(first, rounds):
             began = time.perf_counter()
             core = batched_core(config.task_config, settings.episodes, False, threads=config.threads)
-            ends = play(core, labelling(self.net), _seed(config, 0, round_))
+            with torch_threads(1):  # the fields' cores (hier_ssl.policies.learner); fits at the run's
+                ends = play(core, labelling(self.net), _seed(config, 0, round_))
             close_core(core)  # its worker processes (on an error, when the core is collected)
             played = {"success_rate": ends["success"].mean(), "collision_rate": ends["collision"].mean()}
             x = torch.as_tensor(np.concatenate(obs_parts))
@@ -216,8 +217,7 @@ class CandidateLearner:
 
     def ppo(self, saved: dict[str, Any], iterations: int) -> None:
         """Phase 2: PPO iterations from the DAgger fit until ``iterations``, from ``saved["iteration"]``."""
-        settings, net = self.settings.ppo, self.net
-        self.phase = "ppo"
+        settings, net, self.phase = self.settings.ppo, self.net, "ppo"
         assert net is not None
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
@@ -245,7 +245,8 @@ class CandidateLearner:
                 for optimizer, rate in zip(self.optimizers, rates, strict=True):
                     for group in optimizer.param_groups:
                         group["lr"] = rate * left
-            batch, logs = self.rollout()
+            with torch_threads(1):
+                batch, logs = self.rollout()
             decisions += len(batch[0])
             logs |= self.update(batch, moving=iteration >= settings.value_warmup)
             self.train_time_s += time.perf_counter() - began

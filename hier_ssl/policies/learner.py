@@ -5,16 +5,28 @@ loaded from its run directory (``--resume``).
 Three learners take this form: SAC + CAPS (``hier_ssl.policies.sac_runner.SACRunner``), PPO through
 rsl-rl (``hier_ssl.policies.ppo.PPOLearner``) and the choice among the sampling planner's candidates
 (``hier_ssl.policies.candidates.CandidateLearner``).
+
+Each collects at one torch thread (``torch_threads(1)``) and updates at the run's (``threads``): while the
+fields step on several cores, a second torch thread left waiting after an operator holds the core a
+shard's worker process steps on. ``obstacle/ppo_frame_skip``'s 512 fields and a 256-wide network, 32 steps
+on two cores: 0.27 s with one torch thread, 0.44 s with two; on one core 0.40-0.44 s either way (median of
+five rounds, ``benchmarks/collect_threads.py``; docs/guide/benchmarks.md, "Every core").
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
+
+import torch
 
 from hier_ssl.policies.networks import NumpyPolicy
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -64,4 +76,26 @@ class Learner(Protocol):
         ...
 
 
-__all__ = ["Checkpoint", "Learner", "OnCheckpoint"]
+@contextlib.contextmanager
+def torch_threads(count: int) -> Iterator[None]:
+    """torch's intra-op threads set to ``count`` inside, restored after."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def on_threads(count: int, function: Callable[..., T]) -> Callable[..., T]:
+    """``function`` run at ``count`` torch threads (an update called from inside a collecting loop)."""
+
+    @functools.wraps(function)
+    def run(*args: Any, **kwargs: Any) -> T:
+        with torch_threads(count):
+            return function(*args, **kwargs)
+
+    return run
+
+
+__all__ = ["Checkpoint", "Learner", "OnCheckpoint", "on_threads", "torch_threads"]

@@ -36,7 +36,7 @@ from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config import ConfigError
 from hier_ssl.config.learners import PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
-from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, on_threads, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy
 
 
@@ -215,10 +215,13 @@ class PPOLearner:
         self._started, self._evaluating = time.perf_counter(), 0.0
         if remaining > 0:  # a resumed run that had finished has nothing left to learn
             self._on_checkpoint, self.runner.on_save = on_checkpoint, self._saved
+            alg, update = self.runner.alg, self.runner.alg.update
+            alg.update = on_threads(torch.get_num_threads(), update)  # the run's threads; collect on one
             try:
-                self.runner.learn(remaining)
+                with torch_threads(1):
+                    self.runner.learn(remaining)
             finally:
-                self._on_checkpoint, self.runner.on_save = None, None
+                self._on_checkpoint, self.runner.on_save, alg.update = None, None, update
         self.train_time_s = time.perf_counter() - self._started - self._evaluating
 
     def policy(self) -> NumpyPolicy:

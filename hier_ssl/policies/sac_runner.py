@@ -14,7 +14,7 @@ from torch.utils.tensorboard import SummaryWriter
 from tqdm import tqdm
 
 from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
-from hier_ssl.policies.learner import Checkpoint, OnCheckpoint
+from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy, sac_policy
 from hier_ssl.policies.sac import SAC, SACConfig
 from hier_ssl.policies.teacher import Teacher, make_teacher, teacher_labels, teacher_weight
@@ -183,11 +183,13 @@ class SACRunner:
         try:
             while self.step < total_steps:
                 step_start = time.perf_counter()
-                # Act: uniform random (or the teacher's) during warm-up, then the stochastic policy.
-                labels = self._labels()
-                actions = self._act(labels)
-                # Step and store; the true last observation is the next_obs of finished episodes.
-                next_obs, rewards, terminated, _truncated, info = self.env.step(actions.to(self.env.device))
+                # Act: uniform random (or the teacher's) during warm-up, then the stochastic policy; on one
+                # torch thread, as the fields step (hier_ssl.policies.learner), the updates on the run's.
+                with torch_threads(1):
+                    labels = self._labels()
+                    actions = self._act(labels)
+                    # The true last observation is the next_obs of finished episodes.
+                    next_obs, rewards, terminated, _, info = self.env.step(actions.to(self.env.device))
                 next_obs, rewards, final_obs, terminated, live = to_learner(
                     self.device, next_obs, rewards, info["final_obs"], terminated, info.get("live")
                 )

@@ -7,7 +7,8 @@ as a torch vector view stepped on K cores (``threads``: shards in this process a
 round, wall clock. Run it on a machine with nothing else running: a lock-step step of K processes waits for
 whichever one the scheduler parked.
 
-Run: python benchmarks/collect_threads.py [--config obstacle/ppo_frame_skip] [--rounds 5] [--steps 32]
+Run: python benchmarks/collect_threads.py [--config obstacle/ppo_frame_skip] [--fields N] [--cores K]
+     [--rounds 5] [--steps 32]
 """
 
 from __future__ import annotations
@@ -28,12 +29,15 @@ from hier_ssl.policies.networks import mlp
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="obstacle/ppo_frame_skip")
+    parser.add_argument("--fields", type=int, default=None, help="default: the config's num_envs")
+    parser.add_argument("--cores", type=int, default=None, help="K and T up to this (default: every core)")
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--steps", type=int, default=32)
     args = parser.parse_args()
     config = validate_config(load_yaml(find_config(args.config)))
-    cores = range(1, resolve_threads("auto") + 1)
-    envs = {k: TorchVectorEnv(config.task_config, config.num_envs, threads=k) for k in cores}
+    fields = args.fields or config.num_envs
+    cores = range(1, (args.cores or resolve_threads("auto")) + 1)
+    envs = {k: TorchVectorEnv(config.task_config, fields, threads=k) for k in cores}
     net = mlp(envs[1].num_obs, [256, 256], envs[1].num_actions)
     times: dict[tuple[int, int], list[float]] = {}
     try:
@@ -50,7 +54,7 @@ def main() -> None:
     finally:
         for env in envs.values():
             env.close()
-    print(f"{args.config}: {config.num_envs} fields, {args.steps} steps a round, {args.rounds} rounds")
+    print(f"{args.config}: {fields} fields, {args.steps} steps a round, {args.rounds} rounds")
     for (k, t), spent in sorted(times.items()):
         print(
             f"fields on {k} core(s), torch at {t} thread(s): best {min(spent):.3f} s, "

@@ -15,6 +15,7 @@ from hier_ssl.runs.train import train
 
 ROOT = Path(__file__).parents[1]
 SCRIPTS = {
+    "collect_threads.py",
     "export_latency.py",
     "front_page_gif.py",
     "planner_latency.py",
@@ -41,6 +42,13 @@ def _run(script: str, *args: str, cwd: Path) -> list[str]:
 
 def test_benchmarks_holds_only_the_maintained_scripts() -> None:
     assert {p.name for p in (ROOT / "benchmarks").glob("*.py")} == SCRIPTS
+
+
+def test_collect_threads_times_every_pair_of_core_and_torch_thread_counts(tmp_path: Path) -> None:
+    args = ("--fields", "70", "--cores", "2", "--rounds", "1", "--steps", "2")
+    lines = _run("collect_threads.py", *args, cwd=tmp_path)
+    assert lines[0].startswith("obstacle/ppo_frame_skip: 70 fields") and len(lines) == 1 + 2 * 2
+    assert all(" best " in line and line.endswith(" s") for line in lines[1:])
 
 
 def test_planner_latency(tmp_path: Path) -> None:

@@ -287,29 +287,15 @@ def test_dagger_collects_the_same_states_and_labels_on_one_and_two_cores(
 
 
 def test_the_candidate_learner_plays_on_one_torch_thread_and_fits_on_the_runs(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, torch_threads_seen
 ) -> None:
     """DAgger's episodes and PPO's rollouts at one torch thread (hier_ssl.policies.learner), the fits and
     updates at the run's."""
-    seen: dict[str, set[int]] = {}
-
-    def counted(name, function):
-        def run(*args, **kwargs):
-            seen.setdefault(name, set()).add(torch.get_num_threads())
-            return function(*args, **kwargs)
-
-        return run
-
+    seen, counted = torch_threads_seen
     for name in ("play", "fit_chooser"):
         monkeypatch.setattr(candidates, name, counted(name, getattr(candidates, name)))
     for name in ("rollout", "update"):
         monkeypatch.setattr(CandidateLearner, name, counted(name, getattr(CandidateLearner, name)))
     ppo = {"iterations": 1, "fields": 4, "horizon": 4, "value_warmup": 0, "eval_interval": 1}
-    learner = CandidateLearner(parse_config(_config(ppo=ppo, rounds=1, episodes=4)), tmp_path, progress=False)
-    before = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
-        learner.learn(2)
-        assert seen == {"play": {1}, "fit_chooser": {2}, "rollout": {1}, "update": {2}}
-    finally:
-        torch.set_num_threads(before)
+    CandidateLearner(parse_config(_config(ppo=ppo, rounds=1, episodes=4)), tmp_path, progress=False).learn(2)
+    assert seen == {"play": {1}, "fit_chooser": {2}, "rollout": {1}, "update": {2}}

@@ -185,29 +185,15 @@ def test_the_ppo_learner_scores_each_save_once_and_resumes_from_its_own_save(tmp
 
 
 def test_the_ppo_learner_collects_on_one_torch_thread_and_updates_on_the_runs(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, torch_threads_seen
 ) -> None:
     """While the fields step on several cores a second torch thread holds a worker's core: rsl-rl's
     collection runs at one thread, its update at the run's, and the run's count is back afterwards."""
+    seen, counted = torch_threads_seen
     cfg = PPOConfig(hidden=(16, 16), num_steps_per_env=4, num_learning_epochs=1, num_mini_batches=1)
     env = hier_ssl.vector_env(task="proposed", frame_skip=16, num_envs=8)
     learner = PPOLearner(env, cfg, tmp_path, seed=1, checkpoint_interval=8)
-    seen: dict[str, set[int]] = {"step": set(), "update": set()}
-    step, update = env.step, learner.runner.alg.update
-
-    def counted(name, function):
-        def run(*args, **kwargs):
-            seen[name].add(torch.get_num_threads())
-            return function(*args, **kwargs)
-
-        return run
-
-    monkeypatch.setattr(env, "step", counted("step", step))
-    monkeypatch.setattr(learner.runner.alg, "update", counted("update", update))
-    before = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
-        learner.learn(8)
-        assert seen == {"step": {1}, "update": {2}} and torch.get_num_threads() == 2
-    finally:
-        torch.set_num_threads(before)
+    monkeypatch.setattr(env, "step", counted("step", env.step))
+    monkeypatch.setattr(learner.runner.alg, "update", counted("update", learner.runner.alg.update))
+    learner.learn(8)
+    assert seen == {"step": {1}, "update": {2}} and torch.get_num_threads() == 2

@@ -357,26 +357,13 @@ def test_runner_stores_only_the_rows_of_robots_still_in_their_episode(tmp_path: 
 
 
 def test_the_runner_steps_on_one_torch_thread_and_updates_on_the_runs(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, torch_threads_seen
 ) -> None:
+    seen, counted = torch_threads_seen
     env = hier_ssl.vector_env(task="proposed", frame_skip=16, num_envs=4)
     runner = SACRunner(env, SACConfig(**{**TINY, "learning_starts": 8}), tmp_path, progress=False)
-    seen: dict[str, set[int]] = {}
-
-    def counted(name, function):
-        def run(*args, **kwargs):
-            seen.setdefault(name, set()).add(torch.get_num_threads())
-            return function(*args, **kwargs)
-
-        return run
-
     monkeypatch.setattr(env, "step", counted("step", env.step))
     monkeypatch.setattr(runner.sac, "update", counted("update", runner.sac.update))
-    before = torch.get_num_threads()
-    torch.set_num_threads(2)
-    try:
-        runner.learn(total_steps=4)
-        assert seen == {"step": {1}, "update": {2}} and torch.get_num_threads() == 2
-    finally:
-        torch.set_num_threads(before)
-        runner.close()
+    runner.learn(total_steps=4)
+    runner.close()
+    assert seen == {"step": {1}, "update": {2}} and torch.get_num_threads() == 2

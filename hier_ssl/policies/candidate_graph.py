@@ -22,9 +22,11 @@ from torch import nn
 from hier_ssl.config import TrainConfig
 from hier_ssl.envs import make_scenario
 from hier_ssl.manager.candidate_points import candidate_points
+from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_features import PathModel, candidate_features, feature_dim, path_model
 from hier_ssl.policies.candidate_nets import Scorer
+from hier_ssl.policies.candidate_residual import Residual, residual_inputs, residual_planner
 
 Read = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
 """What ``CandidateGeometry.forward`` reads of observations: target (B, 4) x, y and the sine and cosine of
@@ -118,14 +120,22 @@ class CandidateGeometry(nn.Module):
 
 
 class CandidateManager(nn.Module):
-    """A classifier or scorer ``net`` over ``geometry``'s candidates: observations (B, O) float32 ->
-    actions (B, A) float32 of the candidate of highest logit (``forward``, what the file exports), or of
-    one drawn from the logits' softmax (``decide``)."""
+    """A classifier, scorer or residual ``net`` over ``geometry``'s candidates: observations (B, O)
+    float32 -> actions (B, A) float32 of the candidate of highest logit (``forward``, what the file
+    exports), or of one drawn from the logits' softmax (``decide``). A residual reads ``planner``'s
+    ranking (the ``sampling`` planner's), outside torch: it does not export."""
 
-    def __init__(self, geometry: CandidateGeometry, net: nn.Module) -> None:
+    def __init__(
+        self,
+        geometry: CandidateGeometry,
+        net: nn.Module,
+        planner: SamplingPlanner | RuledPlanner | None = None,
+    ) -> None:
         super().__init__()
-        self.geometry, self.net = geometry, net
-        self.scorer = isinstance(net, Scorer)
+        self.geometry, self.net, self.planner = geometry, net, planner
+        self.scorer, self.residual = isinstance(net, Scorer), isinstance(net, Residual)
+        if self.residual:
+            residual_planner(planner)
         if self.scorer and net.mean.shape[0] != feature_dim(geometry.k):
             raise ValueError(
                 f"the scorer reads {net.mean.shape[0]} features a candidate; the task's {geometry.k} "
@@ -133,10 +143,18 @@ class CandidateManager(nn.Module):
             )
 
     def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
-        """What the network reads: the observations (classifier) or the candidates' features (scorer)."""
+        """What the network reads: the observations (classifier), the candidates' features (scorer) or the
+        planner's ranking and rollouts (residual)."""
+        if self.residual:
+            return self.planned(obs, read)
         if self.scorer:
             return self.geometry.features(read)
         return obs.float()
+
+    @torch.jit.unused  # numba and numpy: the exported graph has classifiers and scorers only
+    def planned(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
+        """A residual's inputs: the planner's ranking and rollouts of ``read``'s candidates."""
+        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         read = self.geometry(obs)

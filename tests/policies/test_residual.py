@@ -17,6 +17,7 @@ from hier_ssl.envs import parse_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
+from hier_ssl.envs.shards import batched_core, close_core
 from hier_ssl.policies.actor import load_policy
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state
 from hier_ssl.policies.candidate_residual import RESIDUAL_FEATURES, Residual, residual_planner
@@ -42,11 +43,12 @@ def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_sta
     # Its correction starts at zero: the logits are the planner's score / tau, nothing else.
     last = manager.net.body[-1]
     assert not last.weight.any() and not last.bias.any()
-    compared = []
+    compared, calls = [], [0]
 
     def policy(obs: np.ndarray) -> np.ndarray:
         action = planner(obs)
-        if len(compared) < 40:  # states of the whole episode, the planner playing (STOP comes after 1-4 s)
+        calls[0] += 1
+        if calls[0] % 8 == 1:  # states of the whole episode, the planner playing (STOP comes after 1-4 s)
             _, _, chosen, inputs = manager.decide(obs)
             logits = manager.net(inputs)
             prior = inputs[..., 0] / manager.net.tau
@@ -55,10 +57,11 @@ def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_sta
             compared.append(np.abs(chosen - action).max(1))
         return action
 
-    core = HierarchicalCore(config.task_config, 4)
+    core = batched_core(config.task_config, 4, False, threads=1)
     ends = play(core, policy, 3)
+    close_core(core)
     gaps = np.concatenate(compared)
-    assert len(compared) == 40 and len(gaps) > 600 and ends["success"].mean() > 0.5
+    assert len(compared) > 30 and len(gaps) > 400 and ends["success"].mean() > 0.5
     # 100 % of the planner's own choices, to the float32 of the actions.
     assert (gaps < 1e-6).all(), f"{(gaps >= 1e-6).sum()} of {len(gaps)} differ"
 
@@ -89,10 +92,11 @@ def test_a_tiny_residual_run_moves_the_correction_and_keeps_the_planners_level(t
     # Rebuilt from its weights alone (tau, layer sizes); played at the planner's level or near it (the
     # planner: 83 % of these 48 robots at frame skip 4).
     net = chooser_from_state(saved["net"])
-    assert isinstance(net, Residual) and float(net.tau) == data["candidates"]["tau"]
+    assert isinstance(net, Residual) and float(net.tau) == pytest.approx(data["candidates"]["tau"])
     assert summary["final"]["success_rate"] >= 0.7, summary
-    obs = HierarchicalCore(parse_config(config).task_config, 2).reset(1).reshape(12, -1)
-    assert load_policy(run, which="final")(obs).shape == (12, 4)
+    core = HierarchicalCore(parse_config(config).task_config, 2)
+    obs = core.reset(1).reshape(12, -1)
+    assert load_policy(run, which="final")(obs).shape == (12, core.act_dim)
     with pytest.raises(ValueError, match="residual candidates manager cannot be exported.*rollouts"):
         export_manager(run, "torchscript")
 

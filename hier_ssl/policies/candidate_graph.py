@@ -120,41 +120,35 @@ class CandidateGeometry(nn.Module):
 
 
 class CandidateManager(nn.Module):
-    """A classifier, scorer or residual ``net`` over ``geometry``'s candidates: observations (B, O)
-    float32 -> actions (B, A) float32 of the candidate of highest logit (``forward``, what the file
-    exports), or of one drawn from the logits' softmax (``decide``). A residual reads ``planner``'s
-    ranking (the ``sampling`` planner's), outside torch: it does not export."""
+    """A classifier or scorer ``net`` over ``geometry``'s candidates: observations (B, O) float32 ->
+    actions (B, A) float32 of the candidate of highest logit (``forward``, what the file exports), or of
+    one drawn from the logits' softmax (``decide``)."""
 
-    def __init__(
-        self,
-        geometry: CandidateGeometry,
-        net: nn.Module,
-        planner: SamplingPlanner | RuledPlanner | None = None,
-    ) -> None:
+    def __init__(self, geometry: CandidateGeometry, net: nn.Module) -> None:
         super().__init__()
-        self.geometry, self.net, self.planner = geometry, net, planner
-        self.scorer, self.residual = isinstance(net, Scorer), isinstance(net, Residual)
-        if self.residual:
-            residual_planner(planner)
+        self.geometry, self.net = geometry, net
+        self.scorer = isinstance(net, Scorer)
         if self.scorer and net.mean.shape[0] != feature_dim(geometry.k):
             raise ValueError(
                 f"the scorer reads {net.mean.shape[0]} features a candidate; the task's {geometry.k} "
                 f"obstacles give {feature_dim(geometry.k)}"
             )
 
+    @classmethod
+    def of(
+        cls, geometry: CandidateGeometry, net: nn.Module, planner: SamplingPlanner | RuledPlanner
+    ) -> CandidateManager:
+        """``net`` over ``geometry``'s candidates: a ``ResidualManager`` for a residual, which reads
+        ``planner``."""
+        if isinstance(net, Residual):
+            return ResidualManager(geometry, net, planner)
+        return cls(geometry, net)
+
     def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
-        """What the network reads: the observations (classifier), the candidates' features (scorer) or the
-        planner's ranking and rollouts (residual)."""
-        if self.residual:
-            return self.planned(obs, read)
+        """What the network reads: the observations (classifier) or the candidates' features (scorer)."""
         if self.scorer:
             return self.geometry.features(read)
         return obs.float()
-
-    @torch.jit.unused  # numba and numpy: the exported graph has classifiers and scorers only
-    def planned(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
-        """A residual's inputs: the planner's ranking and rollouts of ``read``'s candidates."""
-        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         read = self.geometry(obs)
@@ -185,6 +179,23 @@ class CandidateManager(nn.Module):
                 choice = torch.multinomial(log_probs.exp(), 1, generator=generator)[:, 0]
             action = self.geometry.action(choice, read).numpy()
         return choice, log_probs.gather(1, choice[:, None])[:, 0], action, inputs
+
+
+class ResidualManager(CandidateManager):
+    """A residual ``net`` (``hier_ssl.policies.candidate_residual``) over ``geometry``'s candidates, as
+    ``CandidateManager``, reading ``planner``'s ranking and rollouts: numba and numpy, not one torch graph,
+    so never exported."""
+
+    def __init__(
+        self, geometry: CandidateGeometry, net: nn.Module, planner: SamplingPlanner | RuledPlanner
+    ) -> None:
+        super().__init__(geometry, net)
+        residual_planner(planner)
+        self.planner = planner
+
+    def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
+        """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``)."""
+        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]))
 
 
 def candidate_geometry(config: TrainConfig, planner: SamplingPlanner) -> CandidateGeometry:
@@ -219,6 +230,7 @@ __all__ = [
     "CandidateGeometry",
     "CandidateManager",
     "Read",
+    "ResidualManager",
     "as_points",
     "candidate_geometry",
     "stored_features",

@@ -56,7 +56,7 @@ def candidate_planner(config: TrainConfig) -> SamplingPlanner | RuledPlanner:
 def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
     """``net`` over the candidates of the run's ``sampling`` planner: the run's whole decision."""
     planner = candidate_planner(config)
-    return CandidateManager(candidate_geometry(config, planner), net, planner)
+    return CandidateManager.of(candidate_geometry(config, planner), net, planner)
 
 
 def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
@@ -346,7 +346,7 @@ class CandidateLearner:
     def manager(self) -> CandidateManager:
         """The network over the planner's candidates: the decision it plays."""
         assert self.net is not None
-        return CandidateManager(self.geometry, self.net, self.planner)
+        return CandidateManager.of(self.geometry, self.net, self.planner)
 
     def save(self) -> None:
         """``model.pt``: the network, the phase's progress (DAgger: the last round done, the states met

@@ -145,9 +145,10 @@ class PPOConfig(Strict):
 
 
 class CandidatePPOConfig(Strict):
-    """Phase 2 of ``algo: candidates``: PPO on the classifier's categorical policy from its DAgger fit
-    (``hier_ssl.policies.candidates``), rewarded by outcomes alone: minus ``time_cost`` per 100 control
-    steps, plus ``success_reward`` at a success, minus ``collision_cost`` at a collision."""
+    """Phase 2 of ``algo: candidates``: PPO on the network's categorical policy from its DAgger fit (a
+    residual: from the planner; ``hier_ssl.policies.candidates``), rewarded by outcomes alone: minus
+    ``time_cost`` per 100 control steps, plus ``success_reward`` at a success, minus ``collision_cost``
+    at a collision."""
 
     iterations: int = Field(0, ge=0)  # 0: DAgger alone
     fields: int = Field(64, ge=1)  # fields played at once
@@ -165,7 +166,7 @@ class CandidatePPOConfig(Strict):
     clip: float = Field(0.1, gt=0)
     epochs: int = Field(4, ge=1)
     minibatches: int = Field(4, ge=1)
-    kl_weight: float = Field(0.05, ge=0)  # KL(policy || the DAgger fit) in the policy loss
+    kl_weight: float = Field(0.05, ge=0)  # KL(policy || where PPO started) in the policy loss
     time_cost: float = Field(1.0, ge=0)
     success_reward: float = Field(10.0, ge=0)
     collision_cost: float = Field(20.0, ge=0)
@@ -175,20 +176,32 @@ class CandidatePPOConfig(Strict):
 class CandidatesConfig(Strict):
     """``algo: candidates``: a choice among the ``sampling`` planner's candidate sub-goals
     (``hier_ssl.policies.candidates``) by a ``network``: "classifier" (an MLP over the observation, a
-    logit per candidate slot) or "scorer" (an MLP shared by the candidates, over each one's features).
-    Phase 1 fits it by DAgger: ``rounds`` rounds of ``episodes`` episodes (the first played by the
-    planner, the others by the network), each followed by ``epochs`` passes over every state gathered so
-    far; phase 2 is ``ppo``."""
+    logit per candidate slot), "scorer" (an MLP shared by the candidates, over each one's features) or
+    "residual" (the planner's own ranking / ``tau`` plus an MLP, zero at the start, over each candidate's
+    rollouts). Phase 1 fits it by DAgger: ``rounds`` rounds of ``episodes`` episodes (the first played by
+    the planner, the others by the network), each followed by ``epochs`` passes over every state gathered
+    so far, none for a residual (it starts as the planner); phase 2 is ``ppo``."""
 
-    network: Literal["classifier", "scorer"] = "classifier"
+    network: Literal["classifier", "scorer", "residual"] = "classifier"
     hidden: LayerSizes = (256, 256)
-    rounds: int = Field(30, ge=1)
+    rounds: int = Field(30, ge=0)
     episodes: int = Field(500, ge=1)
     epochs: int = Field(8, ge=1)
     tau: float = Field(0.05, gt=0)  # s: temperature of the planner's soft choice over arrival times
     learning_rate: float = Field(1e-3, gt=0)
     batch_size: int = Field(256, ge=1)
     ppo: CandidatePPOConfig = Field(default_factory=CandidatePPOConfig)
+
+    @model_validator(mode="after")
+    def _rounds_fit_the_network(self) -> CandidatesConfig:
+        # DAgger's labels are the planner's soft choice, which a residual already is; the others start
+        # untrained.
+        if (self.rounds == 0) != (self.network == "residual"):
+            raise ValueError(
+                f"rounds: {self.rounds} with network {self.network!r}; a residual takes 0 (it starts as "
+                "the planner), a classifier or scorer at least 1"
+            )
+        return self
 
 
 __all__ = ["CandidatePPOConfig", "CandidatesConfig", "PPOConfig", "SACConfig", "Strict"]

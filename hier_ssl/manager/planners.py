@@ -222,13 +222,22 @@ class SamplingPlanner:
         from the obstacles over the prediction window (1e3 without obstacles). Under ``rules``, only the
         candidates clear of the zones are ranked so; a row without any ranks by ``zone_detour``.
         ``choice``: only the highest is right (``rollout``'s ``choosable``), the rest may be -inf."""
+        return self.ranking(scene, cand, rules, choice)[0]
+
+    def ranking(
+        self, scene: Scene, cand: np.ndarray, rules: RowRules | None = None, choice: bool = False
+    ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+        """``score`` and what it ranked by, all (N, M): ``rollout``'s four (arrival, clearance, hard and
+        near clearance) and whether each candidate is clear of the zones (True without ``rules``); a
+        learned ranking reads them (``hier_ssl.policies.candidate_residual``)."""
         # A halted robot's row keeps the planner's speed: ``halted`` gives it its own position anyway.
         limit = None if rules is None else np.where(rules.speed > 0, rules.speed, np.inf)
         clear = None
         if rules is not None:
             clear, detour = self.zone_detour(scene, cand, rules)
         choosable = (np.ones(cand.shape, bool) if clear is None else clear) if choice else None
-        arrival, clearance, hard, near = self.rollout(scene, cand, limit, choosable)
+        rolled = self.rollout(scene, cand, limit, choosable)
+        arrival, clearance, hard, near = rolled
         safe, close = clearance >= 0.0, hard >= 0.0
         score = np.where(np.isfinite(near), near, 1e3)
         if clear is not None:
@@ -236,7 +245,9 @@ class SamplingPlanner:
             score = np.where(clear, score, -np.inf)
         score = np.where(close.any(1, keepdims=True), np.where(close, -arrival, -np.inf), score)
         score = np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
-        return score if clear is None else np.where(clear.any(1, keepdims=True), score, detour)
+        if clear is None:
+            return score, rolled, np.ones(cand.shape, bool)
+        return np.where(clear.any(1, keepdims=True), score, detour), rolled, clear
 
     @staticmethod
     def zone_detour(scene: Scene, cand: np.ndarray, rules: RowRules) -> tuple[np.ndarray, np.ndarray]:

@@ -22,9 +22,11 @@ from torch import nn
 from hier_ssl.config import TrainConfig
 from hier_ssl.envs import make_scenario
 from hier_ssl.manager.candidate_points import candidate_points
+from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_features import PathModel, candidate_features, feature_dim, path_model
 from hier_ssl.policies.candidate_nets import Scorer
+from hier_ssl.policies.candidate_residual import Residual, residual_inputs, residual_planner
 
 Read = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
 """What ``CandidateGeometry.forward`` reads of observations: target (B, 4) x, y and the sine and cosine of
@@ -132,6 +134,16 @@ class CandidateManager(nn.Module):
                 f"obstacles give {feature_dim(geometry.k)}"
             )
 
+    @classmethod
+    def of(
+        cls, geometry: CandidateGeometry, net: nn.Module, planner: SamplingPlanner | RuledPlanner
+    ) -> CandidateManager:
+        """``net`` over ``geometry``'s candidates: a ``ResidualManager`` for a residual, which reads
+        ``planner``."""
+        if isinstance(net, Residual):
+            return ResidualManager(geometry, net, planner)
+        return cls(geometry, net)
+
     def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
         """What the network reads: the observations (classifier) or the candidates' features (scorer)."""
         if self.scorer:
@@ -169,6 +181,23 @@ class CandidateManager(nn.Module):
         return choice, log_probs.gather(1, choice[:, None])[:, 0], action, inputs
 
 
+class ResidualManager(CandidateManager):
+    """A residual ``net`` (``hier_ssl.policies.candidate_residual``) over ``geometry``'s candidates, as
+    ``CandidateManager``, reading ``planner``'s ranking and rollouts: numba and numpy, not one torch graph,
+    so never exported."""
+
+    def __init__(
+        self, geometry: CandidateGeometry, net: nn.Module, planner: SamplingPlanner | RuledPlanner
+    ) -> None:
+        super().__init__(geometry, net)
+        residual_planner(planner)
+        self.planner = planner
+
+    def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
+        """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``)."""
+        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]))
+
+
 def candidate_geometry(config: TrainConfig, planner: SamplingPlanner) -> CandidateGeometry:
     """The geometry of a run's task: its observation layout, the obstacles its planner sees, its actions."""
     env = config.task_config
@@ -201,6 +230,7 @@ __all__ = [
     "CandidateGeometry",
     "CandidateManager",
     "Read",
+    "ResidualManager",
     "as_points",
     "candidate_geometry",
     "stored_features",

@@ -1,9 +1,11 @@
-"""The two networks a candidates manager can choose with (``candidates.network``), and what each reads.
+"""The networks a candidates manager can choose with (``candidates.network``), and what each reads.
 
 - ``classifier``: an MLP over the manager's observation (B, O) with one logit per candidate slot (B, C).
 - ``scorer``: one small MLP shared by every candidate, over that candidate's features (B, C, F)
   (``hier_ssl.policies.candidate_features``), one logit each. It scores a candidate by what happens on the
   way to it, not by its slot, so "pass left of the second-nearest obstacle" is not a class of its own.
+- ``residual``: the planner's own ranking plus a learned per-candidate correction, over the planner's
+  score and rollouts (``hier_ssl.policies.candidate_residual``); it starts as the planner, without DAgger.
 """
 
 from __future__ import annotations
@@ -17,9 +19,10 @@ from torch import nn
 from hier_ssl.checkpoints.actor import linear_layers, mean_actor
 from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
 from hier_ssl.manager.planners import SamplingPlanner
+from hier_ssl.policies.candidate_residual import RESIDUAL_FEATURES, Residual
 from hier_ssl.policies.networks import mlp
 
-NETWORKS = ("classifier", "scorer")
+NETWORKS = ("classifier", "scorer", "residual")
 
 
 class Scorer(nn.Module):
@@ -36,27 +39,35 @@ class Scorer(nn.Module):
         return self.body((features - self.mean) / self.std)[..., 0]
 
 
-def build_chooser(network: str, hidden: Sequence[int], inputs: torch.Tensor, candidates: int) -> nn.Module:
+def build_chooser(
+    network: str, hidden: Sequence[int], inputs: torch.Tensor | None, candidates: int, tau: float = 1.0
+) -> nn.Module:
     """A new network of kind ``network`` for ``inputs`` (its first data: observations (B, O) for the
-    classifier, features (B, C, F) for the scorer, whose standardisation they fix)."""
+    classifier, features (B, C, F) for the scorer, whose standardisation they fix; the residual reads
+    none: its features are scaled as they come, and ``tau`` divides its planner's score)."""
+    if network not in NETWORKS:
+        raise ValueError(f"unknown candidates.network {network!r}; expected one of {NETWORKS}")
+    if network == "residual":
+        return Residual(RESIDUAL_FEATURES, hidden, tau)
+    if inputs is None:
+        raise ValueError(f"a {network} is built from its first data; none given (DAgger's first round)")
     if network == "classifier":
         return mlp(inputs.shape[1], hidden, candidates)
-    if network != "scorer":
-        raise ValueError(f"unknown candidates.network {network!r}; expected one of {NETWORKS}")
     flat = inputs.reshape(-1, inputs.shape[-1])
     return Scorer(flat.shape[1], hidden, flat.mean(0), flat.std(0).clamp_min(1e-3))
 
 
 def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Module:
-    """The classifier or scorer rebuilt from its state dict (a scorer's holds "mean"), sizes from the
-    weights."""
-    if "mean" not in state:
+    """The classifier, scorer or residual rebuilt from its state dict (a scorer's holds "mean", a
+    residual's "tau"), sizes from the weights."""
+    if "mean" not in state and "tau" not in state:
         return mean_actor(state, "", nn.ReLU, linear_layers(state, "")[-1][0].shape[0], nn.Identity())
     layers = linear_layers(state, "body.")
-    hidden = [weight.shape[0] for weight, _ in layers[:-1]]
-    scorer = Scorer(layers[0][0].shape[1], hidden, state["mean"], state["std"])
-    scorer.load_state_dict(state)
-    return scorer
+    sizes = (layers[0][0].shape[1], [weight.shape[0] for weight, _ in layers[:-1]])
+    residual = "tau" in state
+    net = Residual(*sizes, float(state["tau"])) if residual else Scorer(*sizes, state["mean"], state["std"])
+    net.load_state_dict(state)
+    return net
 
 
 def soft_choice(

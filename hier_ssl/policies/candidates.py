@@ -4,16 +4,17 @@ DAgger, then improved on the task's own outcomes by PPO.
 The planner's choice is discontinuous (pass an obstacle left or right); a Gaussian actor fitted to it
 lands between the branches. Here the action is a class: one of the planner's candidates
 (``SamplingPlanner.candidates``, geometry from the observation alone), one logit each, from a classifier
-over the observation or a scorer over each candidate's features (``candidate_nets``).
+over the observation, a scorer over each candidate's features or a residual over the planner's own
+ranking (``candidate_nets``).
 
-1. DAgger (Ross et al., 2011): round 0 plays the planner, every later round the network; every state met
-   is labelled with the planner's soft choice (``soft_choice``) and the network refitted on all of them.
+1. DAgger (Ross et al., 2011): round 0 plays the planner, later rounds the network; each state met labelled
+   with the planner's soft choice (``soft_choice``), the network refitted on all (a residual: none).
 2. PPO on the logits' categorical policy, from the DAgger fit, rewarded by outcomes alone (time, success,
    collision or the game's foul), a KL penalty towards the fit, a value fitted alone at first.
 
-At every decision it runs the planner's candidate geometry (not its rollouts, where the planner's time
-goes), in torch: the whole decision is one graph (``hier_ssl.policies.candidate_graph``), which training,
-evaluation and ``hier-ssl export`` share.
+A classifier or scorer runs the planner's candidate geometry at every decision (not its rollouts, where
+the planner's time goes), in torch: one graph (``candidate_graph``) that training, evaluation and
+``hier-ssl export`` share. A residual runs the rollouts too, in numba, and does not export.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candi
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy, mlp
-from hier_ssl.policies.ppo import clipped_surrogate, gae, minibatches, normalized, value_loss
+from hier_ssl.policies.ppo import categorical_kl, clipped_surrogate, gae, minibatches, normalized, value_loss
 from hier_ssl.policies.sac_runner import MODEL_FILE
 
 
@@ -53,7 +54,8 @@ def candidate_planner(config: TrainConfig) -> SamplingPlanner | RuledPlanner:
 
 def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
     """``net`` over the candidates of the run's ``sampling`` planner: the run's whole decision."""
-    return CandidateManager(candidate_geometry(config, candidate_planner(config)), net)
+    planner = candidate_planner(config)
+    return CandidateManager.of(candidate_geometry(config, planner), net, planner)
 
 
 def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
@@ -217,8 +219,10 @@ class CandidateLearner:
 
     def ppo(self, saved: dict[str, Any], iterations: int) -> None:
         """Phase 2: PPO iterations from the DAgger fit until ``iterations``, from ``saved["iteration"]``."""
-        settings, net, self.phase = self.settings.ppo, self.net, "ppo"
-        assert net is not None
+        settings, chooser = self.settings.ppo, self.settings
+        if self.net is None:  # no DAgger (a residual): PPO starts from the planner's own ranking
+            self.net = build_chooser(chooser.network, chooser.hidden, None, 0, chooser.tau)
+        net, self.phase = self.net, "ppo"
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
         self.env = TorchVectorEnv(self.config.task_config, settings.fields, threads=self.config.threads)
@@ -301,12 +305,8 @@ class CandidateLearner:
             values = value(obs).squeeze(-1)
             last = value(torch.as_tensor(self.obs)).squeeze(-1)
         adv = gae(rewards.float(), values, last, dones.float(), settings.gamma, settings.lam)
-        logs = {}
-        if ended[2]:
-            logs = {
-                "episode/success_rate": ended[0] / ended[2],
-                "episode/collision_rate": ended[1] / ended[2],
-            }
+        rates = {"episode/success_rate": ended[0], "episode/collision_rate": ended[1]}
+        logs = {key: count / ended[2] for key, count in rates.items()} if ended[2] else {}
         live = [t[real] for t in (obs, choices, log_probs, adv, adv + values)]
         return [*live, torch.cat(read) if read else obs[real]], logs
 
@@ -334,7 +334,7 @@ class CandidateLearner:
             if settings.kl_weight:  # the reference's forward pass costs a scorer as much as its own
                 with torch.no_grad():
                     anchor = torch.log_softmax(self.reference(inputs[rows]), 1)
-                kl = (log_probs.exp() * (log_probs - anchor)).sum(1).mean()
+                kl = categorical_kl(log_probs, anchor)
                 loss = loss + settings.kl_weight * kl
                 logs["losses/kl_to_dagger"] = kl.item()
             policy_optimizer.zero_grad()
@@ -347,7 +347,7 @@ class CandidateLearner:
     def manager(self) -> CandidateManager:
         """The network over the planner's candidates: the decision it plays."""
         assert self.net is not None
-        return CandidateManager(self.geometry, self.net)
+        return CandidateManager.of(self.geometry, self.net, self.planner)
 
     def save(self) -> None:
         """``model.pt``: the network, the phase's progress (DAgger: the last round done, the states met

@@ -213,6 +213,11 @@ def exported_manager(run_dir: str | Path) -> tuple[ExportedManager, TrainConfig]
     """The manager trained in ``run_dir`` as an ``ExportedManager`` (frozen, eval mode), and its config.
     An ``algo: candidates`` run's actor is its whole decision (``load_candidate_manager``)."""
     config = run_config(run_dir)
+    if config.algo == "candidates" and config.candidates.network == "residual":
+        raise ValueError(
+            f"{run_dir}: a residual candidates manager cannot be exported: every decision adds the sampling "
+            "planner's rollouts (numba, numpy), which TorchScript and ONNX do not hold"
+        )
     if config.algo == "candidates":
         actor: nn.Module = load_candidate_manager(run_dir)
     else:

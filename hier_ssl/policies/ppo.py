@@ -312,10 +312,19 @@ def clipped_surrogate(
     return -torch.min(ratio * advantages, clipped * advantages).mean()
 
 
+def categorical_kl(log_probs: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
+    """Mean KL(p || q) of log-probabilities (B, C) of p and q. A class p rules out (-inf, as a residual
+    rules out what its planner does not rank, and its anchor alike) counts 0: masked before the product,
+    whose gradient would be 0 x nan."""
+    gap = torch.where(torch.isfinite(log_probs), log_probs - anchor, 0.0)
+    return (log_probs.exp() * gap).sum(1).mean()
+
+
 __all__ = [
     "NumpyPolicy",
     "PPOLearner",
     "SelectingRunner",
+    "categorical_kl",
     "clipped_surrogate",
     "gae",
     "load_ppo",

@@ -1,0 +1,92 @@
+"""The ``residual`` candidates network: the ``sampling`` planner's own ranking of its candidates plus a
+learned correction, so that learning starts from the planner's choice rather than from imitating it.
+
+Logits (B, C) = ``score`` / tau + an MLP over each candidate's features. ``score`` is the planner's
+(``SamplingPlanner.ranking``): minus the arrival time within the tier it would choose from, -inf outside
+it, so the correction re-ranks the candidates the planner would consider and never picks one it rules out.
+The MLP's last layer starts at zero: the untrained network's argmax is the planner's choice (ties to the
+earlier candidate, as ``np.argmax``), and PPO (``hier_ssl.policies.candidates``) moves it from there.
+
+The features are the planner's rollout outputs (numba, numpy): the decision is not one torch graph, so a
+residual run does not export (``hier_ssl.policies.export``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
+from hier_ssl.manager.planners import SamplingPlanner
+from hier_ssl.policies.networks import mlp
+
+RESIDUAL_FEATURES = 11
+"""Per candidate, after the score: arrival time (s), how much later than the row's soonest, the three
+clearances (growing, fixed, within the prediction window; m), clear of the zones, in the ranked tier, the
+distances robot -> candidate and candidate -> target (m), the robot's speed and the speed it may drive at
+(m/s), each clipped to a few units: the MLP reads them as they are."""
+
+
+class Residual(nn.Module):
+    """Logits (B, C) of inputs (B, C, 1 + ``RESIDUAL_FEATURES``) (``residual_inputs``): column 0 the
+    planner's score relative to the row's best, divided by ``tau`` (s), plus ``body`` (features -> hidden
+    -> 1, last layer zero at the start) of the rest."""
+
+    def __init__(self, features: int, hidden: Sequence[int], tau: float) -> None:
+        super().__init__()
+        self.register_buffer("tau", torch.tensor(float(tau)))
+        self.body = mlp(features, hidden, 1)
+        nn.init.zeros_(self.body[-1].weight)
+        nn.init.zeros_(self.body[-1].bias)
+
+    def forward(self, inputs: torch.Tensor) -> torch.Tensor:
+        return inputs[..., 0] / self.tau + self.body(inputs[..., 1:])[..., 0]
+
+
+def residual_planner(planner: object) -> None:
+    """Raise unless ``planner`` is the ``sampling`` planner (a game's: under ``RuledPlanner``), whose
+    ranking a residual corrects."""
+    inner = planner.planner if isinstance(planner, RuledPlanner) else planner
+    if not isinstance(inner, SamplingPlanner):
+        name = type(inner).__name__
+        raise ValueError(f"a residual candidates network corrects the sampling planner's ranking; got {name}")
+
+
+def residual_inputs(
+    planner: SamplingPlanner | RuledPlanner, obs: np.ndarray, cand: np.ndarray
+) -> torch.Tensor:
+    """What a ``Residual`` reads (B, C, 1 + ``RESIDUAL_FEATURES``) float32 of observations ``obs`` (B, O)
+    and their candidates ``cand`` (B, C) complex: the planner's score minus the row's best (so float32
+    keeps the gaps near the top that decide the argmax; 0 across a row it ranks nothing in, where the
+    planner takes the first), then the features."""
+    scene, rules = ruled_read(planner, obs)
+    score, (arrival, clearance, hard, near), clear = planner.ranking(scene, cand, rules)
+    best = score.max(1, keepdims=True)
+    ranked = np.isfinite(best)
+    prior = np.where(ranked, score - np.where(ranked, best, 0.0), 0.0)
+    robot = scene.robot_pos @ np.array([1.0, 1j])
+    target = scene.target[:, 0:2] @ np.array([1.0, 1j])
+    speed = np.hypot(*scene.robot_vel.T)[:, None]
+    limit = planner.speed if rules is None else np.minimum(planner.speed, rules.speed)
+    row = np.ones_like(arrival)
+    columns = [
+        prior,
+        arrival.clip(0.0, 10.0),
+        (arrival - arrival.min(1, keepdims=True)).clip(0.0, 5.0),
+        clearance.clip(-1.0, 3.0),
+        hard.clip(-1.0, 3.0),
+        near.clip(-1.0, 3.0),
+        clear,
+        np.isfinite(score),
+        np.abs(cand - robot[:, None]).clip(max=5.0),
+        np.abs(target[:, None] - cand).clip(max=5.0),
+        speed * row,
+        np.reshape(limit, (-1, 1)) * row,
+    ]
+    return torch.as_tensor(np.stack(columns, -1), dtype=torch.float32)
+
+
+__all__ = ["RESIDUAL_FEATURES", "Residual", "residual_inputs", "residual_planner"]

@@ -1,0 +1,131 @@
+"""The residual candidates network: the sampling planner's ranking plus a learned correction. Untrained it
+is the planner; a tiny PPO run moves it and keeps it playing; it rebuilds from its weights and refuses to
+export."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from hier_ssl.config import ConfigError
+from hier_ssl.config.files import config_dir, load_yaml
+from hier_ssl.envs import parse_config
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.play import play
+from hier_ssl.envs.shards import batched_core, close_core
+from hier_ssl.policies.actor import load_policy
+from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state
+from hier_ssl.policies.candidate_residual import RESIDUAL_FEATURES, Residual, residual_planner
+from hier_ssl.policies.candidates import candidate_manager, candidate_planner
+from hier_ssl.policies.export import export_manager
+from hier_ssl.policies.ppo import categorical_kl
+from hier_ssl.runs.train import train
+
+SHIPPED = load_yaml(config_dir() / "game" / "stop_residual.yaml")
+
+
+def _fresh(hidden: tuple[int, ...] = (16, 16)) -> Residual:
+    torch.manual_seed(0)
+    net = build_chooser("residual", hidden, None, 0, SHIPPED["candidates"]["tau"])
+    assert isinstance(net, Residual)
+    return net
+
+
+def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_states() -> None:
+    config = parse_config(SHIPPED)
+    planner = candidate_planner(config)
+    manager = candidate_manager(config, _fresh())
+    # Its correction starts at zero: the logits are the planner's score / tau, nothing else.
+    last = manager.net.body[-1]
+    assert not last.weight.any() and not last.bias.any()
+    compared, calls = [], [0]
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        action = planner(obs)
+        calls[0] += 1
+        if calls[0] % 8 == 1:  # states of the whole episode, the planner playing (STOP comes after 1-4 s)
+            _, _, chosen, inputs = manager.decide(obs)
+            logits = manager.net(inputs)
+            prior = inputs[..., 0] / manager.net.tau
+            assert torch.equal(torch.isinf(logits), torch.isinf(prior))
+            torch.testing.assert_close(logits[torch.isfinite(prior)], prior[torch.isfinite(prior)])
+            compared.append(np.abs(chosen - action).max(1))
+        return action
+
+    core = batched_core(config.task_config, 4, False, threads=1)
+    ends = play(core, policy, 3)
+    close_core(core)
+    gaps = np.concatenate(compared)
+    assert len(compared) > 30 and len(gaps) > 400 and ends["success"].mean() > 0.5
+    # 100 % of the planner's own choices, to the float32 of the actions.
+    assert (gaps < 1e-6).all(), f"{(gaps >= 1e-6).sum()} of {len(gaps)} differ"
+
+
+def test_a_nonzero_last_layer_is_no_longer_the_planner() -> None:
+    config = parse_config(SHIPPED)
+    core = HierarchicalCore(config.task_config, 4)
+    obs = core.reset(5).reshape(-1, core.obs_dim)
+    planner = candidate_planner(config)
+    net = _fresh()
+    torch.nn.init.normal_(net.body[-1].weight, std=10.0)
+    moved = candidate_manager(config, net).decide(obs)[2]
+    assert np.abs(moved - planner(obs)).max() > 1e-3
+
+
+def test_a_tiny_residual_run_moves_the_correction_and_keeps_the_planners_level(tmp_path: Path) -> None:
+    data = SHIPPED
+    ppo = {**data["candidates"]["ppo"], "iterations": 4, "fields": 4, "horizon": 16, "value_warmup": 1}
+    section = {**data["candidates"], "hidden": [16, 16], "ppo": {**ppo, "eval_interval": 2}}
+    scenario = {**data["scenario"], "frame_skip": 4}  # a quarter of the decisions: a test's time
+    config = {**data, "scenario": scenario, "eval_episodes": 8, "candidates": section, "seed": 0}
+    run = tmp_path / "run"
+    summary = train(parse_config(config), run, progress=False)
+    steps = [int(row["step"]) for row in csv.DictReader((run / "curve.csv").open())]
+    assert steps == [2, 4]
+    saved = torch.load(run / "model.pt")
+    assert saved["phase"] == "ppo" and saved["net"]["body.4.weight"].abs().sum() > 0
+    # Rebuilt from its weights alone (tau, layer sizes); played at the planner's level or near it (the
+    # planner: 83 % of these 48 robots at frame skip 4).
+    net = chooser_from_state(saved["net"])
+    assert isinstance(net, Residual) and float(net.tau) == pytest.approx(data["candidates"]["tau"])
+    assert summary["final"]["success_rate"] >= 0.7, summary
+    core = HierarchicalCore(parse_config(config).task_config, 2)
+    obs = core.reset(1).reshape(12, -1)
+    assert load_policy(run, which="final")(obs).shape == (12, core.act_dim)
+    with pytest.raises(ValueError, match="residual candidates manager cannot be exported.*rollouts"):
+        export_manager(run, "torchscript")
+
+
+def test_the_kl_to_the_start_skips_what_the_planner_rules_out() -> None:
+    start = torch.tensor([[0.0, -1.0, -torch.inf], [0.0, -torch.inf, -torch.inf]])
+    logits = (start + torch.tensor([[0.5, 0.0, 0.0], [0.0, 0.0, 0.0]])).requires_grad_()
+    kl = categorical_kl(torch.log_softmax(logits, 1), torch.log_softmax(start, 1))
+    kl.backward()
+    assert 0 < kl.item() < 0.1 and torch.isfinite(logits.grad).all()
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"rounds": 3}, r"candidates.rounds: 3 with network 'residual'"),
+        ({"network": "ranker"}, r"candidates.network"),
+    ],
+)
+def test_residual_config_errors_name_the_value(change: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_config({**SHIPPED, "candidates": {**SHIPPED["candidates"], **change}})
+
+
+def test_a_residual_needs_the_sampling_planner_and_a_known_kind() -> None:
+    config = parse_config(SHIPPED)
+    with pytest.raises(ValueError, match="sampling planner's ranking; got DirectPlanner"):
+        residual_planner(make_planner("direct", config.task_config))
+    residual_planner(candidate_planner(config))  # the game's RuledPlanner over sampling
+    with pytest.raises(ValueError, match="unknown candidates.network 'ranker'"):
+        build_chooser("ranker", (8,), None, 0)
+    assert _fresh().body[0].in_features == RESIDUAL_FEATURES

@@ -78,8 +78,12 @@ class Learner(Protocol):
 
 @contextlib.contextmanager
 def torch_threads(count: int) -> Iterator[None]:
-    """torch's intra-op threads set to ``count`` inside, restored after."""
+    """torch's intra-op threads set to ``count`` inside, restored after; nothing set where they already
+    are (SAC enters it every vector step, mostly at one thread)."""
     before = torch.get_num_threads()
+    if before == count:
+        yield
+        return
     torch.set_num_threads(count)
     try:
         yield

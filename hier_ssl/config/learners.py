@@ -188,6 +188,9 @@ class CandidatesConfig(Strict):
     episodes: int = Field(500, ge=1)
     epochs: int = Field(8, ge=1)
     tau: float = Field(0.05, gt=0)  # s: temperature of the planner's soft choice over arrival times
+    # A residual's dead band: added to the logit of the planner's own choice, so a correction smaller than
+    # it leaves the planner's tie-break alone (hier_ssl.policies.candidate_residual).
+    keep: float = Field(0.0, ge=0)
     learning_rate: float = Field(1e-3, gt=0)
     batch_size: int = Field(256, ge=1)
     ppo: CandidatePPOConfig = Field(default_factory=CandidatePPOConfig)
@@ -201,6 +204,8 @@ class CandidatesConfig(Strict):
                 f"rounds: {self.rounds} with network {self.network!r}; a residual takes 0 (it starts as "
                 "the planner), a classifier or scorer at least 1"
             )
+        if self.keep and self.network != "residual":
+            raise ValueError(f"keep: {self.keep} is a residual's dead band; network is {self.network!r}")
         return self
 
 

@@ -162,9 +162,7 @@ class GamePlaces(FieldScenario):
         zones = forbidden_zones(start, ball[:, 0], self.field, self.lineup)
         ours = self._spread(rng, self._box(self.start_box, m), mirror, zones.take(np.s_[:, :m]), ball)
         placed = np.concatenate([ball, ours], axis=1)
-        theirs = self._spread(
-            rng, self._box(self.opponent_box, k), mirror, zones.take(np.s_[:, m:]), placed
-        )
+        theirs = self._spread(rng, self._box(self.opponent_box, k), mirror, zones.take(np.s_[:, m:]), placed)
         played = RefereeState(
             np.full(f, self.command), start.placement, start.keeper, start.blue_on_positive_half
         )

@@ -40,15 +40,21 @@ class Scorer(nn.Module):
 
 
 def build_chooser(
-    network: str, hidden: Sequence[int], inputs: torch.Tensor | None, candidates: int, tau: float = 1.0
+    network: str,
+    hidden: Sequence[int],
+    inputs: torch.Tensor | None,
+    candidates: int,
+    tau: float = 1.0,
+    keep: float = 0.0,
 ) -> nn.Module:
     """A new network of kind ``network`` for ``inputs`` (its first data: observations (B, O) for the
     classifier, features (B, C, F) for the scorer, whose standardisation they fix; the residual reads
-    none: its features are scaled as they come, and ``tau`` divides its planner's score)."""
+    none: its features are scaled as they come, ``tau`` divides its planner's score and ``keep`` is its dead
+    band)."""
     if network not in NETWORKS:
         raise ValueError(f"unknown candidates.network {network!r}; expected one of {NETWORKS}")
     if network == "residual":
-        return Residual(RESIDUAL_FEATURES, hidden, tau)
+        return Residual(RESIDUAL_FEATURES, hidden, tau, keep)
     if inputs is None:
         raise ValueError(f"a {network} is built from its first data; none given (DAgger's first round)")
     if network == "classifier":
@@ -65,7 +71,10 @@ def chooser_from_state(state: dict[str, torch.Tensor]) -> nn.Module:
     layers = linear_layers(state, "body.")
     sizes = (layers[0][0].shape[1], [weight.shape[0] for weight, _ in layers[:-1]])
     residual = "tau" in state
-    net = Residual(*sizes, float(state["tau"])) if residual else Scorer(*sizes, state["mean"], state["std"])
+    if residual:
+        net = Residual(*sizes, float(state["tau"]), float(state["keep"]))
+    else:
+        net = Scorer(*sizes, state["mean"], state["std"])
     net.load_state_dict(state)
     return net
 

@@ -1,11 +1,17 @@
 """The ``residual`` candidates network: the ``sampling`` planner's own ranking of its candidates plus a
 learned correction, so that learning starts from the planner's choice rather than from imitating it.
 
-Logits (B, C) = ``score`` / tau + an MLP over each candidate's features. ``score`` is the planner's
+Logits (B, C) = ``score`` / tau + ``keep`` on the planner's own choice + an MLP over each candidate's
+features. ``score`` is the planner's
 (``SamplingPlanner.ranking``): minus the arrival time within the tier it would choose from, -inf outside
 it, so the correction re-ranks the candidates the planner would consider and never picks one it rules out.
 The MLP's last layer starts at zero: the untrained network's argmax is the planner's choice (ties to the
 earlier candidate, as ``np.argmax``), and PPO (``hier_ssl.policies.candidates``) moves it from there.
+``keep`` is a dead band: the planner's score is an arrival time on its 50 ms rollout grid, so its top is
+often an exact tie, which the planner breaks by the candidates' order, the same from one control step to
+the next; a correction with no band breaks it by features that move every step, and the robot switches
+sub-goals (docs/results.md, "A residual over `sampling`'s own ranking"). With it the correction changes
+the choice only where it outweighs ``keep``.
 
 The features are the planner's rollout outputs (numba, numpy): the decision is not one torch graph, so a
 residual run does not export (``hier_ssl.policies.export``).
@@ -31,19 +37,24 @@ distances robot -> candidate and candidate -> target (m), the robot's speed and 
 
 
 class Residual(nn.Module):
-    """Logits (B, C) of inputs (B, C, 1 + ``RESIDUAL_FEATURES``) (``residual_inputs``): column 0 the
-    planner's score relative to the row's best, divided by ``tau`` (s), plus ``body`` (features -> hidden
-    -> 1, last layer zero at the start) of the rest."""
+    """Logits (B, C) of inputs (B, C, 2 + ``RESIDUAL_FEATURES``) (``residual_inputs``): column 0 the
+    planner's score relative to the row's best, divided by ``tau`` (s), plus ``keep`` times column 1 (1 on
+    the planner's choice), plus ``body`` (features -> hidden -> 1, last layer zero at the start) of the
+    rest."""
 
-    def __init__(self, features: int, hidden: Sequence[int], tau: float) -> None:
+    def __init__(self, features: int, hidden: Sequence[int], tau: float, keep: float = 0.0) -> None:
         super().__init__()
+        if not keep >= 0.0:
+            raise ValueError(f"candidates.keep must be >= 0, got {keep!r}")
         self.register_buffer("tau", torch.tensor(float(tau)))
+        self.register_buffer("keep", torch.tensor(float(keep)))
         self.body = mlp(features, hidden, 1)
         nn.init.zeros_(self.body[-1].weight)
         nn.init.zeros_(self.body[-1].bias)
 
     def forward(self, inputs: torch.Tensor) -> torch.Tensor:
-        return inputs[..., 0] / self.tau + self.body(inputs[..., 1:])[..., 0]
+        prior = inputs[..., 0] / self.tau + self.keep * inputs[..., 1]
+        return prior + self.body(inputs[..., 2:])[..., 0]
 
 
 def residual_planner(planner: object) -> None:
@@ -58,10 +69,11 @@ def residual_planner(planner: object) -> None:
 def residual_inputs(
     planner: SamplingPlanner | RuledPlanner, obs: np.ndarray, cand: np.ndarray
 ) -> torch.Tensor:
-    """What a ``Residual`` reads (B, C, 1 + ``RESIDUAL_FEATURES``) float32 of observations ``obs`` (B, O)
+    """What a ``Residual`` reads (B, C, 2 + ``RESIDUAL_FEATURES``) float32 of observations ``obs`` (B, O)
     and their candidates ``cand`` (B, C) complex: the planner's score minus the row's best (so float32
     keeps the gaps near the top that decide the argmax; 0 across a row it ranks nothing in, where the
-    planner takes the first), then the features."""
+    planner takes the first), 1 on the planner's choice (the first of its best) and 0 elsewhere, then the
+    features."""
     scene, rules = ruled_read(planner, obs)
     score, (arrival, clearance, hard, near), clear = planner.ranking(scene, cand, rules)
     best = score.max(1, keepdims=True)
@@ -72,8 +84,10 @@ def residual_inputs(
     speed = np.hypot(*scene.robot_vel.T)[:, None]
     limit = planner.speed if rules is None else np.minimum(planner.speed, rules.speed)
     row = np.ones_like(arrival)
+    choice = np.arange(prior.shape[1]) == np.argmax(prior, 1)[:, None]
     columns = [
         prior,
+        choice,
         arrival.clip(0.0, 10.0),
         (arrival - arrival.min(1, keepdims=True)).clip(0.0, 5.0),
         clearance.clip(-1.0, 3.0),

@@ -32,7 +32,6 @@ from tqdm import tqdm
 
 from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config import ConfigError, TrainConfig
-from hier_ssl.config.learners import CandidatePPOConfig
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
 from hier_ssl.envs.shards import batched_core, close_core
@@ -43,7 +42,15 @@ from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candi
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy, mlp
-from hier_ssl.policies.ppo import categorical_kl, clipped_surrogate, gae, minibatches, normalized, value_loss
+from hier_ssl.policies.ppo import (
+    categorical_kl,
+    clipped_surrogate,
+    gae,
+    minibatches,
+    normalized,
+    outcome_reward,
+    value_loss,
+)
 from hier_ssl.policies.sac_runner import MODEL_FILE
 
 
@@ -61,21 +68,6 @@ def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
 def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
     """The manager as a numpy policy (``CandidateManager.decide``'s action); a live view of its weights."""
     return lambda obs: manager.decide(obs, generator)[2]
-
-
-def outcome_reward(
-    settings: CandidatePPOConfig,
-    control_steps: np.ndarray,
-    ended_rows: np.ndarray,
-    success: np.ndarray,
-    collision: np.ndarray,
-) -> np.ndarray:
-    """PPO's reward per row (R,) for one decision: minus ``time_cost`` per 100 control steps the decision
-    took (``control_steps`` (R,)), plus ``success_reward`` / minus ``collision_cost`` on the rows
-    ``ended_rows`` (E,) whose episodes ended in a success / collision (``success``, ``collision`` (E,))."""
-    reward = -settings.time_cost * control_steps.astype(np.float32) / 100.0
-    np.add.at(reward, ended_rows, settings.success_reward * success - settings.collision_cost * collision)
-    return reward
 
 
 def _seed(config: TrainConfig, phase: int, index: int) -> int:
@@ -221,7 +213,7 @@ class CandidateLearner:
         """Phase 2: PPO iterations from the DAgger fit until ``iterations``, from ``saved["iteration"]``."""
         settings, chooser = self.settings.ppo, self.settings
         if self.net is None:  # no DAgger (a residual): PPO starts from the planner's own ranking
-            self.net = build_chooser(chooser.network, chooser.hidden, None, 0, chooser.tau)
+            self.net = build_chooser(chooser.network, chooser.hidden, None, 0, chooser.tau, chooser.keep)
         net, self.phase = self.net, "ppo"
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
@@ -241,6 +233,12 @@ class CandidateLearner:
         self.bar.update(self.settings.rounds + first - self.bar.n)
         self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
         self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
+        if not saved and not self.settings.rounds:
+            # A residual starts as the planner: scored as step 0, model selection can keep it where PPO
+            # only makes it worse. Saved first, so a run killed while scoring does not score it twice.
+            self.iteration, self.decisions = 0, 0
+            self.save()
+            self.checkpoint(0, self.states)
         for iteration in range(first, iterations):
             began = time.perf_counter()
             if settings.anneal:
@@ -396,5 +394,4 @@ __all__ = [
     "candidate_planner",
     "candidate_policy",
     "missing_keys",
-    "outcome_reward",
 ]

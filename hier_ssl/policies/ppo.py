@@ -34,7 +34,7 @@ from tensordict import TensorDict
 
 from hier_ssl.checkpoints.tensors import load_checkpoint, save_checkpoint
 from hier_ssl.config import ConfigError
-from hier_ssl.config.learners import PPOConfig
+from hier_ssl.config.learners import CandidatePPOConfig, PPOConfig
 from hier_ssl.envs.vector import RslRlVecEnv, TorchView
 from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, on_threads, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy
@@ -320,6 +320,21 @@ def categorical_kl(log_probs: torch.Tensor, anchor: torch.Tensor) -> torch.Tenso
     return (log_probs.exp() * gap).sum(1).mean()
 
 
+def outcome_reward(
+    settings: CandidatePPOConfig,
+    control_steps: np.ndarray,
+    ended_rows: np.ndarray,
+    success: np.ndarray,
+    collision: np.ndarray,
+) -> np.ndarray:
+    """PPO's reward per row (R,) for one decision: minus ``time_cost`` per 100 control steps the decision
+    took (``control_steps`` (R,)), plus ``success_reward`` / minus ``collision_cost`` on the rows
+    ``ended_rows`` (E,) whose episodes ended in a success / collision (``success``, ``collision`` (E,))."""
+    reward = -settings.time_cost * control_steps.astype(np.float32) / 100.0
+    np.add.at(reward, ended_rows, settings.success_reward * success - settings.collision_cost * collision)
+    return reward
+
+
 __all__ = [
     "NumpyPolicy",
     "PPOLearner",
@@ -331,6 +346,7 @@ __all__ = [
     "make_ppo_runner",
     "minibatches",
     "normalized",
+    "outcome_reward",
     "ppo_policy",
     "ppo_train_cfg",
     "value_loss",

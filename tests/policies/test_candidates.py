@@ -170,7 +170,7 @@ def test_a_dagger_scenario_run_shares_its_classifier_between_the_robots(tmp_path
 
 def test_the_ppo_reward_prices_time_success_and_collisions() -> None:
     from hier_ssl.config.learners import CandidatePPOConfig
-    from hier_ssl.policies.candidates import outcome_reward
+    from hier_ssl.policies.ppo import outcome_reward
 
     settings = CandidatePPOConfig(time_cost=2.0, success_reward=10.0, collision_cost=30.0)
     steps = np.array([16, 16, 7, 16])

@@ -86,19 +86,45 @@ def test_a_tiny_residual_run_moves_the_correction_and_keeps_the_planners_level(t
     run = tmp_path / "run"
     summary = train(parse_config(config), run, progress=False)
     steps = [int(row["step"]) for row in csv.DictReader((run / "curve.csv").open())]
-    assert steps == [2, 4]
+    assert steps == [0, 2, 4]  # step 0 is the planner itself, for model selection to keep
     saved = torch.load(run / "model.pt")
     assert saved["phase"] == "ppo" and saved["net"]["body.4.weight"].abs().sum() > 0
     # Rebuilt from its weights alone (tau, layer sizes); played at the planner's level or near it (the
     # planner: 83 % of these 48 robots at frame skip 4).
     net = chooser_from_state(saved["net"])
     assert isinstance(net, Residual) and float(net.tau) == pytest.approx(data["candidates"]["tau"])
+    assert float(net.keep) == pytest.approx(data["candidates"]["keep"])
     assert summary["final"]["success_rate"] >= 0.7, summary
     core = HierarchicalCore(parse_config(config).task_config, 2)
     obs = core.reset(1).reshape(12, -1)
     assert load_policy(run, which="final")(obs).shape == (12, core.act_dim)
     with pytest.raises(ValueError, match="residual candidates manager cannot be exported.*rollouts"):
         export_manager(run, "torchscript")
+
+
+def test_the_dead_band_keeps_the_planners_tie_break_against_a_small_correction() -> None:
+    config = parse_config(SHIPPED)
+    planner = candidate_planner(config)
+    seen = []
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        seen.append(obs[::4])
+        return planner(obs)
+
+    core = batched_core(config.task_config, 2, False, threads=1)
+    play(core, policy, 1)
+    close_core(core)
+    obs = np.concatenate(seen[::10])
+    moved = {}
+    for keep in (0.0, 1.0):
+        net = _fresh()
+        net.keep.fill_(keep)
+        # A correction of a few tenths between candidates: enough to re-break every exact tie of the
+        # planner's ranking, less than the band.
+        torch.nn.init.normal_(net.body[-1].weight, std=0.3)
+        moved[keep] = np.abs(candidate_manager(config, net).decide(obs)[2] - planner(obs)).max(1)
+    assert (moved[0.0] > 1e-3).sum() >= 5, moved[0.0]  # the ties and near-ties, no longer the planner's
+    assert (moved[1.0] > 1e-3).sum() < (moved[0.0] > 1e-3).sum() / 2, moved
 
 
 def test_the_kl_to_the_start_skips_what_the_planner_rules_out() -> None:
@@ -114,6 +140,8 @@ def test_the_kl_to_the_start_skips_what_the_planner_rules_out() -> None:
     [
         ({"rounds": 3}, r"candidates.rounds: 3 with network 'residual'"),
         ({"network": "ranker"}, r"candidates.network"),
+        ({"keep": -1.0}, r"candidates.keep"),
+        ({"network": "scorer", "rounds": 2}, r"keep: 1.0 is a residual's dead band; network is 'scorer'"),
     ],
 )
 def test_residual_config_errors_name_the_value(change: dict, message: str) -> None:

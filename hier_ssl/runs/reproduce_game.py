@@ -9,7 +9,8 @@ finished ones skipped, killed ones resumed) and their evaluations are cached in 
 theirs, the planners' too (a planner at frame skip 1 costs minutes a scenario).
 
 Every manager of a scenario plays the same ``episodes`` episodes of seed ``eval_seed`` (``reproduce``'s,
-0: neither model selection's seeds, 10,000 + the run's, nor ``train``'s held-out ones, 20,000 + it),
+0: none of model selection's seeds, 10,000 + the run's, ``train``'s held-out ones, 20,000 + it, or the
+candidates learner's training episodes, from 1,000,000 up),
 acting as ``hier-ssl eval --scenario`` has it act (``hier_ssl.evaluation.compare.compare``): the planners
 at frame skip 1 and 16 in the field frame, a run with its own interface and frame skip.
 """
@@ -236,6 +237,8 @@ def reproduce_game(
         played = scenario_episodes(scenario, config_dir)
         planners = planner_game_rows(scenario, played, episodes, eval_seed, cache, progress)
         learned, medians = learned_game_rows(scenario, runs, played, episodes, eval_seed, cache)
+        for row in learned if progress else ():
+            print(f"  {scenario}: {row.manager} {row.policy}, {row.seeds} run(s)", flush=True)
         rows += [*planners, *learned]
         checks.append(target_lines(scenario, planners, medians))
     results.mkdir(parents=True, exist_ok=True)

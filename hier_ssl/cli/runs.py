@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import shlex
 import sys
 import textwrap
@@ -148,14 +149,16 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
     rep = subparsers.add_parser(
         "reproduce",
         help="train the paper's 12 configurations in both families (resumable), evaluate them beside the "
-        "planners, write results/paper-tables.md and .csv",
+        "planners, write results/paper-tables.md and .csv; --family game: the SSL game scenarios' learned "
+        "configs, results/game-table.md and .csv",
     )
     rep.add_argument(
         "--family",
         action="append",
-        choices=("paper", "defaults"),
+        choices=("paper", "defaults", "game"),
         default=None,
-        help="configuration family: the public code's settings or ours (repeatable; default: both)",
+        help="configuration family: the public code's settings or ours (repeatable; default: both), or "
+        "game (configs/game/, alone)",
     )
     rep.add_argument(
         "--only",
@@ -164,7 +167,8 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME",
         help="e.g. proposed/fscaps, obstacle (default: all); the rows of an existing "
         "RESULTS/paper-tables.csv that these runs do not evaluate are kept, those they do are replaced, the "
-        "planners re-evaluated",
+        "planners re-evaluated; with --family game a scenario (game_stop) or a learned game config "
+        "(stop_residual)",
     )
     rep.add_argument(
         "--seeds",
@@ -190,9 +194,13 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
 def _reproduce(args: argparse.Namespace) -> int:
     # here, not at the top: torch, for this command alone
     from hier_ssl.runs.reproduce import FAMILIES, reproduce
+    from hier_ssl.runs.reproduce_game import reproduce_game
 
-    report = reproduce(
-        families=args.family or tuple(FAMILIES),
+    families = args.family or tuple(FAMILIES)
+    if "game" in families and set(families) != {"game"}:
+        raise ConfigError("--family game runs alone: its --only names game scenarios, not paper rows")
+    write = reproduce_game if "game" in families else functools.partial(reproduce, families=families)
+    report = write(
         only=args.only,
         seeds=args.seeds,
         out=args.out,

@@ -43,6 +43,17 @@ RECORD_KEYS = (
 GAME_KEYS = ("foul_rate", "fouls", "robot_minutes", "fouls_per_robot_minute")
 
 
+def fouls_and_collisions(record: dict[str, Any]) -> float:
+    """The share of a game scenario's robots whose episode ended in a foul or a collision: a robot leaves
+    one way only (``hier_ssl.envs.game.game_outcome``), so the two rates add up."""
+    return record["foul_rate"] + record["collision_rate"]
+
+
+def fouls_per_minute(record: dict[str, Any]) -> float:
+    """Every foul of a game scenario's record per robot-minute played, all kinds together."""
+    return sum(record["fouls_per_robot_minute"].values())
+
+
 def make_record(manager: str, result: dict[str, Any], **context: Any) -> dict[str, Any]:
     """The JSON record of one evaluation: ``result`` is ``hier_ssl.evaluation.evaluate.evaluate``'s dict,
     ``context`` holds worker, task and anything else to keep (frame_skip, seed)."""
@@ -125,7 +136,7 @@ def _per_minute(record: dict[str, Any]) -> str:
     if rates is None:  # a record written before the rates were
         return ""
     kinds = "".join(f", {kind} {rate:.3f}" for kind, rate in rates.items() if record["fouls"][kind])
-    total = sum(rates.values())
+    total = fouls_per_minute(record)
     return f"; per robot-minute ({record['robot_minutes']:.1f} played): all {total:.3f}{kinds}"
 
 
@@ -251,6 +262,8 @@ __all__ = [
     "HEADERS",
     "RECORD_KEYS",
     "csv_table",
+    "fouls_and_collisions",
+    "fouls_per_minute",
     "latex_table",
     "make_record",
     "markdown_table",

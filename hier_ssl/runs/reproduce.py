@@ -45,6 +45,7 @@ from hier_ssl.evaluation.paper_tables import (
     summarise,
 )
 from hier_ssl.evaluation.report import make_record
+from hier_ssl.runs.eval_cache import cached_record
 from hier_ssl.runs.jobs import Job
 from hier_ssl.runs.launch import launch
 from hier_ssl.runs.train import EVAL_FILE
@@ -161,24 +162,19 @@ def evaluate_run(
     record older than the run's eval.json is stale)."""
     actions = "sampled" if sample else "mean"
     path = cache / f"{run.run_dir.name}-{which}-{actions}-e{count}-s{seed}.json"
-    finished = (run.run_dir / EVAL_FILE).stat().st_mtime
-    if path.is_file() and path.stat().st_mtime >= finished:
-        return json.loads(path.read_text())
-    acting = acting_config(run.config.task_config, episodes)
-    result = evaluate(load_manager(run.run_dir, acting, which, sample, seed), acting, count, seed)
-    trained = json.loads((run.run_dir / EVAL_FILE).read_text())
-    record = make_record(
-        run.run_dir.name,
-        result,
-        policy=which,
-        actions=actions,
-        seed=seed,
-        start_contact_rate=result["start_contact_rate"],
-        train_wall_s=trained.get("train_wall_s"),
-    )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({k: None if v != v else v for k, v in record.items()}, indent=2) + "\n")
-    return record
+
+    def compute() -> dict[str, Any]:
+        acting = acting_config(run.config.task_config, episodes)
+        result = evaluate(load_manager(run.run_dir, acting, which, sample, seed), acting, count, seed)
+        trained = json.loads((run.run_dir / EVAL_FILE).read_text())
+        context = {"policy": which, "actions": actions, "seed": seed}
+        context |= {
+            "start_contact_rate": result["start_contact_rate"],
+            "train_wall_s": trained.get("train_wall_s"),
+        }
+        return make_record(run.run_dir.name, result, **context)
+
+    return cached_record(path, compute, newer_than=(run.run_dir / EVAL_FILE).stat().st_mtime)
 
 
 def learned_rows(
@@ -316,6 +312,13 @@ def write_curves(runs: Sequence[Planned], results: Path) -> list[Path]:
     return paths
 
 
+def train_runs(runs: Sequence[Planned], out: Path, options: LaunchOptions | None, progress: bool) -> None:
+    """Bring every planned run to its end (``hier_ssl.runs.launch``: finished ones skipped, killed ones
+    resumed), Ray Tune's records in ``out``/tune."""
+    jobs = [Job(run.config, run.run_dir) for run in runs]
+    launch(jobs, options or LaunchOptions(), progress=progress, tune_dir=out / "tune")
+
+
 def reproduce(
     families: Sequence[str] = tuple(FAMILIES),
     only: Sequence[str] = (),
@@ -345,8 +348,7 @@ def reproduce(
     runs = plan(families, only, seeds, out, config_dir, overrides)
     old = _earlier_rows(results, episodes, eval_seed)
     if train:
-        jobs = [Job(run.config, run.run_dir) for run in runs]
-        launch(jobs, launch_options or LaunchOptions(), progress=progress, tune_dir=out / "tune")
+        train_runs(runs, out, launch_options, progress)
     if progress:
         print(f"evaluating on {episodes} episodes per task (seed {eval_seed})", flush=True)
     evaluated = learned_rows(runs, episodes, eval_seed, out / "evals", config_dir, progress)
@@ -391,4 +393,5 @@ __all__ = [
     "plot_curves",
     "reproduce",
     "select",
+    "train_runs",
 ]

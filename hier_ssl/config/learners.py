@@ -170,6 +170,11 @@ class CandidatePPOConfig(Strict):
     time_cost: float = Field(1.0, ge=0)
     success_reward: float = Field(10.0, ge=0)
     collision_cost: float = Field(20.0, ge=0)
+    # A denser signal than outcomes alone (a collision ends about one robot-episode in 70 in game_stop):
+    # minus near_cost x (1 - gap / near_distance) at every decision that ends with the nearest other robot
+    # closer than near_distance (m), read from the neighbours observation.
+    near_cost: float = Field(0.0, ge=0)
+    near_distance: float = Field(0.35, gt=0)
     eval_interval: int = Field(50, ge=1)  # iterations between selection scores and checkpoints
 
 

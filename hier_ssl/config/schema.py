@@ -229,6 +229,8 @@ class TrainConfig(Strict):
             raise ValueError("gotopoint: only read when kind is 'worker'")
         if self.algo != "candidates" and self.candidates != CandidatesConfig():
             raise ValueError(f"candidates: only read with algo 'candidates', got {self.algo!r}")
+        if self.candidates.ppo.near_cost and self.task_config.observation == "paper":
+            raise ValueError("candidates.ppo.near_cost reads the nearest neighbour; 'paper' has none")
         if self.algo != "sac" and self.sac.teacher is not None:
             raise ValueError(f"sac.teacher: only read with algo 'sac', got {self.algo!r}")
         if self.kind == "worker" and self.algo != "ppo":

@@ -233,3 +233,12 @@ def as_obstacle_observation(obs: ArrayLike) -> np.ndarray:
     return np.concatenate(
         [obs[:, :MANAGER_OBS_BASE_DIM], obstacles.reshape(b, OBSTACLE_OBS_DIM * p)], axis=1
     ).astype(np.float32)
+
+
+def nearest_gap(obs: np.ndarray, max_pos: float) -> np.ndarray:
+    """Distance (B,) in m from each robot to its nearest other robot, read from observations (B, O) of
+    this layout (slot 0; +inf where it is padding). Clipped positions read as at most ``clip`` x
+    ``max_pos``, far beyond any gap this is used for."""
+    slot = obs[:, neighbour_obs_slice(0)]
+    gap = np.hypot(slot[:, 0], slot[:, 1]) * max_pos
+    return np.where(slot[:, 5] > 0, gap, np.inf)

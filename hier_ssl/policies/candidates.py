@@ -37,6 +37,7 @@ from hier_ssl.envs.play import play
 from hier_ssl.envs.shards import batched_core, close_core
 from hier_ssl.envs.vector import TorchVectorEnv
 from hier_ssl.manager.game_observation import RuledPlanner
+from hier_ssl.manager.neighbours import nearest_gap
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candidate_geometry, stored_features
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
@@ -284,7 +285,8 @@ class CandidateLearner:
             next_obs, _, terminated, truncated, info = env.step_rows(action)
             stats, rows = info["task"], info["task_rows"]
             failed = stats["collision"] + stats.get("foul", 0.0)  # a game's foul costs as a collision
-            reward = outcome_reward(settings, info["control_steps"], rows, stats["success"], failed)
+            gap = nearest_gap(next_obs, self.geometry.max_pos) if settings.near_cost else None
+            reward = outcome_reward(settings, info["control_steps"], rows, stats["success"], failed, gap)
             # A truncated episode would have gone on: its last decision bootstraps from the value of the
             # observation it ended on.
             cut = truncated & ~terminated

@@ -326,11 +326,19 @@ def outcome_reward(
     ended_rows: np.ndarray,
     success: np.ndarray,
     collision: np.ndarray,
+    gap: np.ndarray | None = None,
 ) -> np.ndarray:
     """PPO's reward per row (R,) for one decision: minus ``time_cost`` per 100 control steps the decision
     took (``control_steps`` (R,)), plus ``success_reward`` / minus ``collision_cost`` on the rows
-    ``ended_rows`` (E,) whose episodes ended in a success / collision (``success``, ``collision`` (E,))."""
+    ``ended_rows`` (E,) whose episodes ended in a success / collision (``success``, ``collision`` (E,)).
+    With ``gap`` (R,), m from each robot to its nearest other robot after the decision: minus
+    ``near_cost`` x (1 - gap / ``near_distance``) inside ``near_distance``, on the rows still playing (an
+    ended row's next observation is a new episode's)."""
     reward = -settings.time_cost * control_steps.astype(np.float32) / 100.0
+    if gap is not None:
+        near = settings.near_cost * np.clip(1.0 - gap / settings.near_distance, 0.0, 1.0)
+        near[ended_rows] = 0.0
+        reward -= near.astype(np.float32)
     np.add.at(reward, ended_rows, settings.success_reward * success - settings.collision_cost * collision)
     return reward
 

@@ -178,6 +178,31 @@ def test_the_ppo_reward_prices_time_success_and_collisions() -> None:
     np.testing.assert_allclose(reward, [-0.32, -0.32 + 10.0, -0.14 - 30.0, -0.32], rtol=1e-6)
 
 
+def test_the_near_miss_cost_grows_inside_the_band_and_skips_ended_rows() -> None:
+    from hier_ssl.config.learners import CandidatePPOConfig
+    from hier_ssl.manager.neighbours import nearest_gap, neighbour_obs_slice
+    from hier_ssl.policies.ppo import outcome_reward
+
+    settings = CandidatePPOConfig(time_cost=0.0, near_cost=2.0, near_distance=0.4)
+    # Nearest others at 0.1, 0.3, 0.5 m and a padding slot; row 1 ended this decision (a success).
+    obs = np.zeros((4, 13 + 6), np.float32)
+    slots = [[0.01, 0, 0, 0, 0, 1], [0, -0.03, 0, 0, 1, 1], [0.03, 0.04, 0, 0, 0, 1]]
+    obs[:3, neighbour_obs_slice(0)] = slots
+    gap = nearest_gap(obs, 10.0)
+    np.testing.assert_allclose(gap, [0.1, 0.3, 0.5, np.inf], rtol=1e-6)
+    reward = outcome_reward(settings, np.full(4, 1), np.array([1]), np.array([1.0]), np.array([0.0]), gap)
+    np.testing.assert_allclose(reward, [-2.0 * 0.75, 10.0, 0.0, 0.0], rtol=1e-6)
+
+
+def test_the_near_miss_cost_needs_a_neighbour_observation() -> None:
+    data = load_yaml(config_dir() / "obstacle" / "scorer.yaml")
+    data["env"] = {**data.get("env", {}), "observation": "paper"}
+    ppo = {**data["candidates"].get("ppo", {}), "near_cost": 1.0}
+    data["candidates"] = {**data["candidates"], "ppo": ppo}
+    with pytest.raises(ConfigError, match="near_cost reads the nearest neighbour; 'paper' has none"):
+        parse_config(data)
+
+
 def test_ppo_takes_the_classifier_past_the_obstacle_where_imitation_left_it(
     tmp_path: Path, one_thread: None
 ) -> None:

@@ -22,7 +22,7 @@ from torch import nn
 from hier_ssl.config import TrainConfig
 from hier_ssl.envs import make_scenario
 from hier_ssl.manager.candidate_points import candidate_points
-from hier_ssl.manager.game_observation import RuledPlanner
+from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_features import PathModel, candidate_features, feature_dim, path_model
 from hier_ssl.policies.candidate_nets import Scorer
@@ -150,8 +150,12 @@ class CandidateManager(nn.Module):
             return self.geometry.features(read)
         return obs.float()
 
+    def read(self, obs: torch.Tensor) -> Read:
+        """The scene and candidates of observations (B, O) the network chooses among."""
+        return self.geometry(obs)
+
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        read = self.geometry(obs)
+        read = self.read(obs)
         choice = self.net(self.inputs(obs, read)).argmax(1)  # ties to the earlier candidate
         return self.geometry.action(choice, read)
 
@@ -163,7 +167,7 @@ class CandidateManager(nn.Module):
         ``obs``'s ``read`` is built unless given."""
         x = torch.as_tensor(obs, dtype=torch.float32)
         with torch.no_grad():
-            read = self.geometry(x) if read is None else read
+            read = self.read(x) if read is None else read
             inputs = self.inputs(x, read)
             logits = self.net(inputs)
             if logits.shape[1] != self.geometry.num_candidates:
@@ -192,6 +196,14 @@ class ResidualManager(CandidateManager):
         super().__init__(geometry, net)
         residual_planner(planner)
         self.planner = planner
+
+    def read(self, obs: torch.Tensor) -> Read:
+        """The geometry's read with the planner's own candidates: in a game, around the target moved where
+        the rules let the robot go (``ruled_read``), where the geometry's are around the observed one (on
+        2.5 % of ``game_stop``'s decisions, all of those where the two differed)."""
+        read = self.geometry(obs)
+        cand = self.planner.candidates(ruled_read(self.planner, obs.numpy())[0])
+        return (*read[:5], torch.from_numpy(np.stack([cand.real, cand.imag], -1)))
 
     def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
         """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``)."""

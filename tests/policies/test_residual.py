@@ -148,7 +148,10 @@ def test_the_kl_to_the_start_skips_what_the_planner_rules_out() -> None:
         ({"rounds": 3}, r"candidates.rounds: 3 with network 'residual'"),
         ({"network": "ranker"}, r"candidates.network"),
         ({"keep": -1.0}, r"candidates.keep"),
-        ({"network": "scorer", "rounds": 2}, r"keep: 1.0 is a residual's dead band; network is 'scorer'"),
+        (
+            {"network": "scorer", "rounds": 2, "keep": 1.0},
+            r"keep: 1.0 is a residual's dead band; network is 'scorer'",
+        ),
     ],
 )
 def test_residual_config_errors_name_the_value(change: dict, message: str) -> None:

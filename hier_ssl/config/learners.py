@@ -196,6 +196,9 @@ class CandidatesConfig(Strict):
     # A residual's dead band: added to the logit of the planner's own choice, so a correction smaller than
     # it leaves the planner's tie-break alone (hier_ssl.policies.candidate_residual).
     keep: float = Field(0.0, ge=0)
+    # A residual's inputs add how far each leg of a candidate keeps from the game's zones, not only whether
+    # it is clear; off, a residual reads what runs trained before it read.
+    zone_features: bool = False
     learning_rate: float = Field(1e-3, gt=0)
     batch_size: int = Field(256, ge=1)
     ppo: CandidatePPOConfig = Field(default_factory=CandidatePPOConfig)
@@ -211,6 +214,11 @@ class CandidatesConfig(Strict):
             )
         if self.keep and self.network != "residual":
             raise ValueError(f"keep: {self.keep} is a residual's dead band; network is {self.network!r}")
+        if self.zone_features and self.network != "residual":
+            raise ValueError(
+                f"zone_features: {self.zone_features} adds to a residual's inputs; "
+                f"network is {self.network!r}"
+            )
         return self
 
 

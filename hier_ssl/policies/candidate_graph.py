@@ -26,7 +26,12 @@ from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.candidate_features import PathModel, candidate_features, feature_dim, path_model
 from hier_ssl.policies.candidate_nets import Scorer
-from hier_ssl.policies.candidate_residual import Residual, residual_inputs, residual_planner
+from hier_ssl.policies.candidate_residual import (
+    Residual,
+    residual_features,
+    residual_inputs,
+    residual_planner,
+)
 
 Read = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
 """What ``CandidateGeometry.forward`` reads of observations: target (B, 4) x, y and the sine and cosine of
@@ -136,12 +141,16 @@ class CandidateManager(nn.Module):
 
     @classmethod
     def of(
-        cls, geometry: CandidateGeometry, net: nn.Module, planner: SamplingPlanner | RuledPlanner
+        cls,
+        geometry: CandidateGeometry,
+        net: nn.Module,
+        planner: SamplingPlanner | RuledPlanner,
+        zone_features: bool = False,
     ) -> CandidateManager:
         """``net`` over ``geometry``'s candidates: a ``ResidualManager`` for a residual, which reads
-        ``planner``."""
+        ``planner`` (and the zone clearances with ``zone_features``, ``candidates.zone_features``)."""
         if isinstance(net, Residual):
-            return ResidualManager(geometry, net, planner)
+            return ResidualManager(geometry, net, planner, zone_features)
         return cls(geometry, net)
 
     def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
@@ -187,15 +196,27 @@ class CandidateManager(nn.Module):
 
 class ResidualManager(CandidateManager):
     """A residual ``net`` (``hier_ssl.policies.candidate_residual``) over ``geometry``'s candidates, as
-    ``CandidateManager``, reading ``planner``'s ranking and rollouts: numba and numpy, not one torch graph,
-    so never exported."""
+    ``CandidateManager``, reading ``planner``'s ranking and rollouts (and with ``zone_features`` the legs'
+    zone clearances): numba and numpy, not one torch graph, so never exported."""
 
     def __init__(
-        self, geometry: CandidateGeometry, net: nn.Module, planner: SamplingPlanner | RuledPlanner
+        self,
+        geometry: CandidateGeometry,
+        net: nn.Module,
+        planner: SamplingPlanner | RuledPlanner,
+        zone_features: bool = False,
     ) -> None:
         super().__init__(geometry, net)
         residual_planner(planner)
-        self.planner = planner
+        # The weights fix what the network reads, the run's config what is built for it: a run's config.yaml
+        # that lost or gained the key would otherwise fail deep in a matrix product.
+        reads, built = net.body[0].in_features, residual_features(zone_features)
+        if reads != built:
+            raise ValueError(
+                f"the residual reads {reads} features a candidate, candidates.zone_features: "
+                f"{zone_features} builds {built}"
+            )
+        self.planner, self.zone_features = planner, zone_features
 
     def read(self, obs: torch.Tensor) -> Read:
         """The geometry's read with the planner's own candidates: in a game, around the target moved where
@@ -207,7 +228,7 @@ class ResidualManager(CandidateManager):
 
     def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
         """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``)."""
-        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]))
+        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]), self.zone_features)
 
 
 def candidate_geometry(config: TrainConfig, planner: SamplingPlanner) -> CandidateGeometry:

@@ -19,7 +19,7 @@ from torch import nn
 from hier_ssl.checkpoints.actor import linear_layers, mean_actor
 from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
 from hier_ssl.manager.planners import SamplingPlanner
-from hier_ssl.policies.candidate_residual import RESIDUAL_FEATURES, Residual
+from hier_ssl.policies.candidate_residual import Residual, residual_features
 from hier_ssl.policies.networks import mlp
 
 NETWORKS = ("classifier", "scorer", "residual")
@@ -46,15 +46,16 @@ def build_chooser(
     candidates: int,
     tau: float = 1.0,
     keep: float = 0.0,
+    zone_features: bool = False,
 ) -> nn.Module:
     """A new network of kind ``network`` for ``inputs`` (its first data: observations (B, O) for the
     classifier, features (B, C, F) for the scorer, whose standardisation they fix; the residual reads
-    none: its features are scaled as they come, ``tau`` divides its planner's score and ``keep`` is its dead
-    band)."""
+    none: its features are scaled as they come, ``tau`` divides its planner's score, ``keep`` is its dead
+    band and ``zone_features`` adds the legs' zone clearances to what it reads)."""
     if network not in NETWORKS:
         raise ValueError(f"unknown candidates.network {network!r}; expected one of {NETWORKS}")
     if network == "residual":
-        return Residual(RESIDUAL_FEATURES, hidden, tau, keep)
+        return Residual(residual_features(zone_features), hidden, tau, keep)
     if inputs is None:
         raise ValueError(f"a {network} is built from its first data; none given (DAgger's first round)")
     if network == "classifier":

@@ -13,6 +13,12 @@ the next; a correction with no band breaks it by features that move every step, 
 sub-goals (docs/results.md, "A residual over `sampling`'s own ranking"). With it the correction changes
 the choice only where it outweighs ``keep``.
 
+With ``candidates.zone_features`` the MLP reads two more columns (``ZONE_FEATURES``): how far each of a
+candidate's two straight legs keeps from the game's forbidden zones. The planner's ``clear`` only says
+whether a leg breaks one, so a correction could not learn to keep a margin from a zone that moves (the
+circle around a rolling ball at the opponent's free kick). Off by default: a network trained without them
+reads ``RESIDUAL_FEATURES`` and is rebuilt so.
+
 The features are the planner's rollout outputs (numba, numpy): the decision is not one torch graph, so a
 residual run does not export (``hier_ssl.policies.export``).
 """
@@ -25,6 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hier_ssl.game.legal import RowRules, path_clearance
 from hier_ssl.manager.game_observation import RuledPlanner, ruled_read
 from hier_ssl.manager.planners import SamplingPlanner
 from hier_ssl.policies.networks import mlp
@@ -35,9 +42,20 @@ clearances (growing, fixed, within the prediction window; m), clear of the zones
 distances robot -> candidate and candidate -> target (m), the robot's speed and the speed it may drive at
 (m/s), each clipped to a few units: the MLP reads them as they are."""
 
+ZONE_FEATURES = 2
+"""With ``candidates.zone_features``, after ``RESIDUAL_FEATURES``: how far the first leg (robot ->
+candidate) and the second (candidate -> target) keep from the row's zones, the least over them of
+``path_clearance`` (m; negative through one), clipped to [-1, 3]; 3 where there is none to keep from (no
+rules, empty slots)."""
+
+
+def residual_features(zone_features: bool = False) -> int:
+    """How many features a candidate's row of ``residual_inputs`` holds after its two prior columns."""
+    return RESIDUAL_FEATURES + ZONE_FEATURES * bool(zone_features)
+
 
 class Residual(nn.Module):
-    """Logits (B, C) of inputs (B, C, 2 + ``RESIDUAL_FEATURES``) (``residual_inputs``): column 0 the
+    """Logits (B, C) of inputs (B, C, 2 + ``features``) (``residual_inputs``): column 0 the
     planner's score relative to the row's best, divided by ``tau`` (s), plus ``keep`` times column 1 (1 on
     the planner's choice), plus ``body`` (features -> hidden -> 1, last layer zero at the start) of the
     rest."""
@@ -66,14 +84,29 @@ def residual_planner(planner: object) -> None:
         raise ValueError(f"a residual candidates network corrects the sampling planner's ranking; got {name}")
 
 
+def zone_clearances(
+    rules: RowRules | None, robot: np.ndarray, target: np.ndarray, cand: np.ndarray
+) -> list[np.ndarray]:
+    """The ``ZONE_FEATURES`` columns (B, C) of candidates ``cand`` (B, C) of robots at ``robot`` going to
+    ``target`` (B,) (complex, m) under ``rules``: the first leg's clearance from the zones, the second's."""
+    if rules is None:
+        return [np.full(cand.shape, 3.0)] * ZONE_FEATURES
+    # (B, 1, S): each row's zones against its own C paths, which path_clearance reads without copying.
+    zones = rules.zones.take(np.s_[:, None])
+    legs = path_clearance(zones, robot[:, None], cand), path_clearance(zones, cand, target[:, None])
+    return [leg.min(-1, initial=np.inf).clip(-1.0, 3.0) for leg in legs]
+
+
 def residual_inputs(
-    planner: SamplingPlanner | RuledPlanner, obs: np.ndarray, cand: np.ndarray
+    planner: SamplingPlanner | RuledPlanner, obs: np.ndarray, cand: np.ndarray, zone_features: bool = False
 ) -> torch.Tensor:
-    """What a ``Residual`` reads (B, C, 2 + ``RESIDUAL_FEATURES``) float32 of observations ``obs`` (B, O)
-    and their candidates ``cand`` (B, C) complex: the planner's score minus the row's best (so float32
-    keeps the gaps near the top that decide the argmax; 0 across a row it ranks nothing in, where the
-    planner takes the first), 1 on the planner's choice (the first of its best) and 0 elsewhere, then the
-    features."""
+    """What a ``Residual`` reads (B, C, 2 + ``residual_features(zone_features)``) float32 of observations
+    ``obs`` (B, O) and their candidates ``cand`` (B, C) complex: the planner's score minus the row's best
+    (so float32 keeps the gaps near the top that decide the argmax; 0 across a row it ranks nothing in,
+    where the planner takes the first), 1 on the planner's choice (the first of its best) and 0 elsewhere,
+    then the ``RESIDUAL_FEATURES`` and, with ``zone_features``, the ``ZONE_FEATURES``: the first leg's
+    (robot -> candidate) and the second leg's (candidate -> ``scene``'s target, where the rules moved it)
+    least clearance from the row's zones (``zone_clearances``), m in [-1, 3], 3 without rules."""
     scene, rules = ruled_read(planner, obs)
     score, (arrival, clearance, hard, near), clear = planner.ranking(scene, cand, rules)
     best = score.max(1, keepdims=True)
@@ -100,7 +133,17 @@ def residual_inputs(
         speed * row,
         np.reshape(limit, (-1, 1)) * row,
     ]
+    if zone_features:
+        columns += zone_clearances(rules, robot, target, cand)
     return torch.as_tensor(np.stack(columns, -1), dtype=torch.float32)
 
 
-__all__ = ["RESIDUAL_FEATURES", "Residual", "residual_inputs", "residual_planner"]
+__all__ = [
+    "RESIDUAL_FEATURES",
+    "ZONE_FEATURES",
+    "Residual",
+    "residual_features",
+    "residual_inputs",
+    "residual_planner",
+    "zone_clearances",
+]

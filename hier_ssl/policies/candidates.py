@@ -63,7 +63,9 @@ def candidate_planner(config: TrainConfig) -> SamplingPlanner | RuledPlanner:
 def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
     """``net`` over the candidates of the run's ``sampling`` planner: the run's whole decision."""
     planner = candidate_planner(config)
-    return CandidateManager.of(candidate_geometry(config, planner), net, planner)
+    return CandidateManager.of(
+        candidate_geometry(config, planner), net, planner, config.candidates.zone_features
+    )
 
 
 def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
@@ -214,7 +216,8 @@ class CandidateLearner:
         """Phase 2: PPO iterations from the DAgger fit until ``iterations``, from ``saved["iteration"]``."""
         settings, chooser = self.settings.ppo, self.settings
         if self.net is None:  # no DAgger (a residual): PPO starts from the planner's own ranking
-            self.net = build_chooser(chooser.network, chooser.hidden, None, 0, chooser.tau, chooser.keep)
+            residual = chooser.tau, chooser.keep, chooser.zone_features
+            self.net = build_chooser(chooser.network, chooser.hidden, None, 0, *residual)
         net, self.phase = self.net, "ppo"
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
         self.reference.requires_grad_(False)
@@ -347,7 +350,7 @@ class CandidateLearner:
     def manager(self) -> CandidateManager:
         """The network over the planner's candidates: the decision it plays."""
         assert self.net is not None
-        return CandidateManager.of(self.geometry, self.net, self.planner)
+        return CandidateManager.of(self.geometry, self.net, self.planner, self.settings.zone_features)
 
     def save(self) -> None:
         """``model.pt``: the network, the phase's progress (DAgger: the last round done, the states met
@@ -390,10 +393,4 @@ class CandidateLearner:
         self.on_checkpoint(Checkpoint(step, transitions, self.train_time_s, self.policy(), state))
 
 
-__all__ = [
-    "CandidateLearner",
-    "candidate_manager",
-    "candidate_planner",
-    "candidate_policy",
-    "missing_keys",
-]
+__all__ = ["CandidateLearner", "candidate_manager", "candidate_planner", "candidate_policy", "missing_keys"]

@@ -1,6 +1,6 @@
 """The residual candidates network: the sampling planner's ranking plus a learned correction. Untrained it
 is the planner; a tiny PPO run moves it and keeps it playing; it rebuilds from its weights and refuses to
-export."""
+export. With ``candidates.zone_features`` it also reads how far each leg keeps from the game's zones."""
 
 from __future__ import annotations
 
@@ -11,36 +11,52 @@ import numpy as np
 import pytest
 import torch
 
-from hier_ssl.config import ConfigError
+from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
+from hier_ssl.checkpoints.tensors import save_checkpoint
+from hier_ssl.config import ConfigError, dump_config
 from hier_ssl.config.files import config_dir, load_yaml
 from hier_ssl.envs import parse_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.envs.play import play
 from hier_ssl.envs.shards import batched_core, close_core
+from hier_ssl.game.legal import segment_clearance
 from hier_ssl.manager.game_observation import ruled_read
-from hier_ssl.policies.actor import load_policy
+from hier_ssl.policies.actor import load_candidate_manager, load_policy
+from hier_ssl.policies.candidate_graph import ResidualManager
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state
-from hier_ssl.policies.candidate_residual import RESIDUAL_FEATURES, Residual, residual_planner
+from hier_ssl.policies.candidate_residual import (
+    RESIDUAL_FEATURES,
+    ZONE_FEATURES,
+    Residual,
+    residual_inputs,
+    residual_planner,
+    zone_clearances,
+)
 from hier_ssl.policies.candidates import candidate_manager, candidate_planner
 from hier_ssl.policies.export import export_manager
 from hier_ssl.policies.ppo import categorical_kl
 from hier_ssl.runs.train import train
 
 SHIPPED = load_yaml(config_dir() / "game" / "stop_residual.yaml")
+ZONED = {**SHIPPED, "candidates": {**SHIPPED["candidates"], "zone_features": True}}
 
 
-def _fresh(hidden: tuple[int, ...] = (16, 16)) -> Residual:
+def _fresh(hidden: tuple[int, ...] = (16, 16), zone_features: bool = False) -> Residual:
     torch.manual_seed(0)
-    net = build_chooser("residual", hidden, None, 0, SHIPPED["candidates"]["tau"])
+    net = build_chooser("residual", hidden, None, 0, SHIPPED["candidates"]["tau"], 0.0, zone_features)
     assert isinstance(net, Residual)
     return net
 
 
-def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_states() -> None:
-    config = parse_config(SHIPPED)
+@pytest.mark.parametrize("zone_features", [False, True])
+def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_states(
+    zone_features: bool,
+) -> None:
+    config = parse_config(ZONED if zone_features else SHIPPED)
     planner = candidate_planner(config)
-    manager = candidate_manager(config, _fresh())
+    manager = candidate_manager(config, _fresh(zone_features=zone_features))
+    assert manager.zone_features == zone_features
     # Its correction starts at zero: the logits are the planner's score / tau, nothing else.
     last = manager.net.body[-1]
     assert not last.weight.any() and not last.bias.any()
@@ -51,6 +67,7 @@ def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_sta
         # Every state of the whole episode, the residual playing (STOP comes after 1-4 s).
         action = planner(obs)
         _, _, chosen, inputs = manager.decide(obs)
+        assert inputs.shape[2] == 2 + RESIDUAL_FEATURES + ZONE_FEATURES * zone_features
         logits = manager.net(inputs)
         prior = inputs[..., 0] / manager.net.tau
         assert torch.equal(torch.isinf(logits), torch.isinf(prior))
@@ -149,6 +166,10 @@ def test_the_kl_to_the_start_skips_what_the_planner_rules_out() -> None:
         ({"network": "ranker"}, r"candidates.network"),
         ({"keep": -1.0}, r"candidates.keep"),
         (
+            {"network": "scorer", "rounds": 2, "zone_features": True},
+            r"candidates\.zone_features: True adds to a residual's inputs; network is 'scorer'",
+        ),
+        (
             {"network": "scorer", "rounds": 2, "keep": 1.0},
             r"keep: 1.0 is a residual's dead band; network is 'scorer'",
         ),
@@ -167,3 +188,62 @@ def test_a_residual_needs_the_sampling_planner_and_a_known_kind() -> None:
     with pytest.raises(ValueError, match="unknown candidates.network 'ranker'"):
         build_chooser("ranker", (8,), None, 0)
     assert _fresh().body[0].in_features == RESIDUAL_FEATURES
+
+
+def _game_stop_inputs() -> tuple:
+    """A few game_stop states' planner, observations, scene, rules, candidates and both inputs."""
+    config = parse_config(ZONED)
+    planner = candidate_planner(config)
+    core = HierarchicalCore(config.task_config, 8)
+    obs = core.reset(5).reshape(-1, core.obs_dim)
+    scene, rules = ruled_read(planner, obs)
+    cand = planner.candidates(scene)
+    return planner, obs, scene, rules, cand, residual_inputs(planner, obs, cand, True)
+
+
+def test_the_zone_features_are_each_legs_least_clearance_from_the_rows_zones() -> None:
+    planner, obs, scene, rules, cand, zoned = _game_stop_inputs()
+    plain = residual_inputs(planner, obs, cand)
+    # Off: what a residual read before the option; on: the same, then the two legs' clearances.
+    assert plain.shape[2] == 2 + RESIDUAL_FEATURES and zoned.shape[2] == plain.shape[2] + ZONE_FEATURES
+    assert torch.equal(zoned[..., : plain.shape[2]], plain)
+    first, second = zoned[..., -2].numpy(), zoned[..., -1].numpy()
+    assert np.isfinite(zoned[..., 2:].numpy()).all() and first.min() >= -1.0 and first.max() <= 3.0
+    # A row where some candidates' first legs run through a zone and others keep clear of every zone.
+    row = int(np.flatnonzero((first < 0).any(1) & (first > 0.2).any(1))[0])
+    through, away = int(np.argmin(first[row])), int(np.argmax(first[row]))
+    robot, target = scene.robot_pos[row], scene.target[row, 0:2]
+    zones = rules.zones.take(row)
+    for j, sign in ((through, -1.0), (away, 1.0)):
+        point = np.array([cand[row, j].real, cand[row, j].imag])
+        expected = np.clip(segment_clearance(zones, robot, point).min(), -1.0, 3.0)
+        assert np.sign(expected) == sign and first[row, j] == pytest.approx(expected, abs=1e-5)
+        expected = np.clip(segment_clearance(zones, point, target).min(), -1.0, 3.0)
+        assert second[row, j] == pytest.approx(expected, abs=1e-5)
+    # The planner's own verdict agrees: a candidate whose first leg breaks a zone (the robot outside all
+    # of them) is not clear.
+    clear = zoned[..., 7].numpy()  # the planner's own clear (RESIDUAL_FEATURES' sixth)
+    assert clear[row, through] == 0.0
+    # Without rules (a task outside the game) nothing is near: both columns at their ceiling.
+    far = zone_clearances(None, scene.robot_pos @ np.array([1.0, 1j]), scene.target[:, 0] + 0j, cand)
+    assert len(far) == ZONE_FEATURES and all((column == 3.0).all() for column in far)
+
+
+def test_a_zone_featured_residual_reloads_with_its_runs_config(tmp_path: Path) -> None:
+    config = parse_config(ZONED)
+    net = _fresh(zone_features=True)
+    assert net.body[0].in_features == RESIDUAL_FEATURES + ZONE_FEATURES
+    torch.nn.init.normal_(net.body[-1].weight, std=1.0)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / CONFIG_FILE).write_text(dump_config(config))
+    save_checkpoint({"net": net.state_dict(), "step": 1}, run / BEST_ACTOR_FILE)
+    manager = load_candidate_manager(run)
+    assert isinstance(manager, ResidualManager) and manager.zone_features
+    obs = _game_stop_inputs()[1]
+    expected = candidate_manager(config, net).decide(obs)[2]
+    np.testing.assert_array_equal(manager.decide(obs)[2], expected)
+    # The same weights under a config without the key (11 features built for 13 read) are refused by name.
+    (run / CONFIG_FILE).write_text(dump_config(parse_config(SHIPPED)))
+    with pytest.raises(ValueError, match=r"reads 13 features a candidate, candidates.zone_features: False"):
+        load_candidate_manager(run)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -18,7 +18,8 @@ from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
 from hier_ssl.game.legal import SPEED_MARGIN, RowRules, cap_speed
-from hier_ssl.game.referee import RefereeState
+from hier_ssl.game.referee import RefereeState, ball_in_play, is_free_kick
+from hier_ssl.world.field import Field
 from hier_ssl.world.physics import RobotState
 
 MAX_AGE = 0.05  # s: a robot unseen for longer is stopped (the loop ticks at most 35 ms apart: < 100 ms)
@@ -53,6 +54,33 @@ def same_call(a: RefereeState | None, b: RefereeState | None) -> bool:
     if a is None or b is None:
         return a is b
     return all(np.array_equal(getattr(a, f.name), getattr(b, f.name), equal_nan=True) for f in fields(a))
+
+
+class InPlayWatch:
+    """Rules 5.4 as a team's own software tells it, for one field: the game controller keeps sending a free
+    kick after its ball is in play, so the state it sends gains ``in_play`` here (``ball_in_play``), once
+    the ball is ``IN_PLAY_DISTANCE`` from where vision saw it when the kick was first heard, or the kick's
+    time has passed since then. A ball not seen then: the time alone (the restrictions kept longer, never a
+    foul). Called each period with the state received; returns it, or one object with ``in_play`` set."""
+
+    def __init__(self, field: Field) -> None:
+        self.division_a = field.name == "division_a"
+        self._kick: tuple[RefereeState, float, np.ndarray] | None = None  # the kick as heard, when, its ball
+        self._played: RefereeState | None = None
+
+    def __call__(self, referee: RefereeState, now: float, ball: tuple[float, float] | None) -> RefereeState:
+        if not is_free_kick(referee.command).all():
+            self._kick = self._played = None
+            return referee
+        seen = None if ball is None else np.asarray(ball, dtype=float)[None]
+        if self._kick is None or not same_call(self._kick[0], referee):  # a new kick (or a new call of it)
+            self._kick, self._played = (referee, now, np.full((1, 2), np.nan) if seen is None else seen), None
+        if self._played is None:
+            _, start, at = self._kick
+            since = np.array([now - start])
+            if ball_in_play(referee.command, since, at if seen is None else seen, at, self.division_a).all():
+                self._played = replace(referee, in_play=np.ones_like(referee.in_play))
+        return referee if self._played is None else self._played
 
 
 class Controller:
@@ -101,6 +129,7 @@ class Controller:
         # The referee's state in force (None: no referee, no rules), set by the loop before each tick, and
         # the rules made of it and the ball (``game_rules``), kept while both are the same.
         self.referee: RefereeState | None = None
+        self.in_play = InPlayWatch(view.field)  # the free kick's ball in play, which the controller sends not
         self._rules: tuple[RefereeState | None, tuple[float, float] | None, RowRules | None] = (
             None,
             None,
@@ -149,7 +178,8 @@ class Controller:
         grid = live.reshape(view.n, view.m)
         if self.decide_now or self.since_decision >= view.frame_skip or (live & ~self.was_live).any():
             if view.game and self.referee is not None:
-                view.set_game(self.referee, self._ball(now))
+                # The state ``rules`` played above: the one received, its free kick's ball in play or not.
+                view.set_game(self._rules[0] or self.referee, self._ball(now))
             view.decide(state, grid, rules)
             self.since_decision, self.decide_now = 0, False
         self.since_decision += 1
@@ -170,14 +200,15 @@ class Controller:
         if self.referee is None:
             return None
         ball = self._ball(now)
+        played = self.in_play(self.referee, now, ball)
         referee, held_ball, _ = self._rules
-        if referee is not self.referee or held_ball != ball:
-            rules = game_rules(self.referee, self.view.field, self.players, ball)
+        if referee is not played or held_ball != ball:
+            rules = game_rules(played, self.view.field, self.players, ball)
             # A new call (command, keepers, sides, placement): decide under it now; a ball that moved: the
             # next decision plans round it. Compared by value: each message is a new object (a field server
             # sends one a period), and deciding on each would decide every period, not every frame_skip.
-            self.decide_now = self.decide_now or not same_call(referee, self.referee)
-            self._rules = (self.referee, ball, rules)
+            self.decide_now = self.decide_now or not same_call(referee, played)
+            self._rules = (played, ball, rules)
         return self._rules[2]
 
     def _ball(self, now: float) -> tuple[float, float] | None:

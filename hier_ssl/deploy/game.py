@@ -111,7 +111,10 @@ class RefereeInput:
             self._held is None or self._held[0] is not self.state
         ):  # one object while silent: the controller's rules are kept
             held = referee_state(STOP, self.field) if self.state is None else self.state
-            self._held = (self.state, replace(held, command=np.full_like(held.command, STOP)))
+            self._held = (
+                self.state,
+                replace(held, command=np.full_like(held.command, STOP), in_play=np.zeros_like(held.in_play)),
+            )
         return self._held[1]
 
     def close(self) -> None:

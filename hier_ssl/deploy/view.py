@@ -217,6 +217,7 @@ class DeployView:
             np.repeat(referee.placement, n, axis=0),
             np.repeat(referee.keeper, n, axis=0),
             np.repeat(referee.blue_on_positive_half, n),
+            np.repeat(referee.in_play, n),
         )
         if ball is not None:
             pos = np.broadcast_to(np.asarray(ball, dtype=float), (n, 1, 2))

@@ -41,6 +41,7 @@ from hier_ssl.game import (
     YELLOW,
     Motion,
     RefereeState,
+    ball_in_play,
     check_keepers,
     forbidden_zones,
     lineup,
@@ -171,6 +172,9 @@ class GameScenario(GamePlaces):
         keepers = (opt.keeper, opt.opponent_keeper)
         self.referee = referee_state(FORCE_START, self.field, n=n, keeper=keepers)
         self.command_step = np.zeros(n, np.int64)
+        # Where each field's ball lay when its command came: a free kick's ball is in play once it has moved
+        # (``ball_in_play``, rules 5.4), which the game tells itself, as a team's software does.
+        self.ball_at_command = np.zeros((n, 2))
         self.clocks = new_clocks(n, r)
         self.fouls = np.zeros((n, m, len(KINDS)), np.int64)  # each robot's fouls of its episode, by kind
         self.way = np.zeros((n, m), np.int8)  # how each robot's episode ended (IN_PLAY, ...)
@@ -201,7 +205,9 @@ class GameScenario(GamePlaces):
         r.command[fields] = np.where(placement.command_step == 0, self.command, FORCE_START)
         r.placement[fields] = placement.placement_pos
         r.blue_on_positive_half[fields] = placement.blue_on_positive_half
+        r.in_play[fields] = False
         self.command_step[fields] = placement.command_step
+        self.ball_at_command[fields] = placement.ball_pos[:, 0]  # a command that comes later writes its own
         fresh = new_clocks(len(fields), self.num_robots)
         for name, value in vars(fresh).items():
             getattr(self.clocks, name)[fields] = value
@@ -220,9 +226,11 @@ class GameScenario(GamePlaces):
         world = core.world
         if len(came):
             self.referee.command[came] = self.command
+            self.referee.in_play[came] = False
             referee = self.referee_of(came)
             mirror = self._mirror(referee, core.rng)
             ball = world.ball.fields(came)
+            self.ball_at_command[came] = ball.pos[:, 0]
             rest = rest_point(ball.pos[:, 0], ball.vel[:, 0], world.ball_spec.deceleration, self.field)
             theirs = world.state.pos[came, self.num_agents :]
             core.set_targets(came, self._targets(core.rng, referee, rest, mirror, theirs))
@@ -237,14 +245,22 @@ class GameScenario(GamePlaces):
         self._before = Motion(state.pos, state.vel)
 
     def post_step(self, core: Any) -> None:
-        """The step's fouls (``step_fouls``), counted for our robots still in play."""
+        """Whether a free kick's ball is now in play, then the step's fouls (``step_fouls``), counted for our
+        robots still in play."""
         world, m = core.world, self.num_agents
+        ball = world.ball.pos[:, 0]
+        # In play stays in play (the ball rolling back changes nothing); the step's fouls and the next
+        # observation's zones are judged with it. ``steps`` counts this step already.
+        since = (core.steps - self.command_step) * core.config.dt
+        division_a = self.field.name == "division_a"
+        self.referee.in_play[:] |= ball_in_play(
+            self.referee.command, since, ball, self.ball_at_command, division_a
+        )
         began = world.robot_contacts & ~self._touching
         np.copyto(self._touching, world.robot_contacts)
         # Most control steps begin no contact: the pairs' search only where one did.
         contacts = np.argwhere(np.triu(began, k=1)) if began.any() else _NO_CONTACTS
         after = Motion(world.state.pos, world.state.vel)
-        ball = world.ball.pos[:, 0]
         self.clocks, report = step_fouls(
             self.clocks,
             self.referee,

@@ -164,7 +164,11 @@ class GamePlaces(FieldScenario):
         placed = np.concatenate([ball, ours], axis=1)
         theirs = self._spread(rng, self._box(self.opponent_box, k), mirror, zones.take(np.s_[:, m:]), placed)
         played = RefereeState(
-            np.full(f, self.command), start.placement, start.keeper, start.blue_on_positive_half
+            np.full(f, self.command),
+            start.placement,
+            start.keeper,
+            start.blue_on_positive_half,
+            np.zeros(f, bool),  # the targets are for the command's restrictions: its ball not yet in play
         )
         pos = np.concatenate([ours, theirs], axis=1)
         return GamePlacement(

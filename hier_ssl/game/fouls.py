@@ -176,7 +176,8 @@ def step_fouls(
       of grace from the command; the grace restarts after the foul (8.4.1, one foul per team, not robot);
     - stop speed (STOP, after 2 s): above 1.5 m/s, once per robot and stoppage (a stoppage ends when the
       game runs or a free kick is taken);
-    - defender too close to the ball (opponent's free kick) and stop speed: a team's next foul of the kind
+    - defender too close to the ball (opponent's free kick, until its ball is in play: ``in_play``) and stop
+      speed: a team's next foul of the kind
       counts only 2 s after its last (8.4.3), and then only its first robot's;
     - placement interference: a robot of the other team in the stadium for more than 2 s, again every 2 s
       of the team's grace while it stays; one interference a placement goes on the foul counter (8.4.3).
@@ -192,6 +193,7 @@ def step_fouls(
     counter, interferences = np.zeros((n, 2), np.int64), np.zeros((n, 2), np.int64)
     _rule_fouls(
         referee.command,
+        referee.in_play,
         old,
         new,
         broken,
@@ -214,6 +216,7 @@ _CLOCKS = tuple(FoulClocks.__dataclass_fields__)  # the clocks in the order ``_r
 @numba.njit(cache=True)
 def _rule_fouls(
     command: np.ndarray,
+    in_play: np.ndarray,
     old: tuple[np.ndarray, ...],
     new: tuple[np.ndarray, ...],
     broken: np.ndarray,
@@ -225,7 +228,8 @@ def _rule_fouls(
     counter: np.ndarray,
     interferences: np.ndarray,
 ) -> None:
-    """``step_fouls`` after the crashes: writes the clocks ``new`` (``FoulClocks``'s fields, in order) after
+    """``step_fouls`` after the crashes, the commands (N,) with ``in_play`` (N,) their free kicks' ball in
+    play: writes the clocks ``new`` (``FoulClocks``'s fields, in order) after
     ``old``, every kind but the crashes into ``by_robot`` (N, M, K), and ``by_team`` (N, 2, K), ``counter``
     and ``interferences`` (N, 2), for the zones each robot ``broken`` (N, M, S) and its velocity (N, M, 2)."""
     (last_command, since0, defense0, speed0, close0, interference0, called0, in_placement0, counted0, own0,
@@ -241,7 +245,8 @@ def _rule_fouls(
         since[n] = 0.0 if changed else since0[n] + dt
         placing = BALL_PLACEMENT_YELLOW <= c <= BALL_PLACEMENT_BLUE
         stopped = c == HALT or c == STOP or placing
-        free_kick = DIRECT_FREE_YELLOW <= c <= INDIRECT_FREE_BLUE
+        # 8.4.3's defender too close holds until the kick's ball is in play (rules 5.4), then the game runs.
+        free_kick = DIRECT_FREE_YELLOW <= c <= INDIRECT_FREE_BLUE and not in_play[n]
         # 8.4.1: the team's grace starts with the command and again after each of its fouls.
         team_near = np.zeros(2, np.bool_)
         for t in range(2):

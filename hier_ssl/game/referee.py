@@ -55,6 +55,14 @@ NO_KEEPER = -1  # rules 4.3.6: a team without a keeper names an id that is not o
 # division (the paper's hardware challenge) have no league limit.
 MAX_ROBOTS: dict[str, int] = {"division_a": 11, "division_b": 6}
 
+# Rules 5.4 "Ball In And Out Of Play": after a free kick the game runs again, the defenders' distance to
+# the ball no longer owed, once the ball has moved this far from where it lay when the command came, or once
+# this long has passed since the command (Division A's teams get less time than Division B's). The game
+# controller keeps sending the free kick: each team tells "in play" itself.
+IN_PLAY_DISTANCE = 0.05  # m
+IN_PLAY_TIME_B = 10.0  # s, Division B (and fields of no division)
+IN_PLAY_TIME_A = 5.0  # s, Division A
+
 
 def check_commands(command: np.ndarray) -> np.ndarray:
     """``command`` as an int array; a ValueError names the first command the game does not play."""
@@ -88,6 +96,23 @@ def is_running(command: np.ndarray) -> np.ndarray:
     return (command == NORMAL_START) | (command == FORCE_START)
 
 
+def ball_in_play(
+    command: np.ndarray,
+    since: np.ndarray,
+    ball: np.ndarray,
+    ball_at_command: np.ndarray,
+    division_a: bool | np.ndarray = False,
+) -> np.ndarray:
+    """(N,) bool: the free kick ``command`` (N,) has put the ball in play (rules 5.4): the ball at ``ball``
+    (N, 2) m has moved at least ``IN_PLAY_DISTANCE`` from ``ball_at_command`` (N, 2), or ``since`` (N,) s
+    have passed since the command, at least ``IN_PLAY_TIME_A`` in Division A (``division_a``), else
+    ``IN_PLAY_TIME_B``. False for every other command: a running game has no restriction to lift, a
+    stoppage never ends by the ball."""
+    moved = np.linalg.norm(np.asarray(ball, float) - np.asarray(ball_at_command, float), axis=-1)
+    limit = np.where(division_a, IN_PLAY_TIME_A, IN_PLAY_TIME_B)
+    return is_free_kick(command) & ((moved >= IN_PLAY_DISTANCE) | (np.asarray(since) >= limit))
+
+
 def favoured_team(command: np.ndarray) -> np.ndarray:
     """The team a free kick or ball placement is for (YELLOW or BLUE), -1 where the command favours none.
 
@@ -99,7 +124,9 @@ def favoured_team(command: np.ndarray) -> np.ndarray:
 class RefereeState:
     """What the referee has said on N fields: the command (N,) int, the ball placement position (N, 2) m
     (read during a ball placement), each team's keeper id (N, 2) (``NO_KEEPER`` for none) and whether blue
-    defends the goal on positive x (N,) bool (the message's ``blue_team_on_positive_half``).
+    defends the goal on positive x (N,) bool (the message's ``blue_team_on_positive_half``), and whether a
+    free kick's ball is in play (N,) bool (``ball_in_play``: the kick is then played as the running game,
+    its restrictions lifted, though the command stays the free kick).
 
     Build it with ``referee_state``, which checks it against a field."""
 
@@ -107,11 +134,16 @@ class RefereeState:
     placement: np.ndarray
     keeper: np.ndarray
     blue_on_positive_half: np.ndarray
+    in_play: np.ndarray
 
     def fields(self, idx: np.ndarray | list[int]) -> RefereeState:
         """The state of the fields ``idx`` (F,) ints alone (copies)."""
         return RefereeState(
-            self.command[idx], self.placement[idx], self.keeper[idx], self.blue_on_positive_half[idx]
+            self.command[idx],
+            self.placement[idx],
+            self.keeper[idx],
+            self.blue_on_positive_half[idx],
+            self.in_play[idx],
         )
 
 
@@ -123,6 +155,7 @@ def referee_state(
     placement: np.ndarray | None = None,
     keeper: np.ndarray | tuple[int, int] = (NO_KEEPER, NO_KEEPER),
     blue_on_positive_half: np.ndarray | bool = False,
+    in_play: np.ndarray | bool = False,
 ) -> RefereeState:
     """The referee's state of ``n`` fields (or as many as ``command`` has), every input broadcast to (N, ...).
 
@@ -130,7 +163,7 @@ def referee_state(
     (rules 2.1.1: the ball is placed on the field)."""
     command = check_commands(command)
     # N is the longest leading axis among the inputs that have one.
-    leading = [np.ndim(a) and np.shape(a)[0] for a in (command, blue_on_positive_half)]
+    leading = [np.ndim(a) and np.shape(a)[0] for a in (command, blue_on_positive_half, in_play)]
     leading += [np.ndim(a) == 2 and np.shape(a)[0] for a in (placement, keeper)]
     n = max(n, *leading)
     command = np.broadcast_to(command, (n,)).copy()
@@ -149,6 +182,7 @@ def referee_state(
         placement=place.copy(),
         keeper=np.broadcast_to(np.asarray(keeper, np.int64), (n, 2)).copy(),
         blue_on_positive_half=np.broadcast_to(np.asarray(blue_on_positive_half, bool), (n,)).copy(),
+        in_play=np.broadcast_to(np.asarray(in_play, bool), (n,)).copy(),
     )
 
 

@@ -90,7 +90,8 @@ def forbidden_zones(
       (8.4.3, a stadium).
 
     HALT forbids motion (``speed_limit``), not places. A free kick's zones hold until the ball is in play
-    (rules 5.4); the caller then moves the command on to FORCE_START, as the game controller's state does.
+    (rules 5.4, ``referee.in_play``): from then on the kick is the running game's, as FORCE_START's, though
+    the game controller still sends it.
     """
     n, m = referee.command.shape[0], robots.team.shape[0]
     kind = np.empty((n, m, len(SLOTS)), np.int64)
@@ -101,6 +102,7 @@ def forbidden_zones(
         referee.placement,
         referee.keeper,
         referee.blue_on_positive_half,
+        referee.in_play,
         np.ascontiguousarray(ball, np.float64),
         robots.team,
         robots.robot_id,
@@ -124,6 +126,7 @@ def _fill_zones(
     placement: np.ndarray,
     keeper: np.ndarray,
     blue_positive: np.ndarray,
+    in_play: np.ndarray,
     ball: np.ndarray,
     team: np.ndarray,
     robot_id: np.ndarray,
@@ -135,13 +138,15 @@ def _fill_zones(
     clearance: np.ndarray,
 ) -> None:
     """Writes ``forbidden_zones``'s ``kind``, ``shape`` and ``clearance`` (N, M, S) of the referee's
-    arrays (N, ...), the ball (N, 2) and the lineup's ``team`` and ``robot_id`` (M,); ``wall``: the walled
-    area's half extent, ``defense``: (half length, defense area depth, half its width) m."""
+    arrays (N, ...) (``in_play``: the free kicks whose ball is in play), the ball (N, 2) and the lineup's
+    ``team`` and ``robot_id`` (M,); ``wall``: the walled area's half extent, ``defense``: (half length,
+    defense area depth, half its width) m."""
     hx, hy = wall
     half_length, depth, half = defense
     for n in range(command.shape[0]):
         c = command[n]
-        free_kick = DIRECT_FREE_YELLOW <= c <= INDIRECT_FREE_BLUE
+        # A free kick whose ball is in play restricts no more than the running game (rules 5.4).
+        free_kick = DIRECT_FREE_YELLOW <= c <= INDIRECT_FREE_BLUE and not in_play[n]
         placing = BALL_PLACEMENT_YELLOW <= c <= BALL_PLACEMENT_BLUE
         favoured = c % 2 if free_kick or placing else -1
         blue_side = 1.0 if blue_positive[n] else -1.0

@@ -6,11 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hier_ssl.deploy.controller import MAX_AGE, Controller
+from hier_ssl.deploy.controller import MAX_AGE, Controller, InPlayWatch
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.deploy.wire import Detection, DetectionFrame, check_field, encode_geometry, parse_vision
 from hier_ssl.envs.registry import task_config
+from hier_ssl.game.referee import DIRECT_FREE_BLUE, FORCE_START, referee_state
 from hier_ssl.world.field import get_field
 from hier_ssl.world.physics import World
 
@@ -168,3 +169,23 @@ def test_a_manager_trained_on_a_division_field_plans_on_the_whole_of_it(name: st
         controller.set_target(0, [hx + 0.02, 0.0, 0.0])
     # The cameras' geometry of that field is the manager's own: accepted.
     check_field(parse_vision(encode_geometry(fld)), controller.view.field)
+
+
+def test_the_controller_tells_a_free_kicks_ball_in_play_itself() -> None:
+    # Rules 5.4: the game controller keeps sending the free kick; the ball 5 cm from where it was seen when
+    # the kick was first heard, or 10 s after (Division B), the kick is played as the running game.
+    field = get_field("division_b")
+    watch = InPlayWatch(field)
+    kick = referee_state(DIRECT_FREE_BLUE, field)
+    assert watch(kick, 0.0, (1.0, 0.0)) is kick  # heard with the ball at (1, 0)
+    assert not watch(referee_state(DIRECT_FREE_BLUE, field), 1.0, (1.04, 0.0)).in_play.any()  # a new message
+    played = watch(kick, 1.1, (1.06, 0.0))
+    assert played.in_play.tolist() == [True] and played.command.tolist() == [DIRECT_FREE_BLUE]
+    assert watch(kick, 1.2, (1.0, 0.0)) is played  # in play stays in play, one object while it holds
+    running = referee_state(FORCE_START, field)
+    assert watch(running, 2.0, (1.0, 0.0)) is running
+    # The next kick, its ball never seen: in play after 10 s of it, by the time alone.
+    assert not watch(kick, 3.0, None).in_play.any() and not watch(kick, 12.9, None).in_play.any()
+    assert watch(kick, 13.0, None).in_play.tolist() == [True]
+    division_a = InPlayWatch(get_field("division_a"))  # 5 s there
+    assert division_a(kick, 0.0, None) is kick and division_a(kick, 5.0, None).in_play.tolist() == [True]

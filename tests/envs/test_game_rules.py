@@ -34,6 +34,7 @@ from hier_ssl.game import (
     speed_limit,
 )
 from hier_ssl.game.legal import SPEED_MARGIN, row_rules
+from hier_ssl.game.referee import IN_PLAY_DISTANCE
 from hier_ssl.game.zones import STOP_SPEED
 from hier_ssl.manager.game_observation import (
     GAME_OBS_DIM,
@@ -112,9 +113,10 @@ def test_the_speed_guard_caps_our_robots_under_stop_as_the_deploy_controller_doe
 
 def _place(core: HierarchicalCore, pos: np.ndarray, vel: np.ndarray, ball: tuple[float, float]) -> None:
     """Robots of field 0 at ``pos`` (R, 2) moving at ``vel`` (R, 2), facing +x, sub-goals on themselves; the
-    ball at rest at ``ball``."""
+    ball at rest at ``ball``, where the command found it (not moved: not in play, rules 5.4)."""
     core.world.set_state([0], pos[None], np.zeros((1, len(pos))), vel[None])
     core.world.set_balls([0], np.array([[ball]]))
+    core.scenario.ball_at_command[0] = ball
     core.subgoal[0, :, 0:2], core.subgoal[0, :, 2] = pos[:2], 0.0
 
 
@@ -311,3 +313,25 @@ def test_half_the_defenders_at_a_free_kick_mark_an_attacker_goal_side() -> None:
     marked = np.take_along_axis(theirs, np.abs(gaps - MARK_DISTANCE).argmin(axis=-1)[..., None], axis=1)
     nearer = np.abs(target[..., 0] - our_goal[:, None]) < np.abs(marked[..., 0] - our_goal[:, None])
     assert nearer[marking].all()
+
+
+def test_no_defender_too_close_once_the_free_kicks_ball_has_moved() -> None:
+    # Rules 5.4: the opponents' "ball" robots push the ball; once it has moved 5 cm from where it lay when
+    # the free kick came (at the reset) it is in play, and a defender near it commits no foul.
+    settings = {"num_agents": 6, "num_obstacles": 6, "max_steps": 300, "frame_skip": 1}
+    core = HierarchicalCore(scenario_config("game_free_kick", **settings), 16, autoreset=False)
+    planner = make_planner("direct", core.config)
+    obs = core.reset(seed=0)
+    at_command = core.world.ball.pos[:, 0].copy()
+    moved = np.zeros(core.num_fields, bool)  # in play stays in play: the ball rolling back changes nothing
+    action, close, fouls = np.zeros(core.active.shape + (core.act_dim,)), KINDS.index("defender_too_close"), 0
+    while core.active.any():
+        action[core.active] = planner(obs[core.active])
+        before = core.scenario.fouls[..., close].sum(axis=1)
+        obs = core.step(action).obs
+        moved |= np.linalg.norm(core.world.ball.pos[:, 0] - at_command, axis=-1) >= IN_PLAY_DISTANCE
+        called = core.scenario.fouls[..., close].sum(axis=1) - before
+        assert not (called & moved).any(), np.flatnonzero(called & moved)
+        np.testing.assert_array_equal(core.scenario.referee.in_play, moved)
+        fouls += called.sum()
+    assert moved.any() and fouls > 0  # the ball moves, and a defender too close before it did is fouled

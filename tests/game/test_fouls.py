@@ -303,3 +303,16 @@ def test_fields_are_independent() -> None:
             clocks, state, ROBOTS, FIELD, motion, motion, np.zeros((2, 2)), NO_CONTACTS, DT
         )
     assert r.by_team[:, ref.YELLOW, fl.OPPONENT_DEFENSE_AREA].tolist() == [1, 0]
+
+
+def test_no_defender_too_close_once_the_free_kicks_ball_is_in_play() -> None:
+    # Y0 0.3 m from the ball at blue's free kick: too close while the ball lies where it was, not once it
+    # is in play (rules 5.4).
+    motion = _motion({Y0: (0.3, 0.0)})
+    for in_play, fouled in ((False, 1), (True, 0)):
+        state = ref.referee_state(ref.DIRECT_FREE_BLUE, FIELD, keeper=(7, 7), in_play=in_play)
+        _, r = fl.step_fouls(
+            fl.new_clocks(1, 4), state, ROBOTS, FIELD, motion, motion, np.zeros((1, 2)), [], DT
+        )
+        assert r.by_team[0, ref.YELLOW, fl.DEFENDER_TOO_CLOSE] == fouled
+        assert r.by_robot[0, Y0, fl.DEFENDER_TOO_CLOSE] == fouled and r.counter[0, ref.YELLOW] == fouled

@@ -134,3 +134,48 @@ def test_the_state_holds_integer_keepers_and_boolean_sides() -> None:
     state = ref.referee_state(ref.STOP, DIV_B, keeper=np.array([3.0, 5.0]), blue_on_positive_half=1)
     assert state.keeper.dtype == np.int64 and state.keeper.tolist() == [[3, 5]]
     assert state.blue_on_positive_half.dtype == bool and state.blue_on_positive_half.tolist() == [True]
+
+
+# -- rules 5.4: a free kick's ball in play --------------------------------------------------------------
+
+
+def test_a_free_kicks_ball_is_in_play_once_it_moved_5_cm() -> None:
+    at = np.zeros((3, 2))
+    ball = np.array([(0.04, 0.0), (0.0, 0.06), (0.03, 0.04)])  # 0.04, 0.06 and 0.05 m from where it was
+    since = np.zeros(3)
+    kick = np.full(3, ref.DIRECT_FREE_BLUE)
+    assert ref.ball_in_play(kick, since, ball, at).tolist() == [False, True, True]
+    indirect = np.full(3, ref.INDIRECT_FREE_YELLOW)
+    assert ref.ball_in_play(indirect, since, ball, at).tolist() == [False, True, True]
+
+
+def test_a_free_kicks_ball_is_in_play_after_10_s_in_division_b_5_s_in_division_a() -> None:
+    kick, ball = np.full(4, ref.DIRECT_FREE_YELLOW), np.ones((4, 2))  # a ball that never moved
+    since = np.array([4.9, 5.0, 9.9, 10.1])
+    assert ref.ball_in_play(kick, since, ball, ball).tolist() == [False, False, False, True]
+    assert ref.ball_in_play(kick, since, ball, ball, division_a=True).tolist() == [False, True, True, True]
+    per_field = np.array([True, False, True, False])
+    assert ref.ball_in_play(kick, since, ball, ball, per_field).tolist() == [False, False, True, True]
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ref.HALT,
+        ref.STOP,
+        ref.NORMAL_START,
+        ref.FORCE_START,
+        ref.BALL_PLACEMENT_YELLOW,
+        ref.BALL_PLACEMENT_BLUE,
+    ],
+)
+def test_only_a_free_kick_puts_the_ball_in_play(command: int) -> None:
+    moved = ref.ball_in_play(np.array([command]), np.array([60.0]), np.array([(1.0, 0.0)]), np.zeros((1, 2)))
+    assert moved.tolist() == [False]
+
+
+def test_in_play_is_kept_per_field_and_false_unless_given() -> None:
+    state = ref.referee_state(ref.DIRECT_FREE_BLUE, DIV_B, n=3)
+    assert state.in_play.tolist() == [False] * 3 and state.in_play.dtype == bool
+    state = ref.referee_state(ref.DIRECT_FREE_BLUE, DIV_B, in_play=np.array([True, False, True]))
+    assert state.command.shape == (3,) and state.fields([2, 1]).in_play.tolist() == [True, False]

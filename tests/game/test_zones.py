@@ -193,3 +193,17 @@ def test_the_compiled_zones_agree_with_the_referee_functions() -> None:
     assert np.array_equal(zones.kind[..., z.BALL] == z.CAPSULE, keep_off)
     end = np.where(ref.is_placement(command)[:, None], state.placement, ball)
     assert np.array_equal(zones.shape[..., z.BALL, :], np.broadcast_to(np.c_[ball, end][:, None], (n, 12, 4)))
+
+
+@pytest.mark.parametrize("command", FREE_KICKS)
+def test_a_free_kick_whose_ball_is_in_play_keeps_the_running_games_zones(command: int) -> None:
+    # Rules 5.4: once the ball is in play no robot owes the ball 0.5 m or the opponent's defense area
+    # 0.2 m, as in FORCE_START; its own defense area and the walls stay.
+    state = ref.referee_state(
+        np.array([command, command, ref.FORCE_START]), FIELD, in_play=[False, True, False]
+    )
+    zones = z.forbidden_zones(state, np.zeros((3, 2)), FIELD, ROBOTS)
+    assert (zones.kind[1] == zones.kind[2]).all() and (zones.kind[0] != zones.kind[2]).any()
+    assert (zones.kind[1, :, z.OWN_DEFENSE] == z.BOX).all() and (
+        zones.kind[1, :, z.BOUNDARY] == z.KEEP_IN
+    ).all()

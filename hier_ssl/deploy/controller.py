@@ -9,17 +9,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import fields, replace
 
 import numpy as np
 
-from hier_ssl.deploy.game import game_rules, labelled_lineup
+from hier_ssl.deploy.game import InPlayWatch, game_rules, labelled_lineup, same_call
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView
 from hier_ssl.deploy.wire import Command, DetectionFrame
 from hier_ssl.game.legal import SPEED_MARGIN, RowRules, cap_speed
-from hier_ssl.game.referee import RefereeState, ball_in_play, is_free_kick
-from hier_ssl.world.field import Field
+from hier_ssl.game.referee import RefereeState
 from hier_ssl.world.physics import RobotState
 
 MAX_AGE = 0.05  # s: a robot unseen for longer is stopped (the loop ticks at most 35 ms apart: < 100 ms)
@@ -47,40 +45,6 @@ def check_target(robot: object, target: object, robots: Sequence[int], reach: np
             f"target of robot {robot} at {values[0:2].tolist()} is outside the walls (+-{reach.tolist()} m)"
         )
     return values
-
-
-def same_call(a: RefereeState | None, b: RefereeState | None) -> bool:
-    """Whether two referee states say the same (None: no referee); a placement not given is NaN in both."""
-    if a is None or b is None:
-        return a is b
-    return all(np.array_equal(getattr(a, f.name), getattr(b, f.name), equal_nan=True) for f in fields(a))
-
-
-class InPlayWatch:
-    """Rules 5.4 as a team's own software tells it, for one field: the game controller keeps sending a free
-    kick after its ball is in play, so the state it sends gains ``in_play`` here (``ball_in_play``), once
-    the ball is ``IN_PLAY_DISTANCE`` from where vision saw it when the kick was first heard, or the kick's
-    time has passed since then. A ball not seen then: the time alone (the restrictions kept longer, never a
-    foul). Called each period with the state received; returns it, or one object with ``in_play`` set."""
-
-    def __init__(self, field: Field) -> None:
-        self.division_a = field.name == "division_a"
-        self._kick: tuple[RefereeState, float, np.ndarray] | None = None  # the kick as heard, when, its ball
-        self._played: RefereeState | None = None
-
-    def __call__(self, referee: RefereeState, now: float, ball: tuple[float, float] | None) -> RefereeState:
-        if not is_free_kick(referee.command).all():
-            self._kick = self._played = None
-            return referee
-        seen = None if ball is None else np.asarray(ball, dtype=float)[None]
-        if self._kick is None or not same_call(self._kick[0], referee):  # a new kick (or a new call of it)
-            self._kick, self._played = (referee, now, np.full((1, 2), np.nan) if seen is None else seen), None
-        if self._played is None:
-            _, start, at = self._kick
-            since = np.array([now - start])
-            if ball_in_play(referee.command, since, at if seen is None else seen, at, self.division_a).all():
-                self._played = replace(referee, in_play=np.ones_like(referee.in_play))
-        return referee if self._played is None else self._played
 
 
 class Controller:

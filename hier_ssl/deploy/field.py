@@ -187,7 +187,7 @@ class FieldServer:
                 continue
             next_step += STEP
             self.capture_time = time.time()  # the world as it stands now: stepped below, or still
-            self.referee.call()
+            self.referee.call(self._ball())
             if sent is None and now - start >= self.settle:
                 self._send_targets(control)
                 self._read_grsim()  # commands sent before the targets were taken: not the first ones
@@ -239,7 +239,7 @@ class FieldServer:
         camera's frames whose capture falls in the step's period at the camera's rate (one or two at 60
         Hz, always at least one: the controller ticks on them); the next frame number."""
         self.capture_time = epoch + step * STEP
-        self.referee.call()
+        self.referee.call(self._ball())
         t0, t1 = (round(k * STEP * self.cameras.rate, 9) for k in (step, step + 1))
         pending: list[tuple[float, int, bytes]] = []
         for _ in range(math.ceil(t1) - math.ceil(t0)):

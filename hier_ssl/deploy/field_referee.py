@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from hier_ssl.deploy.game import labelled_lineup
+from hier_ssl.deploy.game import InPlayWatch, labelled_lineup
 from hier_ssl.deploy.net import LOOPBACK
 from hier_ssl.deploy.referee_script import Call, GameController, ScriptedReferee
 from hier_ssl.envs.core import HierarchicalCore
@@ -51,22 +51,28 @@ class FieldReferee:
             )
         self.core, self.labels, self.team, self.out, self.step = core, labels, team, out, step
         self.script = None if script is None else ScriptedReferee(script, core.field)
+        self.in_play = InPlayWatch(core.field)
         self.game_controller, self.to = GameController(), (LOOPBACK, port)
         self.players = labelled_lineup(labels)
         self.fouls = np.zeros((len(labels), len(KINDS)), dtype=np.int64)  # by robot and kind, the run's
 
     def restart(self) -> None:
-        """A new episode: the game controller's counters and, under a script, the fouls' clocks."""
+        """A new episode: the game controller's counters and, under a script, the fouls' clocks and its free
+        kicks' ball in play."""
         self.game_controller.restart()
+        self.in_play = InPlayWatch(self.core.field)
         if self.script is not None:
             self.clocks, self.episode_fouls = new_clocks(1, len(self.labels)), np.zeros_like(self.fouls)
             self.touching = np.zeros_like(self.core.world.robot_contacts)
 
-    def call(self) -> None:
+    def call(self, ball: tuple[float, float] | None) -> None:
         """The referee's message at the episode's time, sent now: the script's or the game scenario's state
-        (neither: nothing)."""
+        (neither: nothing). Under a script the fouls are called under its state with the free kick's ball
+        in play once it is (``InPlayWatch``, from the ``ball`` where it lies): the game controller goes on
+        sending the kick, and a defender near a ball in play commits no foul (rules 5.4)."""
         if self.script is not None:
-            self.rules = self.script.at(self.core.steps[0] * self.step)
+            now = self.core.steps[0] * self.step
+            self.rules = self.in_play(self.script.at(now), now, ball)
         elif self.game:
             self.rules = self.core.scenario.referee_of(None)
         else:

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hier_ssl.deploy.controller import MAX_AGE, Controller, InPlayWatch
+from hier_ssl.deploy.controller import MAX_AGE, Controller
+from hier_ssl.deploy.game import InPlayWatch
 from hier_ssl.deploy.tracker import Tracker
 from hier_ssl.deploy.view import DeployView, manager_task
 from hier_ssl.deploy.wire import Detection, DetectionFrame, check_field, encode_geometry, parse_vision

@@ -103,7 +103,7 @@ def test_the_field_server_calls_a_stop_speed_foul_with_the_envs_rules(speed: flo
         live = server._reset(0)
         server.command[0] = (speed, 0.0, -speed)
         for _ in range(round((0.1 + GRACE) / STEP) + 25):
-            server.referee.call()
+            server.referee.call(server._ball())
             now = time.monotonic()
             server.commanded[:] = now
             live, over = server._step(live, now)
@@ -112,6 +112,34 @@ def test_the_field_server_calls_a_stop_speed_foul_with_the_envs_rules(speed: flo
         server.close()
     assert not over and record["fouls"] == fouls
     assert server.referee.foul_counts() == ({"blue 0": fouls} if fouls else {})
+
+
+def test_the_field_servers_script_lifts_a_free_kicks_restrictions_once_its_ball_is_in_play() -> None:
+    # Their free kick (yellow's; ours blue) with our robot held 0.3 m from the still ball: too close, a foul
+    # every 2 s of the team's grace, until the ball is in play by the time alone (10 s in Division B, rules
+    # 5.4); the script goes on saying the kick, and from then on no foul is called.
+    config = task_config("proposed")
+    script = parse_script("0.0:DIRECT_FREE_YELLOW", get_field(config.field))
+    server = FieldServer(config, vision_port=9, seed=6, referee=script, referee_port=9)
+    counts = []
+    try:
+        live = server._reset(0)
+        server.ball = tuple((server.core.world.state.pos[0, 0] + (0.3, 0.0)).tolist())
+        for step in range(round(13.0 / STEP)):
+            server.referee.call(server._ball())
+            now = time.monotonic()
+            server.commanded[:] = now
+            live, _ = server._step(live, now)
+            counts.append((step * STEP, server.referee.rules.in_play[0], server.referee.episode_fouls.sum()))
+        again = server._reset(1)
+        server.referee.call(server._ball())
+    finally:
+        server.close()
+    before = [fouls for t, in_play, fouls in counts if not in_play]
+    after = [fouls for t, in_play, fouls in counts if in_play]
+    assert [t for t, in_play, _ in counts if in_play][0] == pytest.approx(10.0, abs=2 * STEP)
+    assert before[-1] >= 3 and after == [before[-1]] * len(after) and len(after) > 100
+    assert again.all() and not server.referee.rules.in_play.any()  # the next episode's kick starts afresh
 
 
 class Refereed:

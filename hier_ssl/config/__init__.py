@@ -22,6 +22,7 @@ from hier_ssl.config.schema import (
     UnknownSettingError,
     did_you_mean,
     dump_config,
+    error_message,
     validate_config,
 )
 
@@ -39,5 +40,6 @@ __all__ = [
     "UnknownSettingError",
     "did_you_mean",
     "dump_config",
+    "error_message",
     "validate_config",
 ]

@@ -17,6 +17,7 @@ from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, Field, ValidationError, model_validator
+from pydantic_core import ErrorDetails
 
 from hier_ssl.config.learners import CandidatesConfig, PPOConfig, SACConfig, Strict
 
@@ -270,6 +271,16 @@ def _hint(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
     return "" if section is None else did_you_mean(section, str(loc[-1]))
 
 
+def error_message(error: ErrorDetails) -> str:
+    """One of a ValidationError's errors as words: pydantic's own messages ("Input should be 'drawn' or
+    'team'") with the value that was given; our validators' (which name it) without their "Value error, "."""
+    msg = error["msg"].removeprefix("Value error, ")
+    given = error.get("input")
+    if error["type"] not in ("value_error", "extra_forbidden", "missing") and not isinstance(given, dict):
+        msg += f", not {given!r}"
+    return msg
+
+
 def _format(err: ValidationError, root: str, model: type[BaseModel]) -> str:
     first = err.errors()[0]
     path = ".".join(str(p) for p in (root, *first["loc"]) if p != "")
@@ -277,7 +288,7 @@ def _format(err: ValidationError, root: str, model: type[BaseModel]) -> str:
     extra = "" if len(err.errors()) == 1 else f" (+{len(err.errors()) - 1} more)"
     # Our validators' messages start with the key they are about ("field: unknown preset ..."): that key
     # joins the path. Pydantic's "Value error, " prefix adds nothing.
-    msg = first["msg"].removeprefix("Value error, ")
+    msg = error_message(first)
     if match := re.match(r"([A-Za-z_][\w.]*): (.*)", msg, re.DOTALL):
         path = ".".join(p for p in (path, match.group(1)) if p)
         msg = match.group(2)

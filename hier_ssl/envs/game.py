@@ -13,8 +13,9 @@ contact that is no crash stays a collision. The opponents are an ``OpponentTeam`
 in HALT every command is zero.
 
 The four scenarios are ``hier_ssl.envs.game_scenarios``; where a reset puts the robots, the ball and the
-role positions is ``hier_ssl.envs.game_places``, whose ``MARK_DISTANCE``, ``GamePlacement`` and
-``rest_point`` this module's ``__all__`` names with its own (the game's public names in one place).
+role positions is ``hier_ssl.envs.game_places``, whose ``MARK_DISTANCE``, ``GamePlacement``,
+``assign_roles`` and ``rest_point`` this module's ``__all__`` names with its own (the game's public
+names in one place).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from hier_ssl.config import ScenarioConfig, Strict
-from hier_ssl.envs.game_places import MARK_DISTANCE, GamePlacement, GamePlaces, rest_point
+from hier_ssl.envs.game_places import MARK_DISTANCE, GamePlacement, GamePlaces, assign_roles, rest_point
 from hier_ssl.envs.game_render import draw_game
 from hier_ssl.envs.opponents import OpponentTeam
 from hier_ssl.envs.scenario import Placement
@@ -75,6 +76,10 @@ class GameOptions(Strict):
     opponent_roles: tuple[str, ...] = ("mark", "cover", "ball", "free")
     ball_speed: tuple[float, float] = (0.0, 0.0)  # m/s of the ball at the reset, uniform, any heading
     target_margin: float = Field(0.15, ge=0)  # m a target and a start keep beyond every zone's clearance
+    # Which of our robots takes which role position: "drawn", each the one drawn for it; "team", the least
+    # total distance from where they stand when the positions come (the keeper keeps its own), as a team's
+    # role assignment does, so that no two straight paths cross.
+    assign: Literal["drawn", "team"] = "drawn"
     # Our robots' commands are capped at this share of the referee's speed limit, as the robot's own
     # software does in every SSL team (and the deploy controller, with the same ``SPEED_MARGIN``): the rules
     # foul the robot, not the planner. None: no cap, for a manager that is to learn the limit itself.
@@ -233,7 +238,8 @@ class GameScenario(GamePlaces):
             self.ball_at_command[came] = ball.pos[:, 0]
             rest = rest_point(ball.pos[:, 0], ball.vel[:, 0], world.ball_spec.deceleration, self.field)
             theirs = world.state.pos[came, self.num_agents :]
-            core.set_targets(came, self._targets(core.rng, referee, rest, mirror, theirs))
+            ours = world.state.pos[came, : self.num_agents]
+            core.set_targets(came, self._targets(core.rng, referee, rest, mirror, theirs, ours))
         state = world.state
         moves = self.team.commands(state, world.ball.pos[:, 0], self.referee, self.lineup, steps, core.rng)
         np.copyto(command[:, self.num_agents :], moves, where=playing[:, None, None])
@@ -360,6 +366,7 @@ __all__ = [
     "GameOptions",
     "GamePlacement",
     "GameScenario",
+    "assign_roles",
     "game_outcome",
     "rest_point",
 ]

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from hier_ssl.envs.scenario import Placement
 from hier_ssl.envs.scenarios import FieldScenario
@@ -42,6 +43,18 @@ def rest_point(pos: np.ndarray, vel: np.ndarray, deceleration: float, field: Fie
     ``deceleration`` m/s^2, if nothing stops them first, held inside ``field``'s playing area."""
     rolled = pos + vel * np.linalg.norm(vel, axis=-1, keepdims=True) / (2 * deceleration)
     return np.clip(rolled, [-field.half_length, -field.half_width], [field.half_length, field.half_width])
+
+
+def assign_roles(pos: np.ndarray, target: np.ndarray, keeper: int = -1) -> np.ndarray:
+    """``target`` (F, M, D) with its rows handed to the robots at ``pos`` (F, M, 2) by least total distance
+    per field (the assignment problem, solved exactly), robot ``keeper`` keeping its own (-1: none)."""
+    out = target.copy()
+    free = np.array([i for i in range(target.shape[1]) if i != keeper])
+    for f in range(len(target)):
+        cost = np.linalg.norm(pos[f][free][:, None] - target[f][free][None, :, :2], axis=-1)
+        robots, roles = linear_sum_assignment(cost)
+        out[f, free[robots]] = target[f, free[roles]]
+    return out
 
 
 class GamePlaces(FieldScenario):
@@ -123,10 +136,12 @@ class GamePlaces(FieldScenario):
         ball: np.ndarray,
         mirror: np.ndarray,
         theirs: np.ndarray,
+        ours: np.ndarray,
     ) -> np.ndarray:
-        """Our robots' role positions (F, M, 5) under ``referee`` with the ball at ``ball`` (F, 2) and the
-        opponents at ``theirs`` (F, K, 2): the keeper before its goal, a share marking opponents
-        (``_marks``), the others in ``target_box``, all legal, facing the ball, at rest."""
+        """Our robots' role positions (F, M, 5) under ``referee`` with the ball at ``ball`` (F, 2), the
+        opponents at ``theirs`` (F, K, 2) and ours at ``ours`` (F, M, 2): the keeper before its goal, a share
+        marking opponents (``_marks``), the others in ``target_box``, all legal, facing the ball, at rest;
+        handed out as ``options.assign`` says."""
         m = self.num_agents
         zones = forbidden_zones(referee, ball, self.field, self.ours)
         low, high = (np.array(a) for a in self._box(self.target_box, m))
@@ -140,6 +155,8 @@ class GamePlaces(FieldScenario):
         target[..., 0:2] = pos
         to_ball = ball[:, None] - pos
         target[..., 2] = np.arctan2(to_ball[..., 1], to_ball[..., 0])
+        if self.options.assign == "team":
+            return assign_roles(ours, target, keeper)
         return target
 
     def reset_world_at(self, num_fields: int, rng: np.random.Generator) -> GamePlacement:
@@ -174,7 +191,7 @@ class GamePlaces(FieldScenario):
         return GamePlacement(
             pos,
             rng.uniform(-np.pi, np.pi, (f, m + k)),
-            self._targets(rng, played, ball[:, 0], mirror, theirs),
+            self._targets(rng, played, ball[:, 0], mirror, theirs, ours),
             ball_pos=ball,
             ball_vel=ball_vel,
             blue_on_positive_half=blue_positive,
@@ -187,4 +204,4 @@ class GamePlaces(FieldScenario):
         return rng.uniform(*self._box(self.placement_box, 1), (len(mirror), 1, 2))[:, 0] * mirror[:, 0]
 
 
-__all__ = ["MARK_DISTANCE", "Box", "GamePlacement", "GamePlaces", "rest_point"]
+__all__ = ["MARK_DISTANCE", "Box", "GamePlacement", "GamePlaces", "assign_roles", "rest_point"]

@@ -23,6 +23,7 @@ from hier_ssl.config import (
     TrainConfig,
     UnknownSettingError,
     did_you_mean,
+    error_message,
     validate_config,
 )
 from hier_ssl.config.files import apply_overrides, find_config, load_yaml
@@ -100,7 +101,7 @@ def check_task(config: TaskConfig) -> None:
     except ValidationError as err:  # the class's own Options model
         first = err.errors()[0]
         key = ".".join(str(p) for p in ("options", *first["loc"]))
-        raise ValueError(f"{key}: {first['msg']}") from None
+        raise ValueError(f"{key}: {error_message(first)}") from None
 
 
 def _checked(config: TaskConfig, root: str) -> TaskConfig:

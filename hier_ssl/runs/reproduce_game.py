@@ -3,7 +3,7 @@ planners on each SSL game scenario's held-out episodes, and write ``results/game
 
 The scenarios are ``GAME_SCENARIOS``, each defined by ``configs/game/<scenario>.yaml`` (its scenario
 section: the episodes every manager of the scenario plays). The learned game configs are the other files
-of ``configs/game/`` (``stop_residual.yaml``, ``stop_candidates.yaml``), each on the scenario it names.
+of ``configs/game/`` (``stop_residual.yaml``, ``match_residual.yaml``, ...), each on the scenario it names.
 Runs train as the other families' do (``hier_ssl.runs.reproduce.train_runs``: in ``OUT/runs/<name>-s<seed>``,
 finished ones skipped, killed ones resumed) and their evaluations are cached in ``OUT/evals/`` beside
 theirs, the planners' too (a planner at frame skip 1 costs minutes a scenario).

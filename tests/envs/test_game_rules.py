@@ -4,6 +4,8 @@ manager observation and read back from it, a scripted planner under them, the re
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -16,6 +18,7 @@ from hier_ssl.envs.game import (
     IN_PLAY,
     MARK_DISTANCE,
     SUCCEEDED,
+    assign_roles,
     game_outcome,
     rest_point,
 )
@@ -76,6 +79,7 @@ def _core(name: str, fields: int = 1, **settings: object) -> HierarchicalCore:
         ),
         ("game_match", {"obstacles": {"behaviour": "random_walk"}}, "obstacles.behaviour: 'random_walk'"),
         ("game_stop", {"hit_mode": "replace"}, "hit_mode: 'replace'"),
+        ("game_ball_placement", {"options": {"assign": "nearest"}}, "options.assign: .*'nearest'"),
         (
             "game_stop",
             {"options": {"command_at": [2.0, 1.0]}},
@@ -335,3 +339,57 @@ def test_no_defender_too_close_once_the_free_kicks_ball_has_moved() -> None:
         np.testing.assert_array_equal(core.scenario.referee.in_play, moved)
         fouls += called.sum()
     assert moved.any() and fouls > 0  # the ball moves, and a defender too close before it did is fouled
+
+
+def _crossings(start: np.ndarray, end: np.ndarray) -> int:
+    """How many pairs of the straight paths start -> end (F, M, 2) cross, over every field."""
+    d = end - start
+    rel = start[:, None] - start[:, :, None]  # (F, i, j): from robot i's start to robot j's
+
+    def side(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    # j's ends either side of i's path, and i's ends either side of j's.
+    j_ends = side(d[:, :, None], rel) * side(d[:, :, None], rel + d[:, None])
+    i_ends = side(d[:, None], -rel) * side(d[:, None], -rel + d[:, :, None])
+    crossing = (j_ends < 0) & (i_ends < 0)
+    return int(np.triu(crossing, k=1).sum())
+
+
+def test_assign_roles_finds_the_least_total_distance_keeper_fixed() -> None:
+    rng = np.random.default_rng(1)
+    pos, target = rng.uniform(-3, 3, (40, 5, 2)), rng.uniform(-3, 3, (40, 5, 5))
+    out = assign_roles(pos, target, keeper=2)
+    np.testing.assert_array_equal(out[:, 2], target[:, 2])
+    for f in range(40):  # every ordering of the other four, by brute force
+        orders = [p for p in itertools.permutations(range(5)) if p[2] == 2]
+        costs = [np.linalg.norm(pos[f] - target[f, list(p), :2], axis=-1).sum() for p in orders]
+        assert np.linalg.norm(pos[f] - out[f, :, :2], axis=-1).sum() == pytest.approx(min(costs), abs=1e-12)
+        assert sorted(map(tuple, out[f])) == sorted(map(tuple, target[f]))
+
+
+def test_a_team_assignment_hands_out_the_drawn_positions_with_no_paths_crossing() -> None:
+    drawn = make_scenario(scenario_config("game_ball_placement")).reset_world_at(50, np.random.default_rng(0))
+    team_config = scenario_config("game_ball_placement", options={"assign": "team"})
+    team = make_scenario(team_config).reset_world_at(50, np.random.default_rng(0))
+    np.testing.assert_array_equal(team.pos, drawn.pos)  # the same draws: only who goes where differs
+    np.testing.assert_array_equal(team.target[:, 0], drawn.target[:, 0])  # the keeper keeps its own
+    ours = drawn.pos[:, :6]
+    assert _crossings(ours[:, 1:], drawn.target[:, 1:, :2]) > 50
+    assert _crossings(ours[:, 1:], team.target[:, 1:, :2]) == 0
+    np.testing.assert_array_equal(np.sort(team.target, axis=1), np.sort(drawn.target, axis=1))
+
+
+def test_stops_role_positions_are_assigned_from_where_the_robots_are_when_it_comes() -> None:
+    settings = {
+        "num_agents": 6,
+        "num_obstacles": 6,
+        "options": {"command_at": [0.25, 0.25], "assign": "team"},
+    }
+    core = _core("game_stop", fields=8, **settings)
+    for _ in range(10):  # STOP comes at step 10, its positions handed out from where the robots stand
+        core.step(np.zeros((8, 6, core.act_dim)))
+    at_command, before = core.world.state.pos[:, 1:6].copy(), core.target.copy()
+    core.step(np.zeros((8, 6, core.act_dim)))
+    assert (core.scenario.referee.command == STOP).all() and not np.array_equal(core.target, before)
+    assert _crossings(at_command, core.target[:, 1:, :2]) == 0

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from hier_ssl import cli
-from hier_ssl.config.files import config_dir
+from hier_ssl.config.files import config_dir, load_yaml
 from hier_ssl.evaluation.compare import compare
 from hier_ssl.runs import reproduce_game
 from hier_ssl.runs.reproduce_game import GAME_SCENARIOS, learned_configs, plan_game, select_game
@@ -27,13 +27,16 @@ TINY = [
 def test_the_learned_game_configs_and_what_only_selects() -> None:
     assert set(learned_configs()) >= {"stop_residual", "stop_candidates"}
     assert not set(learned_configs()) & set(GAME_SCENARIOS)
+    for scenario in GAME_SCENARIOS:  # issue 54, item 1: a learned manager on each, deciding every step
+        rates = [load_yaml(path)["scenario"]["frame_skip"] for path in select_game([scenario])[1].values()]
+        assert 1 in rates, scenario
     scenarios, configs = select_game()
     assert scenarios == list(GAME_SCENARIOS) and configs == learned_configs()
     scenarios, configs = select_game(["game_stop"])
     assert scenarios == ["game_stop"] and {"stop_residual", "stop_candidates"} <= set(configs)
     assert select_game(["game/stop_residual", "game_match"]) == (
         ["game_stop", "game_match"],
-        {"stop_residual": config_dir() / "game" / "stop_residual.yaml"},
+        {name: config_dir() / "game" / f"{name}.yaml" for name in ("match_residual", "stop_residual")},
     )
     with pytest.raises(ValueError, match="--only 'game_stp': not a game scenario.*known: game_stop"):
         select_game(["game_stp"])

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 import subprocess
 import sys
 from pathlib import Path
+
+import numpy as np
 
 EXAMPLES = Path(__file__).parents[1] / "examples"
 
@@ -69,6 +72,45 @@ def test_shared_policy_scenario(tmp_path: Path) -> None:
         outcomes = dict(part.split() for part in line.split(", ")[2:])
         assert set(outcomes) == {"manager_0", "manager_1", "manager_2"}
         assert set(outcomes.values()) <= {"success", "collision", "timeout"}
+
+
+def test_stuck_robots(tmp_path: Path) -> None:
+    config = EXAMPLES.parent / "configs" / "scenarios" / "formation_residual.yaml"
+    lines = _run(
+        "stuck_robots.py",
+        "sampling",
+        "--scenario",
+        str(config),
+        "--episodes",
+        "30",
+        "--seed",
+        "8",
+        cwd=tmp_path,
+    )
+    counts = dict(zip(*[iter(lines[0].replace("timed out", "timed_out").split())] * 2, strict=True))
+    robots, arrived, collided, fouled, late = map(int, counts.values())
+    assert robots == 180 and arrived + collided + fouled + late == robots and arrived >= 170
+    if late:
+        assert int(lines[1].split()[1]) <= late
+        parked = [int(x) for x in lines[2].split("[")[1].split("]")[0].split(",")]
+        assert sum(parked) == late
+
+
+def test_stuck_robots_counts_jumps_in_the_window_only() -> None:
+    spec = importlib.util.spec_from_file_location("stuck_robots", EXAMPLES / "stuck_robots.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    # Robot 0's sub-goal flips between two points 0.9 m apart (over a half length of 4.5 m), robot 1's stays.
+    flip = iter(np.tile([[0.1, 0.0], [-0.1, 0.0]], (10, 1)))
+
+    def manager(obs: np.ndarray) -> np.ndarray:
+        return np.array([next(flip), [0.5, 0.5]])[: len(obs)]
+
+    watched = module.Watched(manager, scale=4.5, jump=0.45, limit=20, window=8)
+    watched.forget(2)
+    for _ in range(20):
+        watched(np.zeros((2, 3)), rows=np.arange(2))
+    assert watched.jumps.tolist() == [8, 0]
 
 
 def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:

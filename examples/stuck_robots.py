@@ -25,26 +25,27 @@ from hier_ssl.evaluation.compare import is_planner, load_manager, run_config
 
 
 class Watched:
-    """A manager that counts, per robot, its sub-goal's jumps over the last ``window`` control steps of
-    an episode of ``limit`` (frame skip 1: one decision a control step)."""
+    """A manager that counts, per robot of ``core``, the jumps of its sub-goal in force (m, field frame,
+    whatever the action's frame) over the last ``window`` control steps of an episode of ``limit`` (frame
+    skip 1: one decision a control step)."""
 
-    def __init__(self, manager, scale: float, jump: float, limit: int, window: int) -> None:
-        self.manager, self.scale, self.jump, self.late = manager, scale, jump, limit - window
+    def __init__(self, manager, core, jump: float, limit: int, window: int) -> None:
+        self.manager, self.core, self.jump, self.late = manager, core, jump, limit - window
+        self.remembers = callable(getattr(manager, "forget", None))  # a manager with a memory per robot
 
     def forget(self, count: int) -> None:
         self.last = np.full((count, 2), np.nan)
         self.jumps, self.steps = np.zeros(count, int), np.zeros(count, int)
-        if callable(getattr(self.manager, "forget", None)):  # a manager with a memory per robot
+        if self.remembers:
             self.manager.forget(count)
 
     def __call__(self, obs: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        remembers = callable(getattr(self.manager, "forget", None))
-        action = self.manager(obs, rows=rows) if remembers else self.manager(obs)
-        # The first two action columns are the sub-goal's position over the field's half length.
-        moved = np.linalg.norm(action[:, :2] - self.last[rows], axis=1) * self.scale
+        # The sub-goal the last decision set (row = field * M + robot); the first is the robot's own pose.
+        now = self.core.subgoal[..., 0:2].reshape(-1, 2)[rows]
+        moved = np.linalg.norm(now - self.last[rows], axis=1)
         self.jumps[rows] += (self.steps[rows] >= self.late) & (moved > self.jump)
-        self.last[rows], self.steps[rows] = action[:, :2], self.steps[rows] + 1
-        return action
+        self.last[rows], self.steps[rows] = now, self.steps[rows] + 1
+        return self.manager(obs, rows=rows) if self.remembers else self.manager(obs)
 
 
 def main() -> None:
@@ -69,11 +70,7 @@ def main() -> None:
 
     core = HierarchicalCore(config, args.episodes, autoreset=False)
     watched = Watched(
-        load_manager(args.manager, config, args.policy),
-        core.scenario.field.half_length,
-        args.jump,
-        config.max_steps,
-        args.window,
+        load_manager(args.manager, config, args.policy), core, args.jump, config.max_steps, args.window
     )
     ends = play(core, watched, args.seed)
     arrived, hit = ends["success"], ends["collision"]

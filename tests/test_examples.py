@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -100,15 +101,12 @@ def test_stuck_robots_counts_jumps_in_the_window_only() -> None:
     spec = importlib.util.spec_from_file_location("stuck_robots", EXAMPLES / "stuck_robots.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    # Robot 0's sub-goal flips between two points 0.9 m apart (over a half length of 4.5 m), robot 1's stays.
-    flip = iter(np.tile([[0.1, 0.0], [-0.1, 0.0]], (10, 1)))
-
-    def manager(obs: np.ndarray) -> np.ndarray:
-        return np.array([next(flip), [0.5, 0.5]])[: len(obs)]
-
-    watched = module.Watched(manager, scale=4.5, jump=0.45, limit=20, window=8)
+    # One field of two robots: robot 0's sub-goal flips between two points 0.9 m apart, robot 1's stays.
+    core = SimpleNamespace(subgoal=np.zeros((1, 2, 5)))
+    watched = module.Watched(lambda obs: obs, core, jump=0.45, limit=20, window=8)
     watched.forget(2)
-    for _ in range(20):
+    for step in range(20):
+        core.subgoal[0, :, 0:2] = [[0.45 * (-1) ** step, 0.0], [1.0, 1.0]]
         watched(np.zeros((2, 3)), rows=np.arange(2))
     assert watched.jumps.tolist() == [8, 0]
 

@@ -199,6 +199,9 @@ class CandidatesConfig(Strict):
     # A residual's inputs add how far each leg of a candidate keeps from the game's zones, not only whether
     # it is clear; off, a residual reads what runs trained before it read.
     zone_features: bool = False
+    # A residual's inputs add how far each candidate and the robot are from the robot's last sub-goal: a
+    # memory, so that it can learn to hold a way round where the planner flips between two.
+    memory: bool = False
     learning_rate: float = Field(1e-3, gt=0)
     batch_size: int = Field(256, ge=1)
     ppo: CandidatePPOConfig = Field(default_factory=CandidatePPOConfig)
@@ -214,11 +217,11 @@ class CandidatesConfig(Strict):
             )
         if self.keep and self.network != "residual":
             raise ValueError(f"keep: {self.keep} is a residual's dead band; network is {self.network!r}")
-        if self.zone_features and self.network != "residual":
-            raise ValueError(
-                f"zone_features: {self.zone_features} adds to a residual's inputs; "
-                f"network is {self.network!r}"
-            )
+        for key in ("zone_features", "memory"):
+            if getattr(self, key) and self.network != "residual":
+                raise ValueError(
+                    f"{key}: {getattr(self, key)} adds to a residual's inputs; network is {self.network!r}"
+                )
         return self
 
 

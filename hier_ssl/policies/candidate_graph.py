@@ -129,6 +129,10 @@ class CandidateManager(nn.Module):
     actions (B, A) float32 of the candidate of highest logit (``forward``, what the file exports), or of
     one drawn from the logits' softmax (``decide``)."""
 
+    memory = False
+    """Whether the decision reads each robot's last chosen sub-goal (``decide``'s ``last``): a residual's
+    with ``candidates.memory``."""
+
     def __init__(self, geometry: CandidateGeometry, net: nn.Module) -> None:
         super().__init__()
         self.geometry, self.net = geometry, net
@@ -146,14 +150,16 @@ class CandidateManager(nn.Module):
         net: nn.Module,
         planner: SamplingPlanner | RuledPlanner,
         zone_features: bool = False,
+        memory: bool = False,
     ) -> CandidateManager:
         """``net`` over ``geometry``'s candidates: a ``ResidualManager`` for a residual, which reads
-        ``planner`` (and the zone clearances with ``zone_features``, ``candidates.zone_features``)."""
+        ``planner`` (and the zone clearances with ``zone_features``, ``candidates.zone_features``; the
+        robot's last sub-goal with ``memory``, ``candidates.memory``)."""
         if isinstance(net, Residual):
-            return ResidualManager(geometry, net, planner, zone_features)
+            return ResidualManager(geometry, net, planner, zone_features, memory)
         return cls(geometry, net)
 
-    def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
+    def inputs(self, obs: torch.Tensor, read: Read, last: np.ndarray | None = None) -> torch.Tensor:
         """What the network reads: the observations (classifier) or the candidates' features (scorer)."""
         if self.scorer:
             return self.geometry.features(read)
@@ -169,15 +175,20 @@ class CandidateManager(nn.Module):
         return self.geometry.action(choice, read)
 
     def decide(
-        self, obs: np.ndarray, generator: torch.Generator | None = None, read: Read | None = None
+        self,
+        obs: np.ndarray,
+        generator: torch.Generator | None = None,
+        read: Read | None = None,
+        last: np.ndarray | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor]:
         """The candidate each row chooses (B,) (highest logit, or drawn from the logits' softmax with
         ``generator``), its log-probability (B,), the action (B, A) naming it and what the network read;
-        ``obs``'s ``read`` is built unless given."""
+        ``obs``'s ``read`` is built unless given; ``last`` (B,) complex, each robot's last chosen sub-goal
+        (NaN: none), for a manager with ``memory``."""
         x = torch.as_tensor(obs, dtype=torch.float32)
         with torch.no_grad():
             read = self.read(x) if read is None else read
-            inputs = self.inputs(x, read)
+            inputs = self.inputs(x, read, last)
             logits = self.net(inputs)
             if logits.shape[1] != self.geometry.num_candidates:
                 raise ValueError(
@@ -205,18 +216,19 @@ class ResidualManager(CandidateManager):
         net: nn.Module,
         planner: SamplingPlanner | RuledPlanner,
         zone_features: bool = False,
+        memory: bool = False,
     ) -> None:
         super().__init__(geometry, net)
         residual_planner(planner)
         # The weights fix what the network reads, the run's config what is built for it: a run's config.yaml
         # that lost or gained the key would otherwise fail deep in a matrix product.
-        reads, built = net.body[0].in_features, residual_features(zone_features)
+        reads, built = net.body[0].in_features, residual_features(zone_features, memory)
         if reads != built:
             raise ValueError(
                 f"the residual reads {reads} features a candidate, candidates.zone_features: "
-                f"{zone_features} builds {built}"
+                f"{zone_features} and candidates.memory: {memory} build {built}"
             )
-        self.planner, self.zone_features = planner, zone_features
+        self.planner, self.zone_features, self.memory = planner, zone_features, memory
 
     def read(self, obs: torch.Tensor) -> Read:
         """The geometry's read with the planner's own candidates: in a game, around the target moved where
@@ -226,9 +238,15 @@ class ResidualManager(CandidateManager):
         cand = self.planner.candidates(ruled_read(self.planner, obs.numpy())[0])
         return (*read[:5], torch.from_numpy(np.stack([cand.real, cand.imag], -1)))
 
-    def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
-        """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``)."""
-        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]), self.zone_features)
+    def inputs(self, obs: torch.Tensor, read: Read, last: np.ndarray | None = None) -> torch.Tensor:
+        """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``); with
+        ``memory``, ``last`` (B,) complex (NaN: none; None: none for every row)."""
+        if self.memory and last is None:
+            last = np.full(len(obs), np.nan + 0j)
+        cand = as_points(read[5])
+        return residual_inputs(
+            self.planner, obs.numpy(), cand, self.zone_features, last if self.memory else None
+        )
 
 
 def candidate_geometry(config: TrainConfig, planner: SamplingPlanner) -> CandidateGeometry:

@@ -47,15 +47,17 @@ def build_chooser(
     tau: float = 1.0,
     keep: float = 0.0,
     zone_features: bool = False,
+    memory: bool = False,
 ) -> nn.Module:
     """A new network of kind ``network`` for ``inputs`` (its first data: observations (B, O) for the
     classifier, features (B, C, F) for the scorer, whose standardisation they fix; the residual reads
     none: its features are scaled as they come, ``tau`` divides its planner's score, ``keep`` is its dead
-    band and ``zone_features`` adds the legs' zone clearances to what it reads)."""
+    band, ``zone_features`` adds the legs' zone clearances to what it reads and ``memory`` the robot's last
+    sub-goal)."""
     if network not in NETWORKS:
         raise ValueError(f"unknown candidates.network {network!r}; expected one of {NETWORKS}")
     if network == "residual":
-        return Residual(residual_features(zone_features), hidden, tau, keep)
+        return Residual(residual_features(zone_features, memory), hidden, tau, keep)
     if inputs is None:
         raise ValueError(f"a {network} is built from its first data; none given (DAgger's first round)")
     if network == "classifier":

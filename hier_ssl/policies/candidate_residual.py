@@ -13,6 +13,13 @@ the next; a correction with no band breaks it by features that move every step, 
 sub-goals (docs/results.md, "A residual over `sampling`'s own ranking"). With it the correction changes
 the choice only where it outweighs ``keep``.
 
+With ``candidates.memory`` it reads two more (``MEMORY_FEATURES``): how far each candidate is from the
+sub-goal this robot chose at its last decision, and how far the robot is from that. The observation holds
+no sub-goal, so a correction without them cannot tell holding a way round from switching to the other
+one; replanning every step, the planner flips between two ways round a block of parked robots and the
+robot stands still until the time limit (docs/results.md, "What stops it"). The caller keeps the memory
+(``hier_ssl.policies.candidates.RememberingPolicy``).
+
 With ``candidates.zone_features`` the MLP reads two more columns (``ZONE_FEATURES``): how far each of a
 candidate's two straight legs keeps from the game's forbidden zones. The planner's ``clear`` only says
 whether a leg breaks one, so a correction could not learn to keep a margin from a zone that moves (the
@@ -49,9 +56,14 @@ candidate) and the second (candidate -> target) keep from the row's zones, the l
 rules, empty slots)."""
 
 
-def residual_features(zone_features: bool = False) -> int:
+MEMORY_FEATURES = 2
+"""With ``candidates.memory``, last: how far the candidate and the robot are from the sub-goal the robot's
+last decision chose (m), clipped to [0, 5]; 5 both at an episode's first decision, which has none."""
+
+
+def residual_features(zone_features: bool = False, memory: bool = False) -> int:
     """How many features a candidate's row of ``residual_inputs`` holds after its two prior columns."""
-    return RESIDUAL_FEATURES + ZONE_FEATURES * bool(zone_features)
+    return RESIDUAL_FEATURES + ZONE_FEATURES * bool(zone_features) + MEMORY_FEATURES * bool(memory)
 
 
 class Residual(nn.Module):
@@ -98,7 +110,11 @@ def zone_clearances(
 
 
 def residual_inputs(
-    planner: SamplingPlanner | RuledPlanner, obs: np.ndarray, cand: np.ndarray, zone_features: bool = False
+    planner: SamplingPlanner | RuledPlanner,
+    obs: np.ndarray,
+    cand: np.ndarray,
+    zone_features: bool = False,
+    last: np.ndarray | None = None,
 ) -> torch.Tensor:
     """What a ``Residual`` reads (B, C, 2 + ``residual_features(zone_features)``) float32 of observations
     ``obs`` (B, O) and their candidates ``cand`` (B, C) complex: the planner's score minus the row's best
@@ -106,7 +122,8 @@ def residual_inputs(
     where the planner takes the first), 1 on the planner's choice (the first of its best) and 0 elsewhere,
     then the ``RESIDUAL_FEATURES`` and, with ``zone_features``, the ``ZONE_FEATURES``: the first leg's
     (robot -> candidate) and the second leg's (candidate -> ``scene``'s target, where the rules moved it)
-    least clearance from the row's zones (``zone_clearances``), m in [-1, 3], 3 without rules."""
+    least clearance from the row's zones (``zone_clearances``), m in [-1, 3], 3 without rules; with
+    ``last`` (B,) complex, each robot's last chosen sub-goal (NaN: none), the ``MEMORY_FEATURES``."""
     scene, rules = ruled_read(planner, obs)
     score, (arrival, clearance, hard, near), clear = planner.ranking(scene, cand, rules)
     best = score.max(1, keepdims=True)
@@ -135,10 +152,17 @@ def residual_inputs(
     ]
     if zone_features:
         columns += zone_clearances(rules, robot, target, cand)
+    if last is not None:
+        none = np.isnan(last)[:, None]
+        columns += [
+            np.where(none, 5.0, np.abs(cand - last[:, None]).clip(max=5.0)),
+            np.where(none, 5.0, np.abs(robot - last)[:, None].clip(max=5.0)) * row,
+        ]
     return torch.as_tensor(np.stack(columns, -1), dtype=torch.float32)
 
 
 __all__ = [
+    "MEMORY_FEATURES",
     "RESIDUAL_FEATURES",
     "ZONE_FEATURES",
     "Residual",

@@ -62,14 +62,50 @@ def candidate_planner(config: TrainConfig) -> SamplingPlanner | RuledPlanner:
 
 def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
     """``net`` over the candidates of the run's ``sampling`` planner: the run's whole decision."""
-    planner = candidate_planner(config)
-    return CandidateManager.of(
-        candidate_geometry(config, planner), net, planner, config.candidates.zone_features
-    )
+    planner, chooser = candidate_planner(config), config.candidates
+    geometry = candidate_geometry(config, planner)
+    return CandidateManager.of(geometry, net, planner, chooser.zone_features, chooser.memory)
 
 
-def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
-    """The manager as a numpy policy (``CandidateManager.decide``'s action); a live view of its weights."""
+def remembered_decision(
+    manager: CandidateManager, obs: np.ndarray, generator: torch.Generator | None, last: np.ndarray
+) -> tuple[tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor], np.ndarray]:
+    """``manager.decide`` for robots whose last chosen sub-goals are ``last`` (B,) complex (NaN: none),
+    and the sub-goals (B,) complex it chooses now, the memory of the next decision."""
+    with torch.no_grad():
+        read = manager.read(torch.as_tensor(obs, dtype=torch.float32))
+    decision = manager.decide(obs, generator, read, last)
+    chosen = as_points(read[5])[np.arange(len(obs)), decision[0].numpy()]
+    return decision, chosen
+
+
+class RememberingPolicy:
+    """A manager with ``memory`` as a numpy policy with a memory per robot, the protocol of
+    ``hier_ssl.envs.play.play``: ``forget(count)`` at the reset, then ``policy(obs, rows=...)`` for the
+    robots ``rows`` (indices into the memory); without ``rows``, nothing remembered."""
+
+    def __init__(self, manager: CandidateManager, generator: torch.Generator | None = None) -> None:
+        self.manager, self.generator = manager, generator
+        self.forget(0)
+
+    def forget(self, count: int) -> None:
+        self.last = np.full(count, np.nan + 0j)
+
+    def __call__(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        last = np.full(len(obs), np.nan + 0j) if rows is None else self.last[rows]
+        (_, _, action, _), chosen = remembered_decision(self.manager, obs, self.generator, last)
+        if rows is not None:
+            self.last[rows] = chosen
+        return action
+
+
+def candidate_policy(
+    manager: CandidateManager, generator: torch.Generator | None = None
+) -> NumpyPolicy | RememberingPolicy:
+    """The manager as a numpy policy (``CandidateManager.decide``'s action); a live view of its weights.
+    A manager with ``memory`` remembers each robot's last sub-goal (``RememberingPolicy``)."""
+    if manager.memory:
+        return RememberingPolicy(manager, generator)
     return lambda obs: manager.decide(obs, generator)[2]
 
 
@@ -216,7 +252,7 @@ class CandidateLearner:
         """Phase 2: PPO iterations from the DAgger fit until ``iterations``, from ``saved["iteration"]``."""
         settings, chooser = self.settings.ppo, self.settings
         if self.net is None:  # no DAgger (a residual): PPO starts from the planner's own ranking
-            residual = chooser.tau, chooser.keep, chooser.zone_features
+            residual = chooser.tau, chooser.keep, chooser.zone_features, chooser.memory
             self.net = build_chooser(chooser.network, chooser.hidden, None, 0, *residual)
         net, self.phase = self.net, "ppo"
         self.reference = copy.deepcopy(net) if not saved else chooser_from_state(saved["reference"])
@@ -236,6 +272,7 @@ class CandidateLearner:
             torch.set_rng_state(saved["torch_rng"])  # after the networks are built, as in dagger()
         self.bar.update(self.settings.rounds + first - self.bar.n)
         self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
+        self.last = np.full(len(self.obs), np.nan + 0j)  # each row's last sub-goal (``memory``)
         self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
         if not saved and not self.settings.rounds:
             # A residual starts as the planner: scored as step 0, model selection can keep it where PPO
@@ -281,11 +318,13 @@ class CandidateLearner:
             choice, log_prob = torch.zeros(len(obs), dtype=torch.long), torch.zeros(len(obs))
             action = np.zeros((len(obs), env.num_actions), dtype=np.float32)
             if real.any():
-                choice[real], log_prob[real], action[real], inputs = self.manager.decide(
-                    obs[real], self.generator
+                decision, self.last[real] = remembered_decision(
+                    self.manager, obs[real], self.generator, self.last[real]
                 )
+                choice[real], log_prob[real], action[real], inputs = decision
                 read.append(inputs)
             next_obs, _, terminated, truncated, info = env.step_rows(action)
+            self.last[terminated | truncated] = np.nan  # a new episode remembers nothing
             stats, rows = info["task"], info["task_rows"]
             failed = stats["collision"] + stats.get("foul", 0.0)  # a game's foul costs as a collision
             gap = nearest_gap(next_obs, self.geometry.max_pos) if settings.near_cost else None
@@ -350,7 +389,10 @@ class CandidateLearner:
     def manager(self) -> CandidateManager:
         """The network over the planner's candidates: the decision it plays."""
         assert self.net is not None
-        return CandidateManager.of(self.geometry, self.net, self.planner, self.settings.zone_features)
+        chooser = self.settings
+        return CandidateManager.of(
+            self.geometry, self.net, self.planner, chooser.zone_features, chooser.memory
+        )
 
     def save(self) -> None:
         """``model.pt``: the network, the phase's progress (DAgger: the last round done, the states met
@@ -393,4 +435,12 @@ class CandidateLearner:
         self.on_checkpoint(Checkpoint(step, transitions, self.train_time_s, self.policy(), state))
 
 
-__all__ = ["CandidateLearner", "candidate_manager", "candidate_planner", "candidate_policy", "missing_keys"]
+__all__ = [
+    "CandidateLearner",
+    "RememberingPolicy",
+    "candidate_manager",
+    "candidate_planner",
+    "candidate_policy",
+    "missing_keys",
+    "remembered_decision",
+]

@@ -164,7 +164,9 @@ def test_an_onnx_manager_drives_the_controller_as_its_torchscript_twin_and_its_r
             sent.append([c[1:] for c in controller.tick(t + 0.001)])
         commands.append(np.array(sent))
     assert np.abs(commands[0]).max() > 0.1  # the robots drive
-    np.testing.assert_allclose(commands[2], commands[1], atol=1e-4)  # ONNX against TorchScript
+    # ONNX against TorchScript: float32 sub-goals whose rounding the heading controller multiplies (a CI
+    # run saw 1.3e-4 rad/s on a turn of 5.07 rad/s), so relative as well as absolute.
+    np.testing.assert_allclose(commands[2], commands[1], rtol=1e-4, atol=1e-4)
     np.testing.assert_allclose(commands[2], commands[0], atol=1e-3)  # and against the run directory
 
 

@@ -26,6 +26,7 @@ from hier_ssl.policies.actor import load_candidate_manager, load_policy
 from hier_ssl.policies.candidate_graph import ResidualManager
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state
 from hier_ssl.policies.candidate_residual import (
+    MEMORY_FEATURES,
     RESIDUAL_FEATURES,
     ZONE_FEATURES,
     Residual,
@@ -33,13 +34,19 @@ from hier_ssl.policies.candidate_residual import (
     residual_planner,
     zone_clearances,
 )
-from hier_ssl.policies.candidates import candidate_manager, candidate_planner
+from hier_ssl.policies.candidates import (
+    RememberingPolicy,
+    candidate_manager,
+    candidate_planner,
+    candidate_policy,
+)
 from hier_ssl.policies.export import export_manager
 from hier_ssl.policies.ppo import categorical_kl
 from hier_ssl.runs.train import train
 
 SHIPPED = load_yaml(config_dir() / "game" / "stop_residual.yaml")
 ZONED = {**SHIPPED, "candidates": {**SHIPPED["candidates"], "zone_features": True}}
+REMEMBERING = {**SHIPPED, "candidates": {**SHIPPED["candidates"], "memory": True}}
 
 
 def _fresh(hidden: tuple[int, ...] = (16, 16), zone_features: bool = False) -> Residual:
@@ -101,8 +108,11 @@ def test_a_nonzero_last_layer_is_no_longer_the_planner() -> None:
     assert np.abs(moved - planner(obs)).max() > 1e-3
 
 
-def test_a_tiny_residual_run_moves_the_correction_and_keeps_the_planners_level(tmp_path: Path) -> None:
-    data = SHIPPED
+@pytest.mark.parametrize("memory", [False, True])
+def test_a_tiny_residual_run_moves_the_correction_and_keeps_the_planners_level(
+    tmp_path: Path, memory: bool
+) -> None:
+    data = REMEMBERING if memory else SHIPPED
     ppo = {**data["candidates"]["ppo"], "iterations": 4, "fields": 4, "horizon": 16, "value_warmup": 1}
     section = {**data["candidates"], "hidden": [16, 16], "ppo": {**ppo, "eval_interval": 2}}
     scenario = {**data["scenario"], "frame_skip": 4}  # a quarter of the decisions: a test's time
@@ -113,6 +123,7 @@ def test_a_tiny_residual_run_moves_the_correction_and_keeps_the_planners_level(t
     assert steps == [0, 2, 4]  # step 0 is the planner itself, for model selection to keep
     saved = torch.load(run / "model.pt")
     assert saved["phase"] == "ppo" and saved["net"]["body.4.weight"].abs().sum() > 0
+    assert saved["net"]["body.0.weight"].shape[1] == RESIDUAL_FEATURES + MEMORY_FEATURES * memory
     # Rebuilt from its weights alone (tau, layer sizes); played at the planner's level or near it (the
     # planner: 83 % of these 48 robots at frame skip 4).
     net = chooser_from_state(saved["net"])
@@ -168,6 +179,10 @@ def test_the_kl_to_the_start_skips_what_the_planner_rules_out() -> None:
         (
             {"network": "scorer", "rounds": 2, "zone_features": True},
             r"candidates\.zone_features: True adds to a residual's inputs; network is 'scorer'",
+        ),
+        (
+            {"network": "classifier", "rounds": 2, "memory": True},
+            r"candidates\.memory: True adds to a residual's inputs; network is 'classifier'",
         ),
         (
             {"network": "scorer", "rounds": 2, "keep": 1.0},
@@ -247,3 +262,47 @@ def test_a_zone_featured_residual_reloads_with_its_runs_config(tmp_path: Path) -
     (run / CONFIG_FILE).write_text(dump_config(parse_config(SHIPPED)))
     with pytest.raises(ValueError, match=r"reads 13 features a candidate, candidates.zone_features: False"):
         load_candidate_manager(run)
+
+
+def test_the_memory_features_are_the_distances_to_the_last_sub_goal() -> None:
+    planner, obs, scene, _, cand, _ = _game_stop_inputs()
+    plain = residual_inputs(planner, obs, cand)
+    last = cand[:, 3].copy()
+    last[0] = np.nan  # row 0's robot has decided nothing yet this episode
+    remembered = residual_inputs(planner, obs, cand, last=last)
+    # Off: what a residual read before the option; on: the same, then the two distances.
+    assert remembered.shape[2] == plain.shape[2] + MEMORY_FEATURES
+    assert torch.equal(remembered[..., : plain.shape[2]], plain)
+    to_last, robot_to_last = remembered[..., -2].numpy(), remembered[..., -1].numpy()
+    assert (to_last[0] == 5.0).all() and (robot_to_last[0] == 5.0).all()
+    assert np.abs(to_last[1:, 3]).max() < 1e-6  # the remembered candidate itself
+    np.testing.assert_allclose(to_last[1:], np.abs(cand - last[:, None])[1:].clip(max=5.0), atol=1e-5)
+    robot = scene.robot_pos @ np.array([1.0, 1j])
+    np.testing.assert_allclose(robot_to_last[1:, 7], np.abs(robot - last)[1:].clip(max=5.0), atol=1e-5)
+
+
+def test_a_residual_with_memory_starts_as_the_planner_and_remembers_each_robots_sub_goal() -> None:
+    config = parse_config(REMEMBERING)
+    planner = candidate_planner(config)
+    tau = SHIPPED["candidates"]["tau"]
+    net = build_chooser("residual", (16, 16), None, 0, tau, 0.0, False, True)
+    assert net.body[0].in_features == RESIDUAL_FEATURES + MEMORY_FEATURES
+    policy = candidate_policy(candidate_manager(config, net))
+    assert isinstance(policy, RememberingPolicy)
+    core = HierarchicalCore(config.task_config, 4)
+    obs = core.reset(5).reshape(-1, core.obs_dim)
+    policy.forget(len(obs) + 3)
+    rows = np.arange(len(obs)) + 3
+    action = policy(obs, rows=rows)
+    np.testing.assert_allclose(action, planner(obs), atol=1e-6)  # no correction yet: the planner
+    # Each robot's row now holds the sub-goal it was handed (m); the rows not asked for hold nothing.
+    high = np.array([planner.field.half_length, planner.field.half_width])
+    remembered = np.stack([policy.last[rows].real, policy.last[rows].imag], 1)
+    np.testing.assert_allclose(remembered, action[:, 0:2] * high, atol=1e-5)
+    assert np.isnan(policy.last[:3]).all()
+    # Trained, what it remembers changes what it chooses.
+    torch.nn.init.normal_(net.body[-1].weight, std=10.0)
+    manager = candidate_manager(config, net)
+    far = manager.decide(obs, last=np.full(len(obs), 4.0 + 2.9j))[2]
+    near = manager.decide(obs, last=policy.last[rows])[2]
+    assert np.abs(far - near).max() > 1e-3

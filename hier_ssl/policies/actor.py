@@ -28,9 +28,9 @@ from hier_ssl.checkpoints.actor import (
 )
 from hier_ssl.checkpoints.tensors import load_checkpoint
 from hier_ssl.config import ConfigError
-from hier_ssl.policies.candidate_graph import CandidateManager
+from hier_ssl.policies.candidate_graph import CandidateManager, candidate_policy
 from hier_ssl.policies.candidate_nets import chooser_from_state
-from hier_ssl.policies.candidates import candidate_manager, candidate_policy
+from hier_ssl.policies.candidates import candidate_manager
 from hier_ssl.policies.networks import NumpyPolicy, SquashedGaussianActor, sac_policy
 
 

@@ -11,6 +11,9 @@ The scene is read from the manager observation as ``hier_ssl.manager.scene.read_
 float32 observation, neighbours turned into obstacles in the observation's units and rounded to float32);
 the candidates are ``hier_ssl.manager.candidate_points``'s, the planner's own; the action is
 ``encode_subgoal``'s for a sub-goal at the candidate with the target's heading and no velocity.
+
+``candidate_policy`` hands a manager to numpy callers; a residual with ``candidates.memory`` is a
+``RememberingPolicy``, which keeps each robot's last sub-goal between calls.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from hier_ssl.policies.candidate_residual import (
     residual_inputs,
     residual_planner,
 )
+from hier_ssl.policies.networks import NumpyPolicy
 
 Read = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
 """What ``CandidateGeometry.forward`` reads of observations: target (B, 4) x, y and the sine and cosine of
@@ -159,7 +163,7 @@ class CandidateManager(nn.Module):
             return ResidualManager(geometry, net, planner, zone_features, memory)
         return cls(geometry, net)
 
-    def inputs(self, obs: torch.Tensor, read: Read, last: np.ndarray | None = None) -> torch.Tensor:
+    def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
         """What the network reads: the observations (classifier) or the candidates' features (scorer)."""
         if self.scorer:
             return self.geometry.features(read)
@@ -188,7 +192,9 @@ class CandidateManager(nn.Module):
         x = torch.as_tensor(obs, dtype=torch.float32)
         with torch.no_grad():
             read = self.read(x) if read is None else read
-            inputs = self.inputs(x, read, last)
+            if last is not None and not self.memory:
+                raise ValueError("this candidates manager keeps no memory (candidates.memory: false)")
+            inputs = self.inputs(x, read) if last is None else self.recall(x, read, last)
             logits = self.net(inputs)
             if logits.shape[1] != self.geometry.num_candidates:
                 raise ValueError(
@@ -238,15 +244,55 @@ class ResidualManager(CandidateManager):
         cand = self.planner.candidates(ruled_read(self.planner, obs.numpy())[0])
         return (*read[:5], torch.from_numpy(np.stack([cand.real, cand.imag], -1)))
 
-    def inputs(self, obs: torch.Tensor, read: Read, last: np.ndarray | None = None) -> torch.Tensor:
+    def inputs(self, obs: torch.Tensor, read: Read) -> torch.Tensor:
         """The planner's score and rollouts of ``read``'s candidates (``residual_inputs``); with
-        ``memory``, ``last`` (B,) complex (NaN: none; None: none for every row)."""
-        if self.memory and last is None:
-            last = np.full(len(obs), np.nan + 0j)
-        cand = as_points(read[5])
-        return residual_inputs(
-            self.planner, obs.numpy(), cand, self.zone_features, last if self.memory else None
-        )
+        ``memory``, as at an episode's first decision, with no sub-goal remembered."""
+        return self.recall(obs, read, np.full(len(obs), np.nan + 0j) if self.memory else None)
+
+    def recall(self, obs: torch.Tensor, read: Read, last: np.ndarray | None) -> torch.Tensor:
+        """``inputs`` for robots whose last chosen sub-goals are ``last`` (B,) complex (NaN: none; None
+        without ``memory``)."""
+        return residual_inputs(self.planner, obs.numpy(), as_points(read[5]), self.zone_features, last)
+
+
+class RememberingPolicy:
+    """A candidates manager as a numpy policy with a memory per robot, the protocol of
+    ``hier_ssl.envs.play.play``: ``forget(count)`` at the reset, then ``policy(obs, rows=...)`` for the
+    robots ``rows`` (indices into the memory); without ``rows``, nothing remembered. The memory is each
+    robot's last chosen sub-goal, which a residual with ``memory`` reads (``decide``'s ``last``)."""
+
+    def __init__(
+        self, manager: CandidateManager, generator: torch.Generator | None = None, count: int = 0
+    ) -> None:
+        self.manager, self.generator = manager, generator
+        self.forget(count)
+
+    def forget(self, count: int) -> None:
+        self.last = np.full(count, np.nan + 0j)
+
+    def decide(
+        self, obs: np.ndarray, rows: np.ndarray
+    ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor]:
+        """``CandidateManager.decide`` for the robots ``rows``, remembering the sub-goals they choose."""
+        with torch.no_grad():
+            read = self.manager.read(torch.as_tensor(obs, dtype=torch.float32))
+        last = self.last[rows] if self.manager.memory else None
+        decision = self.manager.decide(obs, self.generator, read, last)
+        self.last[rows] = as_points(read[5])[np.arange(len(obs)), decision[0].numpy()]
+        return decision
+
+    def __call__(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        if rows is None:
+            return self.manager.decide(obs, self.generator)[2]
+        return self.decide(obs, rows)[2]
+
+
+def candidate_policy(manager: CandidateManager, generator: torch.Generator | None = None) -> NumpyPolicy:
+    """The manager as a numpy policy (``CandidateManager.decide``'s action); a live view of its weights.
+    A manager with ``memory`` remembers each robot's last sub-goal (``RememberingPolicy``)."""
+    if manager.memory:
+        return RememberingPolicy(manager, generator)
+    return lambda obs: manager.decide(obs, generator)[2]
 
 
 def candidate_geometry(config: TrainConfig, planner: SamplingPlanner) -> CandidateGeometry:
@@ -281,8 +327,10 @@ __all__ = [
     "CandidateGeometry",
     "CandidateManager",
     "Read",
+    "RememberingPolicy",
     "ResidualManager",
     "as_points",
     "candidate_geometry",
+    "candidate_policy",
     "stored_features",
 ]

@@ -18,7 +18,7 @@ sub-goal this robot chose at its last decision, and how far the robot is from th
 no sub-goal, so a correction without them cannot tell holding a way round from switching to the other
 one; replanning every step, the planner flips between two ways round a block of parked robots and the
 robot stands still until the time limit (docs/results.md, "What stops it"). The caller keeps the memory
-(``hier_ssl.policies.candidates.RememberingPolicy``).
+(``hier_ssl.policies.candidate_graph.RememberingPolicy``).
 
 With ``candidates.zone_features`` the MLP reads two more columns (``ZONE_FEATURES``): how far each of a
 candidate's two straight legs keeps from the game's forbidden zones. The planner's ``clear`` only says

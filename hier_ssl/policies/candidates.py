@@ -39,7 +39,14 @@ from hier_ssl.envs.vector import TorchVectorEnv
 from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.manager.neighbours import nearest_gap
 from hier_ssl.manager.planners import SamplingPlanner
-from hier_ssl.policies.candidate_graph import CandidateManager, as_points, candidate_geometry, stored_features
+from hier_ssl.policies.candidate_graph import (
+    CandidateManager,
+    RememberingPolicy,
+    as_points,
+    candidate_geometry,
+    candidate_policy,
+    stored_features,
+)
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state, fit_chooser, soft_choice
 from hier_ssl.policies.learner import Checkpoint, OnCheckpoint, torch_threads
 from hier_ssl.policies.networks import NumpyPolicy, mlp
@@ -65,48 +72,6 @@ def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:
     planner, chooser = candidate_planner(config), config.candidates
     geometry = candidate_geometry(config, planner)
     return CandidateManager.of(geometry, net, planner, chooser.zone_features, chooser.memory)
-
-
-def remembered_decision(
-    manager: CandidateManager, obs: np.ndarray, generator: torch.Generator | None, last: np.ndarray
-) -> tuple[tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor], np.ndarray]:
-    """``manager.decide`` for robots whose last chosen sub-goals are ``last`` (B,) complex (NaN: none),
-    and the sub-goals (B,) complex it chooses now, the memory of the next decision."""
-    with torch.no_grad():
-        read = manager.read(torch.as_tensor(obs, dtype=torch.float32))
-    decision = manager.decide(obs, generator, read, last)
-    chosen = as_points(read[5])[np.arange(len(obs)), decision[0].numpy()]
-    return decision, chosen
-
-
-class RememberingPolicy:
-    """A manager with ``memory`` as a numpy policy with a memory per robot, the protocol of
-    ``hier_ssl.envs.play.play``: ``forget(count)`` at the reset, then ``policy(obs, rows=...)`` for the
-    robots ``rows`` (indices into the memory); without ``rows``, nothing remembered."""
-
-    def __init__(self, manager: CandidateManager, generator: torch.Generator | None = None) -> None:
-        self.manager, self.generator = manager, generator
-        self.forget(0)
-
-    def forget(self, count: int) -> None:
-        self.last = np.full(count, np.nan + 0j)
-
-    def __call__(self, obs: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-        last = np.full(len(obs), np.nan + 0j) if rows is None else self.last[rows]
-        (_, _, action, _), chosen = remembered_decision(self.manager, obs, self.generator, last)
-        if rows is not None:
-            self.last[rows] = chosen
-        return action
-
-
-def candidate_policy(
-    manager: CandidateManager, generator: torch.Generator | None = None
-) -> NumpyPolicy | RememberingPolicy:
-    """The manager as a numpy policy (``CandidateManager.decide``'s action); a live view of its weights.
-    A manager with ``memory`` remembers each robot's last sub-goal (``RememberingPolicy``)."""
-    if manager.memory:
-        return RememberingPolicy(manager, generator)
-    return lambda obs: manager.decide(obs, generator)[2]
 
 
 def _seed(config: TrainConfig, phase: int, index: int) -> int:
@@ -272,8 +237,8 @@ class CandidateLearner:
             torch.set_rng_state(saved["torch_rng"])  # after the networks are built, as in dagger()
         self.bar.update(self.settings.rounds + first - self.bar.n)
         self.obs = self.env.reset_rows(seed=_seed(self.config, 1, first)).astype(np.float32)
-        self.last = np.full(len(self.obs), np.nan + 0j)  # each row's last sub-goal (``memory``)
         self.generator = torch.Generator().manual_seed(_seed(self.config, 1, first))
+        self.memory = RememberingPolicy(self.manager, self.generator, len(self.obs))  # rows' last sub-goals
         if not saved and not self.settings.rounds:
             # A residual starts as the planner: scored as step 0, model selection can keep it where PPO
             # only makes it worse. Saved first, so a run killed while scoring does not score it twice.
@@ -318,13 +283,11 @@ class CandidateLearner:
             choice, log_prob = torch.zeros(len(obs), dtype=torch.long), torch.zeros(len(obs))
             action = np.zeros((len(obs), env.num_actions), dtype=np.float32)
             if real.any():
-                decision, self.last[real] = remembered_decision(
-                    self.manager, obs[real], self.generator, self.last[real]
-                )
+                decision = self.memory.decide(obs[real], np.flatnonzero(real))
                 choice[real], log_prob[real], action[real], inputs = decision
                 read.append(inputs)
             next_obs, _, terminated, truncated, info = env.step_rows(action)
-            self.last[terminated | truncated] = np.nan  # a new episode remembers nothing
+            self.memory.last[terminated | truncated] = np.nan  # a new episode remembers nothing
             stats, rows = info["task"], info["task_rows"]
             failed = stats["collision"] + stats.get("foul", 0.0)  # a game's foul costs as a collision
             gap = nearest_gap(next_obs, self.geometry.max_pos) if settings.near_cost else None
@@ -389,10 +352,8 @@ class CandidateLearner:
     def manager(self) -> CandidateManager:
         """The network over the planner's candidates: the decision it plays."""
         assert self.net is not None
-        chooser = self.settings
-        return CandidateManager.of(
-            self.geometry, self.net, self.planner, chooser.zone_features, chooser.memory
-        )
+        zones, memory = self.settings.zone_features, self.settings.memory
+        return CandidateManager.of(self.geometry, self.net, self.planner, zones, memory)
 
     def save(self) -> None:
         """``model.pt``: the network, the phase's progress (DAgger: the last round done, the states met
@@ -435,12 +396,4 @@ class CandidateLearner:
         self.on_checkpoint(Checkpoint(step, transitions, self.train_time_s, self.policy(), state))
 
 
-__all__ = [
-    "CandidateLearner",
-    "RememberingPolicy",
-    "candidate_manager",
-    "candidate_planner",
-    "candidate_policy",
-    "missing_keys",
-    "remembered_decision",
-]
+__all__ = ["CandidateLearner", "candidate_manager", "candidate_planner", "missing_keys"]

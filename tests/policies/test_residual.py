@@ -23,7 +23,7 @@ from hier_ssl.envs.shards import batched_core, close_core
 from hier_ssl.game.legal import segment_clearance
 from hier_ssl.manager.game_observation import ruled_read
 from hier_ssl.policies.actor import load_candidate_manager, load_policy
-from hier_ssl.policies.candidate_graph import ResidualManager
+from hier_ssl.policies.candidate_graph import RememberingPolicy, ResidualManager, candidate_policy
 from hier_ssl.policies.candidate_nets import build_chooser, chooser_from_state
 from hier_ssl.policies.candidate_residual import (
     MEMORY_FEATURES,
@@ -34,12 +34,7 @@ from hier_ssl.policies.candidate_residual import (
     residual_planner,
     zone_clearances,
 )
-from hier_ssl.policies.candidates import (
-    RememberingPolicy,
-    candidate_manager,
-    candidate_planner,
-    candidate_policy,
-)
+from hier_ssl.policies.candidates import candidate_manager, candidate_planner
 from hier_ssl.policies.export import export_manager
 from hier_ssl.policies.ppo import categorical_kl
 from hier_ssl.runs.train import train

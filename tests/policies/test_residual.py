@@ -301,3 +301,5 @@ def test_a_residual_with_memory_starts_as_the_planner_and_remembers_each_robots_
     far = manager.decide(obs, last=np.full(len(obs), 4.0 + 2.9j))[2]
     near = manager.decide(obs, last=policy.last[rows])[2]
     assert np.abs(far - near).max() > 1e-3
+    with pytest.raises(ValueError, match=r"keeps no memory \(candidates.memory: false\)"):
+        candidate_manager(parse_config(SHIPPED), _fresh()).decide(obs, last=policy.last[rows])

@@ -273,11 +273,13 @@ class RememberingPolicy:
     def decide(
         self, obs: np.ndarray, rows: np.ndarray
     ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray, torch.Tensor]:
-        """``CandidateManager.decide`` for the robots ``rows``, remembering the sub-goals they choose."""
+        """``CandidateManager.decide`` for the robots ``rows``, remembering the sub-goals they choose (a
+        manager without ``memory`` reads none: nothing is kept)."""
+        if not self.manager.memory:
+            return self.manager.decide(obs, self.generator)
         with torch.no_grad():
             read = self.manager.read(torch.as_tensor(obs, dtype=torch.float32))
-        last = self.last[rows] if self.manager.memory else None
-        decision = self.manager.decide(obs, self.generator, read, last)
+        decision = self.manager.decide(obs, self.generator, read, self.last[rows])
         self.last[rows] = as_points(read[5])[np.arange(len(obs)), decision[0].numpy()]
         return decision
 

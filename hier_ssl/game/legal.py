@@ -222,15 +222,42 @@ def nearest_legal(zones: Zones, points: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def crossing_at(
+    x0: float, y0: float, x1: float, y1: float, ax: float, ay: float, bx: float, by: float
+) -> float:
+    """Where the segment (x0, y0) -> (x1, y1) crosses a -> b, as the fraction 0..1 of the way from a to b;
+    -1 where they do not cross (each one's ends strictly either side of the other's line)."""
+    dx, dy, ex, ey = x1 - x0, y1 - y0, bx - ax, by - ay
+    side_a, side_b = dx * (ay - y0) - dy * (ax - x0), dx * (by - y0) - dy * (bx - x0)
+    side_0, side_1 = ex * (y0 - ay) - ey * (x0 - ax), ex * (y1 - ay) - ey * (x1 - ax)
+    if side_a * side_b < 0.0 and side_0 * side_1 < 0.0:
+        return side_a / (side_a - side_b)
+    return -1.0
+
+
+@numba.njit(cache=True)
+def axis_depth(
+    x0: float, y0: float, x1: float, y1: float, ax: float, ay: float, bx: float, by: float, ends: int
+) -> float:
+    """How far along a -> b the segment (x0, y0) -> (x1, y1) crosses it, m, from the end a way round
+    takes: ``ends`` 1 past a alone, 2 past b alone, else the nearer; 0 where they do not cross.
+    ``segment_away`` is 0 for every path across a capsule's segment: this tells one across it near an
+    open end, which a point a little farther round clears, from one across its middle."""
+    t = crossing_at(x0, y0, x1, y1, ax, ay, bx, by)
+    if t < 0.0:
+        return 0.0
+    ex, ey = bx - ax, by - ay
+    along = t if ends == 1 else 1.0 - t if ends == 2 else min(t, 1.0 - t)
+    return along * math.sqrt(ex * ex + ey * ey)
+
+
+@numba.njit(cache=True)
 def _segment_segment(
     x0: float, y0: float, x1: float, y1: float, ax: float, ay: float, bx: float, by: float
 ) -> float:
     """Distance between the segments (x0, y0) -> (x1, y1) and a -> b: 0 where they cross (each one's ends
     strictly either side of the other's line), else the least distance of an end from the other."""
-    dx, dy, ex, ey = x1 - x0, y1 - y0, bx - ax, by - ay
-    side_a, side_b = dx * (ay - y0) - dy * (ax - x0), dx * (by - y0) - dy * (bx - x0)
-    side_0, side_1 = ex * (y0 - ay) - ey * (x0 - ax), ex * (y1 - ay) - ey * (x1 - ax)
-    if side_a * side_b < 0.0 and side_0 * side_1 < 0.0:
+    if crossing_at(x0, y0, x1, y1, ax, ay, bx, by) >= 0.0:
         return 0.0
     return min(
         min(point_segment(x0, y0, ax, ay, bx, by), point_segment(x1, y1, ax, ay, bx, by)),
@@ -377,7 +404,9 @@ __all__ = [
     "SLACK",
     "SPEED_MARGIN",
     "RowRules",
+    "axis_depth",
     "cap_speed",
+    "crossing_at",
     "distances",
     "nearest_legal",
     "path_clearance",

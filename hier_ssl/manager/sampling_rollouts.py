@@ -12,8 +12,10 @@ import math
 import numba
 import numpy as np
 
-from hier_ssl.game.legal import segment_away
-from hier_ssl.game.zones import zone_distance
+from hier_ssl.game.legal import axis_depth, segment_away
+from hier_ssl.game.zones import CAPSULE, zone_distance
+
+PASS = 0.1  # m a robot's centre needs beyond a capsule's clearance to pass round its end
 
 
 @numba.njit(cache=True)
@@ -175,6 +177,26 @@ def rollouts(pos, vel, goal, cand, speed, q, u, choosable, prune, timing, motion
 
 
 @numba.njit(cache=True)
+def open_ends(kind: np.ndarray, shape: np.ndarray, clearance: np.ndarray, z: int) -> int:
+    """Which ends of the capsule ``z`` of a row's zones (S,) a robot can pass round: 1 the first alone, 2
+    the second alone, 0 both or neither (or not a capsule). An end is closed where the point ``PASS`` m
+    beyond its round cap, on the capsule's axis, breaks another zone: a ball placement's corridor that
+    reaches the wall, or a defense area."""
+    x0, y0, x1, y1 = shape[z, 0], shape[z, 1], shape[z, 2], shape[z, 3]
+    length = math.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2)
+    if kind[z] != CAPSULE or length == 0.0:
+        return 0
+    reach = (clearance[z] + PASS) / length
+    ux, uy = (x1 - x0) * reach, (y1 - y0) * reach
+    first = second = True
+    for k in range(kind.shape[0]):
+        if k != z:
+            first = first and zone_distance(x0 - ux, y0 - uy, kind[k], shape[k], clearance[k]) >= 0.0
+            second = second and zone_distance(x1 + ux, y1 + uy, kind[k], shape[k], clearance[k]) >= 0.0
+    return 1 if first and not second else 2 if second and not first else 0
+
+
+@numba.njit(cache=True)
 def zone_detours(robot, goal, cand, kind, shape, clearance) -> tuple[np.ndarray, np.ndarray]:
     """``SamplingPlanner.zone_detour`` compiled: robots and targets (N,), candidates (N, M) complex, the
     rows' zones (N, S)."""
@@ -185,6 +207,7 @@ def zone_detours(robot, goal, cand, kind, shape, clearance) -> tuple[np.ndarray,
         leaving = np.array(
             [zone_distance(x0, y0, kind[r, z], shape[r, z], clearance[r, z]) < 0.0 for z in range(s)]
         )
+        ends = np.array([open_ends(kind[r], shape[r], clearance[r], z) for z in range(s)])
         any_first = False
         for j in range(m):
             x, y = cand[r, j].real, cand[r, j].imag
@@ -194,9 +217,10 @@ def zone_detours(robot, goal, cand, kind, shape, clearance) -> tuple[np.ndarray,
                 legal = zone_distance(x, y, kind[r, z], a, clearance[r, z]) >= 0.0
                 leg = segment_away(x0, y0, x, y, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
                 first = first and legal and (leg >= 0.0 or leaving[z])
-                second = min(
-                    second, segment_away(x, y, gx, gy, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
-                )
+                away = segment_away(x, y, gx, gy, kind[r, z], a[0], a[1], a[2], a[3]) - clearance[r, z]
+                if kind[r, z] == CAPSULE:
+                    away -= axis_depth(x, y, gx, gy, a[0], a[1], a[2], a[3], ends[z])
+                second = min(second, away)
             clear[r, j] = first and second >= 0.0
             detour[r, j] = second if first else -math.inf
             any_first |= first

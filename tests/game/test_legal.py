@@ -15,6 +15,7 @@ import pytest
 
 from hier_ssl.game import zones as z
 from hier_ssl.game.legal import (
+    axis_depth,
     cap_speed,
     distances,
     nearest_legal,
@@ -22,6 +23,7 @@ from hier_ssl.game.legal import (
     row_rules,
     segment_clearance,
 )
+from hier_ssl.manager.sampling_rollouts import PASS, open_ends
 
 BALL = (z.CAPSULE, (0.0, 0.0, 0.0, 0.0), 0.59)
 STADIUM = (z.CAPSULE, (0.0, 0.0, 2.0, 0.0), 0.59)
@@ -281,3 +283,43 @@ def test_zones_of_one_axis_against_square_paths_broadcast_as_numpy_does() -> Non
     got = path_clearance(zones, start, end)
     assert got.shape == (2, 2, 1)
     np.testing.assert_allclose(got[..., 0], [[4.0, 4.0], [2.0, 2.0]])
+
+
+@pytest.mark.parametrize(
+    ("start", "end", "ends", "expected"),
+    [
+        ((0.5, -1.0), (0.5, 1.0), 0, 0.5),  # across the stadium's axis 0.5 m from its first end
+        ((1.5, -1.0), (1.5, 1.0), 0, 0.5),  # ... and from its second
+        ((0.5, -1.0), (0.5, 1.0), 2, 1.5),  # the first end closed: round the second, 1.5 m away
+        ((0.5, -1.0), (0.5, 1.0), 1, 0.5),
+        ((0.5, -1.0), (1.5, 1.0), 0, 1.0),  # across its middle
+        ((0.5, 0.5), (0.5, 1.0), 0, 0.0),  # not across: no depth, whatever the distance
+        ((-1.0, 0.0), (3.0, 0.0), 0, 0.0),  # along the axis: no crossing either
+    ],
+)
+def test_a_path_across_a_stadium_is_as_deep_as_its_crossing_from_the_end_round(
+    start, end, ends, expected
+) -> None:
+    assert axis_depth(*start, *end, 0.0, 0.0, 2.0, 0.0, ends) == pytest.approx(expected, abs=1e-12)
+
+
+def _slots(*slots) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    kind = np.array([s[0] for s in slots], np.int64)
+    return kind, np.array([s[1] for s in slots], float), np.array([s[2] for s in slots], float)
+
+
+@pytest.mark.parametrize(
+    ("walls", "expected"),
+    [
+        ((-1.0, -3.0, 3.0, 3.0), 0),  # room past both ends
+        ((-0.59 - PASS - 0.09 - 0.01, -3.0, 3.0, 3.0), 0),  # room past the first end, 0.01 m to spare
+        ((-0.6, -3.0, 3.0, 3.0), 2),  # the walls 0.6 m behind the first end: only round the second
+        ((-1.0, -3.0, 2.6, 3.0), 1),
+        ((-0.6, -3.0, 2.6, 3.0), 0),  # neither: the nearer end, as without walls
+    ],
+)
+def test_a_stadium_end_that_the_walls_close_is_not_gone_round(walls, expected) -> None:
+    # The points tried lie 0.59 + PASS m beyond each end on the axis; the walls keep centres 0.09 m in.
+    kind, shape, clearance = _slots(STADIUM, (z.KEEP_IN, walls, 0.09))
+    assert open_ends(kind, shape, clearance, 0) == expected
+    assert open_ends(kind, shape, clearance, 1) == 0  # not a capsule

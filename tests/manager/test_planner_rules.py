@@ -211,6 +211,33 @@ def test_a_target_behind_the_ball_is_reached_round_it(name: str) -> None:
     assert closest >= 0.59 - 1e-3
 
 
+def _stadium_gap(start, end, a: complex, b: complex) -> float:
+    """The least distance of the straight leg start -> end from the segment a -> b, at 1 mm steps."""
+    p, q = complex(*start), complex(*end)
+    points = p + (q - p) * np.linspace(0.0, 1.0, max(int(abs(q - p) / 1e-3), 1) + 1)
+    t = np.clip(((points - a) * np.conj(b - a)).real / abs(b - a) ** 2, 0.0, 1.0)
+    return float(np.abs(points - (a + t * (b - a))).min())
+
+
+def test_sampling_reaches_a_target_across_a_ball_placement_corridor_round_its_open_end() -> None:
+    # The stadium 0.59 m round the ball's way from (0, -1.2) to (0, 1.6) lies across the field between the
+    # robot and its target; only its lower end, the farther, leaves room to pass before the wall. Every
+    # sub-goal's second leg crosses the corridor, so none is clear: the planner must prefer those that cross
+    # it nearer the open end, not stand on its own position (every crossing is 0 m from the ball's way) nor
+    # head for the closed end, the nearer.
+    a, b = -1.2j, 1.6j
+    placement = _rules(WALLS, EMPTY, EMPTY, (z.CAPSULE, (0.0, -1.2, 0.0, 1.6), 0.59))
+    planner = _planner("sampling")
+    robot, target, closest = np.array([-1.5, 0.8]), (1.5, 0.8), np.inf
+    for _ in range(200):
+        subgoal = _subgoal(planner, planner(_obs(tuple(robot), target), rules=placement))[0, :2]
+        step = subgoal - robot
+        moved = robot + step * min(1.0, 0.15 / max(np.hypot(*step), 1e-12))
+        closest, robot = min(closest, _stadium_gap(robot, moved, a, b)), moved
+    assert robot == pytest.approx(target, abs=1e-6)
+    assert closest >= 0.59 - 1e-3
+
+
 def test_sampling_under_the_rules_is_row_wise() -> None:
     # Each row is decided from its own observation and rules: a subset of rows gets the same actions.
     rng = np.random.default_rng(2)

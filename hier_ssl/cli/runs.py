@@ -168,7 +168,7 @@ def add_reproduce(subparsers: argparse._SubParsersAction) -> None:
         help="e.g. proposed/fscaps, obstacle (default: all); the rows of an existing "
         "RESULTS/paper-tables.csv that these runs do not evaluate are kept, those they do are replaced, the "
         "planners re-evaluated; with --family game a scenario (game_stop) or a learned game config "
-        "(stop_residual)",
+        "(stop_residual), the other scenarios' sections of RESULTS/game-table.md kept",
     )
     rep.add_argument(
         "--seeds",

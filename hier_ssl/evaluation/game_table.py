@@ -123,6 +123,22 @@ def game_csv(rows: Sequence[GameRow]) -> str:
     return buffer.getvalue()
 
 
+def read_game_csv(text: str) -> list[GameRow]:
+    """The rows of a ``game_csv`` output, in its order (``game_csv(read_game_csv(text)) == text``)."""
+    lines = list(csv.reader(io.StringIO(text)))
+    head = game_csv([]).strip().split(",")
+    if not lines or lines[0] != head:
+        raise ValueError(f"not a game-table CSV: header {lines[0] if lines else None!r}")
+    rows = []
+    for number, cells in enumerate(lines[1:], start=2):
+        if len(cells) != len(head):
+            raise ValueError(f"game-table CSV line {number}: {len(cells)} cells, expected {len(head)}")
+        values = [float(v) if v else float("nan") for v in cells[5:]]
+        spreads = {key: tuple(values[3 * i : 3 * i + 3]) for i, (_, key, _) in enumerate(GAME_COLUMNS)}
+        rows.append(GameRow(cells[0], cells[1], int(cells[2]), cells[3], int(cells[4]), spreads))
+    return rows
+
+
 # -- the target check ------------------------------------------------------------------------------------
 
 
@@ -221,5 +237,6 @@ __all__ = [
     "game_markdown",
     "game_row",
     "median_seed",
+    "read_game_csv",
     "target_check",
 ]

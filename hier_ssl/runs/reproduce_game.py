@@ -18,6 +18,7 @@ at frame skip 1 and 16 in the field frame, a run with its own interface and fram
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -36,8 +37,10 @@ from hier_ssl.evaluation.game_table import (
     game_markdown,
     game_row,
     median_seed,
+    read_game_csv,
     target_check,
 )
+from hier_ssl.evaluation.paper_tables import header_episodes
 from hier_ssl.runs.eval_cache import cached_record, config_digest
 from hier_ssl.runs.reproduce import PLANNER_ROWS, Planned, train_runs
 from hier_ssl.runs.train import EVAL_FILE
@@ -208,6 +211,31 @@ def game_header(episodes: int, seed: int) -> str:
     )
 
 
+def earlier_scenarios(
+    results: Path, scenarios: Sequence[str], episodes: int, seed: int
+) -> tuple[list[GameRow], dict[str, str]]:
+    """The rows and target-check paragraphs of ``scenarios`` in an earlier ``results``/game-table.md and
+    .csv, if any, checked to be of the same episodes as these: a rebuild of some scenarios keeps the
+    others' sections as they were."""
+    table, report = results / "game-table.csv", results / "game-table.md"
+    if not (table.is_file() and report.is_file()):
+        return [], {}
+    text = report.read_text()
+    played = header_episodes(text)
+    if played not in (None, (episodes, seed)):
+        raise ValueError(
+            f"{report}: its rows played {played[0]} episodes (seed {played[1]}), not {episodes} (seed "
+            f"{seed}); evaluate alike or write to another --results folder"
+        )
+    rows = [row for row in read_game_csv(table.read_text()) if row.scenario in scenarios]
+    checks = {}
+    for part in re.split(r"(?=\*\*Target check, )", text)[1:]:
+        scenario = part.removeprefix("**Target check, ").split("**", 1)[0]
+        if scenario in scenarios:
+            checks[scenario] = part.rstrip("\n") + "\n"
+    return rows, checks
+
+
 def reproduce_game(
     only: Sequence[str] = (),
     seeds: int | None = None,
@@ -223,7 +251,8 @@ def reproduce_game(
 ) -> Path:
     """Train what is missing of the selected learned game configs (unless ``train`` is False), evaluate the
     planners and every finished run on the selected scenarios, write ``results``/game-table.md and .csv
-    (the selected scenarios only); returns the Markdown file's path. ``overrides`` change every learned
+    (the other scenarios' sections kept from the earlier table there, ``earlier_scenarios``); returns the
+    Markdown file's path. ``overrides`` change every learned
     config, not the scenarios' episodes."""
     out, results = Path(out), Path(results)
     scenarios, configs = select_game(only, config_dir)
@@ -232,8 +261,9 @@ def reproduce_game(
         train_runs(runs, out, launch_options, progress)
     if progress:
         print(f"evaluating on {episodes} episodes per scenario (seed {eval_seed})", flush=True)
-    rows, text, cache = [], game_header(episodes, eval_seed), out / "evals"
-    checks = []
+    others = [s for s in GAME_SCENARIOS if s not in scenarios]
+    rows, checks = earlier_scenarios(results, others, episodes, eval_seed)
+    cache = out / "evals"
     for scenario in scenarios:
         played = scenario_episodes(scenario, config_dir)
         planners = planner_game_rows(scenario, played, episodes, eval_seed, cache, progress)
@@ -241,11 +271,13 @@ def reproduce_game(
         for row in learned if progress else ():
             print(f"  {scenario}: {row.manager} {row.policy}, {row.seeds} run(s)", flush=True)
         rows += [*planners, *learned]
-        checks.append(target_lines(scenario, planners, medians))
+        checks[scenario] = target_lines(scenario, planners, medians)
+    rows.sort(key=lambda row: GAME_SCENARIOS.index(row.scenario))  # stable: each scenario's order kept
+    ordered = [checks[s] for s in GAME_SCENARIOS if s in checks]
     results.mkdir(parents=True, exist_ok=True)
     (results / "game-table.csv").write_text(game_csv(rows))
     path = results / "game-table.md"
-    path.write_text(text + game_markdown(rows) + "\n" + "\n".join(checks))
+    path.write_text(game_header(episodes, eval_seed) + game_markdown(rows) + "\n" + "\n".join(ordered))
     return path
 
 
@@ -254,6 +286,7 @@ __all__ = [
     "GAME_SCENARIOS",
     "GAME_SEEDS",
     "PLANNER_RATES",
+    "earlier_scenarios",
     "learned_configs",
     "plan_game",
     "reproduce_game",

@@ -4,6 +4,7 @@ missed, with the numbers in its sentence."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -16,6 +17,7 @@ from hier_ssl.evaluation.game_table import (
     game_markdown,
     game_row,
     median_seed,
+    read_game_csv,
     target_check,
 )
 
@@ -110,3 +112,13 @@ def test_figures_and_rows_come_from_the_evaluation_records() -> None:
     assert "| `sampling` | 16 | - | - | 90.0 | 2.00 | 0.00 | 2.00 | 0.750 | 6.00 | 50.0 |" in text
     assert "| `game/x` | 1 | best | 3 | 93.0 (90.0 - 95.0) | 1.00 (1.00 - 2.00) |" in text
     assert game_csv([row]).splitlines()[1].startswith("game_stop,game/x,1,best,3,93.0,90.0,95.0,1.0,1.0,2.0")
+
+
+def test_the_game_csv_reads_back_as_it_was_written() -> None:
+    text = (Path(__file__).parents[2] / "results" / "game-table.csv").read_text()
+    rows = read_game_csv(text)
+    assert game_csv(rows) == text and {r.scenario for r in rows} >= {"game_stop", "game_match"}
+    with pytest.raises(ValueError, match="line 2: 3 cells"):
+        read_game_csv(text.splitlines()[0] + "\na,b,c\n")
+    with pytest.raises(ValueError, match="not a game-table CSV"):
+        read_game_csv("scenario,manager\n")

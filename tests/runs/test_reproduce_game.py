@@ -92,6 +92,26 @@ def test_reproduce_game_trains_evaluates_and_writes_the_table(
     assert calls == ["sampling"] and "training" not in capsys.readouterr().out
     assert (results / "game-table.md").read_text() == text
 
+    # An earlier table's other scenarios (here game_match's, from the shipped one) are kept, in order.
+    shipped = Path(__file__).parents[2] / "results"
+    match_rows = [
+        line for line in (shipped / "game-table.csv").read_text().splitlines() if "game_match," in line
+    ]
+    match_check = (
+        "**Target check, game_match**"
+        + (shipped / "game-table.md").read_text().split("**Target check, game_match**")[1]
+    )
+    with (results / "game-table.csv").open("a") as table:
+        table.write("\n".join(match_rows) + "\n")
+    (results / "game-table.md").write_text(text + "\n" + match_check)
+    assert cli.main([*argv, "--no-train"]) == 0
+    again = (results / "game-table.md").read_text()
+    assert again.index("### game_stop") < again.index("### game_match") < again.index("**Target check")
+    assert again.endswith("\n" + match_check) and again.count("**Target check, game_stop**") == 1
+    assert (results / "game-table.csv").read_text().splitlines()[-len(match_rows) :] == match_rows
+    with pytest.raises(ValueError, match="its rows played 1 episodes .seed 7., not 1000"):
+        reproduce_game.earlier_scenarios(results, ["game_match"], 1000, 7)
+
 
 def test_bad_only_and_mixed_families_say_what_is_wrong(capsys: pytest.CaptureFixture[str]) -> None:
     assert cli.main(["reproduce", "--family", "game", "--only", "game_kickoff", "--no-train"]) == 1

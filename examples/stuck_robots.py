@@ -1,4 +1,4 @@
-"""Which robots a manager loses to the time limit, and whether they dither there.
+"""Which robots a manager loses to the time limit, and whether they dither there; whom the others hit.
 
     python examples/stuck_robots.py sampling --scenario configs/scenarios/formation_residual.yaml \
         --episodes 1000 --seed 7
@@ -9,7 +9,9 @@ round an obstacle on successive decisions and the robot, driven one way and back
 episode's limit. This plays seeded episodes with any manager (a planner's name or a run directory, which
 acts in its own scenario unless ``--scenario`` is given) and prints, for the robots that time out, how
 often their sub-goal jumped by more than ``--jump`` metres over the last ``--window`` control steps, and
-how many teammates stood on their own targets within ``--near`` metres of theirs when it ended.
+how many teammates stood on their own targets within ``--near`` metres of theirs when it ended; and for
+the robots that collided, whether the robot nearest them at their last decision was a teammate (a
+collision the team could have planned away) or an opponent.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ class Watched:
     def forget(self, count: int) -> None:
         self.last = np.full((count, 2), np.nan)
         self.jumps, self.steps = np.zeros(count, int), np.zeros(count, int)
+        self.teammate, self.closing = np.zeros(count, bool), np.zeros(count)
         if self.remembers:
             self.manager.forget(count)
 
@@ -45,6 +48,15 @@ class Watched:
         moved = np.linalg.norm(now - self.last[rows], axis=1)
         self.jumps[rows] += (self.steps[rows] >= self.late) & (moved > self.jump)
         self.last[rows], self.steps[rows] = now, self.steps[rows] + 1
+        # The nearest other robot (the controlled ones first, then the opponents or obstacles): who a robot
+        # that collides before its next decision most likely met, and how fast they were closing.
+        m, pos, vel = self.core.subgoal.shape[1], self.core.state.pos, self.core.state.vel
+        field, robot = np.divmod(rows, m)
+        gap = np.linalg.norm(pos[field] - pos[field, robot][:, None], axis=-1)
+        gap[np.arange(len(rows)), robot] = np.inf
+        near = np.argmin(gap, axis=1)
+        self.teammate[rows] = near < m
+        self.closing[rows] = np.linalg.norm(vel[field, robot] - vel[field, near], axis=1)
         return self.manager(obs, rows=rows) if self.remembers else self.manager(obs)
 
 
@@ -89,6 +101,12 @@ def main() -> None:
         f"robots {arrived.size} arrived {arrived.sum()} collided {hit.sum()} fouled {fouled.sum()} "
         f"timed out {late.sum()}"
     )
+    if hit.any():
+        met = watched.teammate.reshape(hit.shape)[hit]
+        print(
+            f"collided nearest a teammate {met.sum()}, another robot {(~met).sum()} at the last decision "
+            f"(median relative speed {np.median(watched.closing.reshape(hit.shape)[hit]):.2f} m/s)"
+        )
     if late.any():
         print(
             f"dithering {np.sum(jumps >= args.dither)} (median jumps {np.median(jumps):.0f} in the last "

@@ -91,9 +91,13 @@ def test_stuck_robots(tmp_path: Path) -> None:
     counts = dict(zip(*[iter(lines[0].replace("timed out", "timed_out").split())] * 2, strict=True))
     robots, arrived, collided, fouled, late = map(int, counts.values())
     assert robots == 180 and arrived + collided + fouled + late == robots and arrived >= 170
+    rest = lines[1:]
+    if collided:
+        met = re.match(r"collided nearest a teammate (\d+), another robot (\d+) ", rest.pop(0))
+        assert int(met[1]) + int(met[2]) == collided
     if late:
-        assert int(lines[1].split()[1]) <= late
-        parked = [int(x) for x in lines[2].split("[")[1].split("]")[0].split(",")]
+        assert int(rest[0].split()[1]) <= late
+        parked = [int(x) for x in rest[1].split("[")[1].split("]")[0].split(",")]
         assert sum(parked) == late
 
 
@@ -102,13 +106,17 @@ def test_stuck_robots_counts_jumps_in_the_window_only() -> None:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     # One field of two robots: robot 0's sub-goal flips between two points 0.9 m apart, robot 1's stays.
-    core = SimpleNamespace(subgoal=np.zeros((1, 2, 5)))
+    # An opponent (index 2) stands next to robot 1, robot 0 is nearest robot 1 and closes on it at 1 m/s.
+    state = SimpleNamespace(pos=np.array([[[0.0, 0.0], [1.0, 0.0], [1.2, 0.0]]]), vel=np.zeros((1, 3, 2)))
+    state.vel[0, 0] = [1.0, 0.0]
+    core = SimpleNamespace(subgoal=np.zeros((1, 2, 5)), state=state)
     watched = module.Watched(lambda obs: obs, core, jump=0.45, limit=20, window=8)
     watched.forget(2)
     for step in range(20):
         core.subgoal[0, :, 0:2] = [[0.45 * (-1) ** step, 0.0], [1.0, 1.0]]
         watched(np.zeros((2, 3)), rows=np.arange(2))
     assert watched.jumps.tolist() == [8, 0]
+    assert watched.teammate.tolist() == [True, False] and watched.closing.tolist() == [1.0, 0.0]
 
 
 def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:

@@ -222,7 +222,7 @@ def nearest_legal(zones: Zones, points: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def crossing_at(
+def _crossing_at(
     x0: float, y0: float, x1: float, y1: float, ax: float, ay: float, bx: float, by: float
 ) -> float:
     """Where the segment (x0, y0) -> (x1, y1) crosses a -> b, as the fraction 0..1 of the way from a to b;
@@ -243,7 +243,7 @@ def axis_depth(
     takes: ``ends`` 1 past a alone, 2 past b alone, else the nearer; 0 where they do not cross.
     ``segment_away`` is 0 for every path across a capsule's segment: this tells one across it near an
     open end, which a point a little farther round clears, from one across its middle."""
-    t = crossing_at(x0, y0, x1, y1, ax, ay, bx, by)
+    t = _crossing_at(x0, y0, x1, y1, ax, ay, bx, by)
     if t < 0.0:
         return 0.0
     ex, ey = bx - ax, by - ay
@@ -257,7 +257,7 @@ def _segment_segment(
 ) -> float:
     """Distance between the segments (x0, y0) -> (x1, y1) and a -> b: 0 where they cross (each one's ends
     strictly either side of the other's line), else the least distance of an end from the other."""
-    if crossing_at(x0, y0, x1, y1, ax, ay, bx, by) >= 0.0:
+    if _crossing_at(x0, y0, x1, y1, ax, ay, bx, by) >= 0.0:
         return 0.0
     return min(
         min(point_segment(x0, y0, ax, ay, bx, by), point_segment(x1, y1, ax, ay, bx, by)),
@@ -406,7 +406,6 @@ __all__ = [
     "RowRules",
     "axis_depth",
     "cap_speed",
-    "crossing_at",
     "distances",
     "nearest_legal",
     "path_clearance",

@@ -251,18 +251,18 @@ def reproduce_game(
 ) -> Path:
     """Train what is missing of the selected learned game configs (unless ``train`` is False), evaluate the
     planners and every finished run on the selected scenarios, write ``results``/game-table.md and .csv
-    (the other scenarios' sections kept from the earlier table there, ``earlier_scenarios``); returns the
-    Markdown file's path. ``overrides`` change every learned
-    config, not the scenarios' episodes."""
+    (the other scenarios' sections kept from the earlier table there, ``earlier_scenarios``, read before
+    anything trains); returns the Markdown file's path. ``overrides`` change every learned config, not
+    the scenarios' episodes."""
     out, results = Path(out), Path(results)
     scenarios, configs = select_game(only, config_dir)
     runs = plan_game(configs, seeds, out, overrides)
+    others = [s for s in GAME_SCENARIOS if s not in scenarios]
+    rows, checks = earlier_scenarios(results, others, episodes, eval_seed)
     if train and runs:
         train_runs(runs, out, launch_options, progress)
     if progress:
         print(f"evaluating on {episodes} episodes per scenario (seed {eval_seed})", flush=True)
-    others = [s for s in GAME_SCENARIOS if s not in scenarios]
-    rows, checks = earlier_scenarios(results, others, episodes, eval_seed)
     cache = out / "evals"
     for scenario in scenarios:
         played = scenario_episodes(scenario, config_dir)

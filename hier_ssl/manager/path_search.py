@@ -12,7 +12,7 @@ import math
 import numba
 import numpy as np
 
-from hier_ssl.game.legal import segment_breaks
+from hier_ssl.game.segments import segment_breaks
 from hier_ssl.manager.bangbang import profile_2d, state_1d
 
 

@@ -258,7 +258,7 @@ class SamplingPlanner:
         sub-goals whose first leg is clear (the leg the robot drives before it replans), the one whose
         second leg comes least into the zones, to go round them over the next decisions; a leg across a
         capsule's segment (a ball placement's corridor) is as deep as it crosses it from the end a robot
-        can pass round (``hier_ssl.game.legal.axis_depth``), so that a way round an end wins; failing
+        can pass round (``hier_ssl.game.segments.axis_depth``), so that a way round an end wins; failing
         those, the target, legal (``ruled_scene``). A zone the robot already breaks does not bar its first
         leg: it is leaving it."""
         zones = rules.zones

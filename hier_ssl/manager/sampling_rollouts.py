@@ -12,7 +12,7 @@ import math
 import numba
 import numpy as np
 
-from hier_ssl.game.legal import axis_depth, segment_away
+from hier_ssl.game.segments import axis_depth, segment_away
 from hier_ssl.game.zones import CAPSULE, zone_distance
 
 PASS = 0.1  # m a robot's centre needs beyond a capsule's clearance to pass round its end

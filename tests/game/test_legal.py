@@ -15,7 +15,6 @@ import pytest
 
 from hier_ssl.game import zones as z
 from hier_ssl.game.legal import (
-    axis_depth,
     cap_speed,
     distances,
     nearest_legal,
@@ -23,6 +22,7 @@ from hier_ssl.game.legal import (
     row_rules,
     segment_clearance,
 )
+from hier_ssl.game.segments import axis_depth
 from hier_ssl.manager.sampling_rollouts import PASS, open_ends
 
 BALL = (z.CAPSULE, (0.0, 0.0, 0.0, 0.0), 0.59)

@@ -12,7 +12,8 @@ import pytest
 from hier_ssl.envs import env_config
 from hier_ssl.envs.planners import make_planner
 from hier_ssl.game import zones as z
-from hier_ssl.game.legal import RowRules, distances, segment_away, segment_breaks
+from hier_ssl.game.legal import RowRules, distances
+from hier_ssl.game.segments import segment_away, segment_breaks
 from hier_ssl.manager import manager_observation
 from hier_ssl.manager.bangbang import bang_bang_2d
 from hier_ssl.manager.scene import read_scene

@@ -189,11 +189,11 @@ class CandidateManager(nn.Module):
         ``generator``), its log-probability (B,), the action (B, A) naming it and what the network read;
         ``obs``'s ``read`` is built unless given; ``last`` (B,) complex, each robot's last chosen sub-goal
         (NaN: none), for a manager with ``memory``."""
+        if last is not None and not self.memory:
+            raise ValueError("this candidates manager keeps no memory (candidates.memory: false)")
         x = torch.as_tensor(obs, dtype=torch.float32)
         with torch.no_grad():
             read = self.read(x) if read is None else read
-            if last is not None and not self.memory:
-                raise ValueError("this candidates manager keeps no memory (candidates.memory: false)")
             inputs = self.inputs(x, read) if last is None else self.recall(x, read, last)
             logits = self.net(inputs)
             if logits.shape[1] != self.geometry.num_candidates:

@@ -12,6 +12,11 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from hier_ssl.envs import task_config
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.play import play
+from hier_ssl.evaluation.compare import load_manager
+
 EXAMPLES = Path(__file__).parents[1] / "examples"
 
 
@@ -117,6 +122,42 @@ def test_stuck_robots_counts_jumps_in_the_window_only() -> None:
         watched(np.zeros((2, 3)), rows=np.arange(2))
     assert watched.jumps.tolist() == [8, 0]
     assert watched.teammate.tolist() == [True, False] and watched.closing.tolist() == [1.0, 0.0]
+
+
+def test_foresight(tmp_path: Path) -> None:
+    # Seed 35's two STOP fields: `sampling` loses one robot of twelve at step 73 (a collision).
+    config = EXAMPLES.parent / "configs" / "game" / "stop_residual.yaml"
+    lines = _run(
+        "foresight.py",
+        "--scenario",
+        str(config),
+        "--episodes",
+        "2",
+        "--seed",
+        "35",
+        "--every",
+        "10",
+        cwd=tmp_path,
+    )
+    figures = [
+        re.match(r"(\w+): robots 12 success ([\d.]+) % fouls\+collisions [\d.]+ % \((\d+)\)", x)
+        for x in lines
+    ]
+    assert [f[1] for f in figures] == ["sampling", "foresight"]
+    # The script's own loop counts as the project's one loop does.
+    ends = play(
+        HierarchicalCore(task_config(config), 2, autoreset=False),
+        load_manager("sampling", task_config(config)),
+        35,
+    )
+    lost = ends["collision"] | (ends["foul"] > 0)
+    assert (
+        (float(figures[0][2]), int(figures[0][3]))
+        == (round(100 * ends["success"].mean(), 2), lost.sum())
+        == (83.33, 1)
+    )
+    # The copies foresee the collision and a changed sub-goal avoids it.
+    assert int(figures[1][3]) == 0 and int(lines[1].split()[-1]) >= 1
 
 
 def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:

@@ -1,0 +1,201 @@
+"""How many of a planner's fouls and collisions a manager that foresaw the game would avoid, at what cost.
+
+    python examples/foresight.py --scenario configs/game/stop_residual.yaml --episodes 100 --seed 11
+    python examples/foresight.py --scenario configs/game/stop_residual.yaml --episodes 100 --seed 11 \
+        --copies unseen-draws
+
+Not a manager: a measure of what foresight is worth. It plays ``sampling`` and, every ``--every`` control
+steps, a copy of the whole world (``copy.deepcopy`` of the core: physics, referee, both teams' planners
+and the generator of their random draws) plays the same plan ``--horizon`` steps ahead. Each robot the
+copy sees leave for a collision or a foul is offered ``--options`` other sub-goals (the planner's
+next-best candidates, at least 0.25 m apart, then its own position: wait), each played in its own copy,
+held ``--hold`` steps and then the planner's again; a field takes the option whose copy loses the fewest
+robots, then has the least time to target (arrived: its step; not yet: the horizon plus the distance
+left at 1.5 m/s), and holds it for real. A manager that reads one observation does not know what the
+copies show. ``--copies`` says what they know: everything (``exact``); all but the dice
+(``unseen-draws``: the opponents' free spots and sub-destinations drawn afresh); or our team alone
+(``steady-opponents``: the opponents hold the velocity they have, as ``sampling`` predicts them).
+``--options 0`` plays the planner alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+
+import numpy as np
+
+from hier_ssl.envs import task_config
+from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.evaluation.compare import load_manager
+from hier_ssl.manager.game_observation import RuledPlanner
+
+SPACING = 0.25  # m between the alternatives offered to a robot
+LOST = 1e4  # the cost of a robot lost in a copy, against its control steps to target
+
+
+class Plan:
+    """The planner's actions, with held sub-goals (field frame) for some robots until a control step."""
+
+    def __init__(self, planner: RuledPlanner, shape: tuple[int, int]) -> None:
+        self.planner, self.pose, self.until = planner, np.zeros(shape + (5,)), np.full(shape, -1)
+
+    def copy(self) -> Plan:
+        out = Plan(self.planner, self.until.shape)
+        out.pose[...], out.until[...] = self.pose, self.until
+        return out
+
+    def actions(self, core: HierarchicalCore, obs: np.ndarray, act: np.ndarray) -> np.ndarray:
+        live = core.active
+        act[live] = self.planner(obs[live])
+        held = live & (self.until > core.steps[:, None])
+        if held.any():
+            scene = self.planner.read(self.planner.rules(obs[held])[0])
+            act[held] = self.planner.action(scene, self.pose[held])
+        return act
+
+    def alternatives(self, obs: np.ndarray, count: int) -> np.ndarray:
+        """Sub-goal poses (B, count, 5) for robots ``obs`` (B, O): the planner's candidates in its order
+        after its choice, each ``SPACING`` from those before, then the robot's own position (repeated to
+        fill)."""
+        scene, rules = self.planner.read_ruled(obs)
+        cand = self.planner.candidates(scene)
+        score = self.planner.score(scene, cand, rules)
+        out = np.zeros((len(obs), count, 5))
+        for b, order in enumerate(np.argsort(-score, axis=1, kind="stable")):
+            picked = [cand[b, order[0]]]
+            for j in order[1:]:
+                if len(picked) > count - 1 or not np.isfinite(score[b, j]):
+                    break
+                if np.min(np.abs(cand[b, j] - np.array(picked))) > SPACING:
+                    picked.append(cand[b, j])
+            points = np.array(picked[1:] + [complex(*scene.robot_pos[b])] * count)[:count]
+            out[b, :, 0], out[b, :, 1], out[b, :, 2] = points.real, points.imag, scene.target[b, 2]
+            if rules.speed[b] <= 0:  # HALT: the robot holds where it is, whatever the option
+                out[b, :, 0:2], out[b, :, 3:5] = scene.robot_pos[b], 0.0
+        return out
+
+
+def ahead(core: HierarchicalCore, obs: np.ndarray, plan: Plan, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    """Play ``plan`` in ``core`` (a copy) ``horizon`` control steps. Returns, per field, LOST per robot that
+    left for a collision or a foul plus each live robot's steps to its target (module docstring); and
+    those robots (N, M) bool."""
+    lost, arrived = np.zeros(core.active.shape, bool), np.full(core.active.shape, np.inf)
+    live, act = core.active.copy(), np.zeros(core.active.shape + (core.act_dim,))
+    for t in range(horizon):
+        if not core.active.any():
+            break
+        result = core.step(plan.actions(core, obs, act))
+        stats, obs = result.info["task"], result.obs
+        at = (stats["field"], stats["agent"])
+        lost[at] |= (stats["collision"] > 0) | (stats["foul"] > 0)
+        arrived[at] = np.where(stats["success"] > 0, t + 1, np.inf)
+    m = core.active.shape[1]
+    left = np.linalg.norm(core.state.pos[:, :m] - core.target[..., 0:2], axis=-1)
+    steps = np.where(np.isfinite(arrived), arrived, horizon + left / (1.5 * core.config.dt))
+    return LOST * lost.sum(1) + np.where(live, steps, 0.0).sum(1), lost
+
+
+def foresee(core: HierarchicalCore, planner: RuledPlanner, seed: int, args: argparse.Namespace) -> dict:
+    """Play one seeded episode a field with the foresight (module docstring). Returns the robots' ends
+    (N, M) as ``hier_ssl.envs.play.play`` counts them and the number of sub-goals the foresight changed."""
+    dice = np.random.default_rng(seed + 1)
+
+    def copied() -> HierarchicalCore:
+        twin = copy.deepcopy(core)
+        if args.copies == "unseen-draws":
+            twin.rng = np.random.default_rng(dice.integers(2**63))
+        elif args.copies == "steady-opponents":
+            steady(twin)
+        return twin
+
+    obs, (n, m) = core.reset(seed), core.active.shape
+    plan, act = Plan(planner, (n, m)), np.zeros((n, m, core.act_dim))
+    ends = {key: np.zeros((n, m)) for key in ("success", "collision", "foul", "length")}
+    overrides = 0
+    while core.active.any():
+        if args.options and core.steps.max() % args.every == 0:
+            overrides += choose(copied, obs, plan, core.steps, args)
+        result = core.step(plan.actions(core, obs, act))
+        stats, obs = result.info["task"], result.obs
+        for key in ends:
+            ends[key][stats["field"], stats["agent"]] = stats[key]
+    return {**ends, "overrides": overrides}
+
+
+def steady(core: HierarchicalCore) -> None:
+    """Make ``core``'s opponents (a game's second team) hold their velocity from now on, as ``sampling``
+    predicts them: each its own command, in its own frame, that keeps it (no turning)."""
+    m, state = core.num_agents, core.world.state
+    vel, angle = state.vel[:, m:], state.angle[:, m:]
+    cos, sin = np.cos(angle), np.sin(angle)
+    held = np.stack(
+        [cos * vel[..., 0] + sin * vel[..., 1], cos * vel[..., 1] - sin * vel[..., 0], 0 * cos], -1
+    )
+    core.scenario.team.commands = lambda *args: held.copy()
+
+
+def choose(copied, obs: np.ndarray, plan: Plan, steps: np.ndarray, args: argparse.Namespace) -> int:
+    """Look ahead from here: each robot a copy of the world loses gets the option that does best in its
+    own copy, each field choosing for its robots together; returns how many robots changed sub-goal."""
+    best, risk = ahead(copied(), obs, plan.copy(), args.horizon)
+    if not risk.any():
+        return 0
+    options, field = plan.alternatives(obs[risk], args.options), np.nonzero(risk)[0]
+    pick = np.full(len(best), -1)
+    for j in range(args.options):
+        trial = plan.copy()
+        trial.pose[risk], trial.until[risk] = options[:, j], steps[field] + args.hold
+        cost = ahead(copied(), obs, trial, args.horizon)[0]
+        pick, best = np.where(cost < best, j, pick), np.minimum(cost, best)
+    chosen = pick[field] >= 0
+    rows = tuple(np.argwhere(risk)[chosen].T)
+    plan.pose[rows] = options[chosen, pick[field[chosen]]]
+    plan.until[rows] = steps[field[chosen]] + args.hold
+    return int(chosen.sum())
+
+
+def summary(name: str, ends: dict, dt: float) -> str:
+    """One line: success, fouls + collisions (robots), median time to target of those that succeeded."""
+    success, lost = ends["success"] > 0, (ends["collision"] > 0) | (ends["foul"] > 0)
+    time = np.median(ends["length"][success]) * dt if success.any() else float("nan")
+    return (
+        f"{name}: robots {success.size} success {100 * success.mean():.2f} % fouls+collisions "
+        f"{100 * lost.mean():.2f} % ({lost.sum()}) median time to target {time:.3f} s"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", default="configs/game/stop_residual.yaml", help="a game scenario YAML")
+    parser.add_argument("--episodes", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=11)
+    parser.add_argument("--every", type=int, default=5, help="control steps between looks ahead")
+    parser.add_argument("--horizon", type=int, default=60, help="control steps a copy plays ahead")
+    parser.add_argument("--options", type=int, default=6, help="other sub-goals a robot at risk is offered")
+    parser.add_argument("--hold", type=int, default=15, help="control steps an option is held")
+    parser.add_argument(
+        "--copies",
+        choices=("exact", "unseen-draws", "steady-opponents"),
+        default="exact",
+        help="what the copies know: everything; all but the dice; our team only, the opponents held at "
+        "their velocity",
+    )
+    args = parser.parse_args()
+    config = task_config(args.scenario)
+    planner = load_manager("sampling", config)
+    if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:
+        parser.error("a game scenario at frame skip 1, where a decision is a control step")
+    alone = foresee(
+        HierarchicalCore(config, args.episodes, autoreset=False),
+        planner,
+        args.seed,
+        argparse.Namespace(**{**vars(args), "options": 0}),
+    )
+    print(summary("sampling", alone, config.dt), flush=True)
+    ends = foresee(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed, args)
+    print(f"{summary('foresight', ends, config.dt)} sub-goals changed {ends['overrides']}")
+
+
+if __name__ == "__main__":
+    main()

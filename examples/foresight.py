@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+from collections.abc import Callable
 
 import numpy as np
 
@@ -98,7 +99,8 @@ def ahead(core: HierarchicalCore, obs: np.ndarray, plan: Plan, horizon: int) -> 
 
 def foresee(core: HierarchicalCore, planner: RuledPlanner, seed: int, args: argparse.Namespace) -> dict:
     """Play one seeded episode a field with the foresight (module docstring). Returns the robots' ends
-    (N, M) as ``hier_ssl.envs.play.play`` counts them and the number of sub-goals the foresight changed."""
+    (N, M) as ``hier_ssl.envs.play.play`` counts them and how many times it handed a robot another
+    sub-goal than the planner's."""
     dice = np.random.default_rng(seed + 1)
 
     def copied() -> HierarchicalCore:
@@ -135,7 +137,13 @@ def steady(core: HierarchicalCore) -> None:
     core.scenario.team.commands = lambda *args: held.copy()
 
 
-def choose(copied, obs: np.ndarray, plan: Plan, steps: np.ndarray, args: argparse.Namespace) -> int:
+def choose(
+    copied: Callable[[], HierarchicalCore],
+    obs: np.ndarray,
+    plan: Plan,
+    steps: np.ndarray,
+    args: argparse.Namespace,
+) -> int:
     """Look ahead from here: each robot a copy of the world loses gets the option that does best in its
     own copy, each field choosing for its robots together; returns how many robots changed sub-goal."""
     best, risk = ahead(copied(), obs, plan.copy(), args.horizon)

@@ -190,6 +190,10 @@ def main() -> None:
         "their velocity",
     )
     args = parser.parse_args()
+    for name in ("episodes", "every", "horizon", "hold", "options"):
+        least = 0 if name == "options" else 1
+        if getattr(args, name) < least:
+            parser.error(f"--{name} must be at least {least}, got {getattr(args, name)}")
     config = task_config(args.scenario)
     planner = load_manager("sampling", config)
     if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:

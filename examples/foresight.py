@@ -6,7 +6,8 @@
 
 Not a manager: a measure of what foresight is worth. It plays ``sampling`` and, every ``--every`` control
 steps, a copy of the whole world (``copy.deepcopy`` of the core: physics, referee, both teams' planners
-and the generator of their random draws) plays the same plan ``--horizon`` steps ahead. Each robot the
+and the generator of their random draws; close, not bit for bit: a copied pymunk space resolves
+contacts a little differently) plays the same plan ``--horizon`` steps ahead. Each robot the
 copy sees leave for a collision or a foul is offered ``--options`` other sub-goals (the planner's
 next-best candidates, at least 0.25 m apart, then its own position: wait), each played in its own copy,
 held ``--hold`` steps and then the planner's again; a field takes the option whose copy loses the fewest
@@ -28,11 +29,13 @@ import numpy as np
 
 from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
+from hier_ssl.envs.play import play
 from hier_ssl.evaluation.compare import load_manager
 from hier_ssl.manager.game_observation import RuledPlanner
 
 SPACING = 0.25  # m between the alternatives offered to a robot
 LOST = 1e4  # the cost of a robot lost in a copy, against its control steps to target
+DICE = 12345  # seeds the copies' own draws with ``--copies unseen-draws`` (docs/results.md's rows used it)
 
 
 class Plan:
@@ -47,9 +50,10 @@ class Plan:
         return out
 
     def actions(self, core: HierarchicalCore, obs: np.ndarray, act: np.ndarray) -> np.ndarray:
-        live = core.active
-        act[live] = self.planner(obs[live])
-        held = live & (self.until > core.steps[:, None])
+        held = core.active & (self.until > core.steps[:, None])
+        planned = core.active & ~held
+        if planned.any():  # the planner keeps nothing between calls: the held robots' calls are not needed
+            act[planned] = self.planner(obs[planned])
         if held.any():
             scene = self.planner.read(self.planner.rules(obs[held])[0])
             act[held] = self.planner.action(scene, self.pose[held])
@@ -97,32 +101,34 @@ def ahead(core: HierarchicalCore, obs: np.ndarray, plan: Plan, horizon: int) -> 
     return LOST * lost.sum(1) + np.where(live, steps, 0.0).sum(1), lost
 
 
-def foresee(core: HierarchicalCore, planner: RuledPlanner, seed: int, args: argparse.Namespace) -> dict:
-    """Play one seeded episode a field with the foresight (module docstring). Returns the robots' ends
-    (N, M) as ``hier_ssl.envs.play.play`` counts them and how many times it handed a robot another
+class Foresight:
+    """``sampling`` with the copies' changes (module docstring), a policy of ``hier_ssl.envs.play.play``
+    for the episodes of ``core``, which it copies; ``changed`` counts the times it handed a robot another
     sub-goal than the planner's."""
-    dice = np.random.default_rng(seed + 1)
 
-    def copied() -> HierarchicalCore:
-        twin = copy.deepcopy(core)
-        if args.copies == "unseen-draws":
-            twin.rng = np.random.default_rng(dice.integers(2**63))
-        elif args.copies == "steady-opponents":
+    def __init__(
+        self, core: HierarchicalCore, planner: RuledPlanner, seed: int, args: argparse.Namespace
+    ) -> None:
+        self.core, self.args, self.changed = core, args, 0
+        self.plan, self.dice = Plan(planner, core.active.shape), np.random.default_rng(DICE)
+        self.obs = np.zeros(core.active.shape + (core.obs_dim,), np.float32)
+        self.act = np.zeros(core.active.shape + (core.act_dim,))
+
+    def copied(self) -> HierarchicalCore:
+        twin = copy.deepcopy(self.core)
+        if self.args.copies == "unseen-draws":
+            twin.rng = np.random.default_rng(self.dice.integers(2**63))
+        elif self.args.copies == "steady-opponents":
             steady(twin)
         return twin
 
-    obs, (n, m) = core.reset(seed), core.active.shape
-    plan, act = Plan(planner, (n, m)), np.zeros((n, m, core.act_dim))
-    ends = {key: np.zeros((n, m)) for key in ("success", "collision", "foul", "length")}
-    overrides = 0
-    while core.active.any():
-        if args.options and core.steps.max() % args.every == 0:
-            overrides += choose(copied, obs, plan, core.steps, args)
-        result = core.step(plan.actions(core, obs, act))
-        stats, obs = result.info["task"], result.obs
-        for key in ends:
-            ends[key][stats["field"], stats["agent"]] = stats[key]
-    return {**ends, "overrides": overrides}
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Actions for the live robots' observations ``obs``, as ``play`` hands them (its core's order)."""
+        core, live = self.core, self.core.active
+        self.obs[live] = obs
+        if self.args.options and core.steps.max() % self.args.every == 0:
+            self.changed += choose(self.copied, self.obs, self.plan, core.steps, self.args)
+        return self.plan.actions(core, self.obs, self.act)[live]
 
 
 def steady(core: HierarchicalCore) -> None:
@@ -198,15 +204,12 @@ def main() -> None:
     planner = load_manager("sampling", config)
     if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:
         parser.error("a game scenario at frame skip 1, where a decision is a control step")
-    alone = foresee(
-        HierarchicalCore(config, args.episodes, autoreset=False),
-        planner,
-        args.seed,
-        argparse.Namespace(**{**vars(args), "options": 0}),
-    )
+    alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
     print(summary("sampling", alone, config.dt), flush=True)
-    ends = foresee(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed, args)
-    print(f"{summary('foresight', ends, config.dt)} sub-goals changed {ends['overrides']}")
+    core = HierarchicalCore(config, args.episodes, autoreset=False)
+    foresight = Foresight(core, planner, args.seed, args)
+    ends = play(core, foresight, args.seed)
+    print(f"{summary('foresight', ends, config.dt)} sub-goals changed {foresight.changed}")
 
 
 if __name__ == "__main__":

@@ -144,7 +144,7 @@ def test_foresight(tmp_path: Path) -> None:
         for x in lines
     ]
     assert [f[1] for f in figures] == ["sampling", "foresight"]
-    # The script's own loop counts as the project's one loop does.
+    # The script reports what the project's one loop counts.
     ends = play(
         HierarchicalCore(task_config(config), 2, autoreset=False),
         load_manager("sampling", task_config(config)),

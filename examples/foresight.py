@@ -59,26 +59,35 @@ class Plan:
             act[held] = self.planner.action(scene, self.pose[held])
         return act
 
-    def alternatives(self, obs: np.ndarray, count: int) -> np.ndarray:
+    def alternatives(self, obs: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
         """Sub-goal poses (B, count, 5) for robots ``obs`` (B, O): the planner's candidates in its order
         after its choice, each ``SPACING`` from those before, then the robot's own position (repeated to
-        fill)."""
+        fill); and their indices (B, count) among ``planner.candidates``, -1 for the robot's position."""
         scene, rules = self.planner.read_ruled(obs)
         cand = self.planner.candidates(scene)
-        score = self.planner.score(scene, cand, rules)
+        index = spaced(cand, self.planner.score(scene, cand, rules), count)
+        own = (scene.robot_pos @ np.array([1.0, 1j]))[:, None]
+        points = np.where(index >= 0, np.take_along_axis(cand, index.clip(0), 1), own)
         out = np.zeros((len(obs), count, 5))
-        for b, order in enumerate(np.argsort(-score, axis=1, kind="stable")):
-            picked = [cand[b, order[0]]]
-            for j in order[1:]:
-                if len(picked) > count - 1 or not np.isfinite(score[b, j]):
-                    break
-                if np.min(np.abs(cand[b, j] - np.array(picked))) > SPACING:
-                    picked.append(cand[b, j])
-            points = np.array(picked[1:] + [complex(*scene.robot_pos[b])] * count)[:count]
-            out[b, :, 0], out[b, :, 1], out[b, :, 2] = points.real, points.imag, scene.target[b, 2]
-            if rules.speed[b] <= 0:  # HALT: the robot holds where it is, whatever the option
-                out[b, :, 0:2], out[b, :, 3:5] = scene.robot_pos[b], 0.0
-        return out
+        out[..., 0], out[..., 1], out[..., 2] = points.real, points.imag, scene.target[:, 2, None]
+        halted = rules.speed <= 0  # HALT: the robot holds where it is, whatever the option
+        out[halted, :, 0:2], out[halted, :, 3:5] = scene.robot_pos[halted, None], 0.0
+        return out, np.where(halted[:, None], -1, index)
+
+
+def spaced(cand: np.ndarray, score: np.ndarray, count: int) -> np.ndarray:
+    """Indices (B, count) of the candidates ``cand`` (B, C) ranked ``score`` (B, C) after the best, in its
+    order, each ``SPACING`` from those before it and the best, -1 past the last one ranked."""
+    out = np.full((len(cand), count), -1)
+    for b, order in enumerate(np.argsort(-score, axis=1, kind="stable")):
+        picked = [order[0]]
+        for j in order[1:]:
+            if len(picked) > count or not np.isfinite(score[b, j]):
+                break
+            if np.min(np.abs(cand[b, j] - cand[b, picked])) > SPACING:
+                picked.append(j)
+        out[b, : len(picked) - 1] = picked[1:]
+    return out
 
 
 def ahead(core: HierarchicalCore, obs: np.ndarray, plan: Plan, horizon: int) -> tuple[np.ndarray, np.ndarray]:
@@ -101,15 +110,26 @@ def ahead(core: HierarchicalCore, obs: np.ndarray, plan: Plan, horizon: int) -> 
     return LOST * lost.sum(1) + np.where(live, steps, 0.0).sum(1), lost
 
 
+Seen = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+"""What the copies showed at a look ahead: the robots the planner's plan loses (N, M) bool; for those R
+robots, the candidates offered (R, options) (``Plan.alternatives``) and whether each option loses the
+robot in its copy (R, options) bool."""
+
+
 class Foresight:
     """``sampling`` with the copies' changes (module docstring), a policy of ``hier_ssl.envs.play.play``
     for the episodes of ``core``, which it copies; ``changed`` counts the times it handed a robot another
     sub-goal than the planner's."""
 
     def __init__(
-        self, core: HierarchicalCore, planner: RuledPlanner, seed: int, args: argparse.Namespace
+        self,
+        core: HierarchicalCore,
+        planner: RuledPlanner,
+        seed: int,
+        args: argparse.Namespace,
+        seen: Seen | None = None,
     ) -> None:
-        self.core, self.args, self.changed = core, args, 0
+        self.core, self.args, self.changed, self.seen = core, args, 0, seen
         self.plan, self.dice = Plan(planner, core.active.shape), np.random.default_rng(DICE)
         self.obs = np.zeros(core.active.shape + (core.obs_dim,), np.float32)
         self.act = np.zeros(core.active.shape + (core.act_dim,))
@@ -127,7 +147,7 @@ class Foresight:
         core, live = self.core, self.core.active
         self.obs[live] = obs
         if self.args.options and core.steps.max() % self.args.every == 0:
-            self.changed += choose(self.copied, self.obs, self.plan, core.steps, self.args)
+            self.changed += choose(self.copied, self.obs, self.plan, core.steps, self.args, self.seen)
         return self.plan.actions(core, self.obs, self.act)[live]
 
 
@@ -149,19 +169,23 @@ def choose(
     plan: Plan,
     steps: np.ndarray,
     args: argparse.Namespace,
+    seen: Seen | None = None,
 ) -> int:
     """Look ahead from here: each robot a copy of the world loses gets the option that does best in its
-    own copy, each field choosing for its robots together; returns how many robots changed sub-goal."""
+    own copy, each field choosing for its robots together; returns how many robots changed sub-goal.
+    ``seen``, where given, is told what the copies showed before the plan changes."""
     best, risk = ahead(copied(), obs, plan.copy(), args.horizon)
-    if not risk.any():
-        return 0
-    options, field = plan.alternatives(obs[risk], args.options), np.nonzero(risk)[0]
+    options, index = plan.alternatives(obs[risk], args.options)
+    field, lost = np.nonzero(risk)[0], np.zeros(index.shape, bool)
     pick = np.full(len(best), -1)
-    for j in range(args.options):
+    for j in range(args.options if risk.any() else 0):
         trial = plan.copy()
         trial.pose[risk], trial.until[risk] = options[:, j], steps[field] + args.hold
-        cost = ahead(copied(), obs, trial, args.horizon)[0]
+        cost, lost_j = ahead(copied(), obs, trial, args.horizon)
+        lost[:, j] = lost_j[risk]
         pick, best = np.where(cost < best, j, pick), np.minimum(cost, best)
+    if seen is not None:
+        seen(risk, index, lost)
     chosen = pick[field] >= 0
     rows = tuple(np.argwhere(risk)[chosen].T)
     plan.pose[rows] = options[chosen, pick[field[chosen]]]

@@ -34,7 +34,13 @@ def _run(script: str, *args: str, cwd: Path) -> list[str]:
 def test_every_example_is_tested_and_shown_in_the_docs() -> None:
     scripts = sorted(path.name for path in EXAMPLES.glob("*.py"))
     tested = set(re.findall(r'_run\(\s*"(\w+\.py)"', Path(__file__).read_text()))
-    shown = set(re.findall(r"examples/(\w+\.py)", (EXAMPLES.parent / "docs" / "examples.md").read_text()))
+    # Shown: each is a snippet the page includes whole (a formatter once broke them into `--8 < --"..."`,
+    # which the docs then printed as it stood).
+    shown = set(
+        re.findall(
+            r'^--8<-- "examples/(\w+\.py)"$', (EXAMPLES.parent / "docs" / "examples.md").read_text(), re.M
+        )
+    )
     assert scripts and set(scripts) == shown
     assert set(scripts) - {"run_exported_manager.py"} == tested  # that one is run by export_onnx.py
 
@@ -158,6 +164,51 @@ def test_foresight(tmp_path: Path) -> None:
     )
     # The copies foresee the collision and a changed sub-goal avoids it.
     assert int(figures[1][3]) == 0 and int(lines[1].split()[-1]) >= 1
+
+
+def test_distill(tmp_path: Path) -> None:
+    # Seed 100's four ball placement fields: the teacher's copies see robots lost and options that keep them.
+    config = str(EXAMPLES.parent / "configs" / "game" / "ball_placement_residual.yaml")
+    scenario, labels = ("--scenario", config), str(tmp_path / "labels.npz")
+    rec = _run(
+        "distill.py", "record", *scenario, "--seeds", "100", "--episodes", "4", "--out", labels, cwd=tmp_path
+    )
+    # Recording leaves the teacher's play as foresight.py plays it.
+    alone = _run("foresight.py", *scenario, "--episodes", "4", "--seed", "100", cwd=tmp_path)
+    assert rec[0].split(": ", 1)[1] == alone[1].split(": ", 1)[1]
+    saved = np.load(labels)["labels"]
+    lost, kept = (int(x) for x in re.search(r"lost (\d+) kept (\d+)", rec[1]).groups())
+    assert ((saved == 1).sum(), (saved == 0).sum()) == (lost, kept) and lost > 0
+    # At some state the planner's choice lost the robot in a copy, and another sub-goal offered kept it.
+    top = np.load(labels)["inputs"][..., 1].argmax(1)
+    risky = saved[np.arange(len(saved)), top] == 1
+    assert (saved[risky] == 0).any()
+    lines = _run(
+        "distill.py",
+        "play",
+        *scenario,
+        "--labels",
+        labels,
+        "--val",
+        labels,
+        "--episodes",
+        "2",
+        "--seed",
+        "35",
+        "--epochs",
+        "300",
+        cwd=tmp_path,
+    )
+    # Fitted long enough, the network sorts the states it was fitted on.
+    assert float(re.search(r"state AUC ([\d.]+)", lines[0])[1]) >= 0.9
+    ends = play(
+        HierarchicalCore(task_config(config), 2, autoreset=False),
+        load_manager("sampling", task_config(config)),
+        35,
+    )
+    robots = re.match(r"sampling: robots 12 success ([\d.]+) %", lines[1])
+    assert float(robots[1]) == round(100 * ends["success"].mean(), 2)
+    assert re.match(r"student: robots 12 success [\d.]+ % .* sub-goals changed \d+$", lines[2])
 
 
 def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:

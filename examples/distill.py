@@ -10,16 +10,18 @@ state, a student that sees what the robot sees). ``record`` plays ``foresight.py
 that know everything and keeps, at each look ahead, each robot's candidate sub-goals as the residual
 manager reads them (``residual_inputs``: the planner's own rollout figures of each candidate) with what
 the copies showed: the planner's choice kept or lost the robot; for a robot it lost, each other sub-goal
-offered kept or lost it. Only robots the planner decides for are kept (a held sub-goal is not the planner's
-choice), and of the calm ones (not lost) a share ``--calm``, so that losses are not one row in a hundred.
+offered (the planner's next-best, ``foresight.SPACING`` apart, offered to all of a field's robots at risk
+at once) kept or lost it. Only robots the planner decides for are kept (a held sub-goal is not the
+planner's choice), and of the calm ones (not lost) a share ``--calm``, so that losses are not one row in a
+hundred.
 
 ``play`` fits a small network on those rows: the chance that a candidate loses its robot (logistic loss
 over every labelled candidate). The student plays ``sampling`` and, every ``--every`` control steps, each
 robot whose planner choice the network rates above ``--threshold`` gets the lowest-rated of the other
-sub-goals the teacher would have offered, where that one is
-rated lower, held ``--hold`` steps. It reads one observation a robot, as a manager does. ``--val`` labels
-(other seeds) say how well the network sorts states (the area under the ROC curve of the planner's choice)
-and, at states the planner's choice loses, how often its pick keeps the robot against a random option.
+sub-goals the teacher would have offered, where that one rates lower, held ``--hold`` steps. It reads one
+observation a robot, as a manager does. ``--val`` labels (other seeds) say how well the network sorts
+states (the area under the ROC curve of the planner's choice) and, at states the planner's choice loses,
+how often its pick keeps the robot against a random option.
 """
 
 from __future__ import annotations
@@ -149,7 +151,7 @@ class Student:
 
     def __init__(
         self, core: HierarchicalCore, planner: RuledPlanner, net: nn.Module, args: argparse.Namespace
-    ):
+    ) -> None:
         self.core, self.net, self.args, self.changed = core, net, args, 0
         self.plan = Plan(planner, core.active.shape)
         self.obs = np.zeros(core.active.shape + (core.obs_dim,), np.float32)

@@ -123,7 +123,7 @@ def rated(net: nn.Module, inputs: np.ndarray | torch.Tensor) -> np.ndarray:
 
 
 def auc(score: np.ndarray, positive: np.ndarray) -> float:
-    """The chance that a positive scores above a negative (ties half)."""
+    """The chance that a positive scores above a negative (the area under the ROC curve; ties in order)."""
     order = np.argsort(score, kind="stable")
     ranks = np.empty(len(score))
     ranks[order] = np.arange(1, len(score) + 1)

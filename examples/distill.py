@@ -164,10 +164,11 @@ class Student:
         if core.steps.max() % self.args.every == 0 and free.any():
             scene, rules = plan.planner.read_ruled(self.obs[free])
             cand = plan.planner.candidates(scene)
-            inputs = residual_inputs(plan.planner, self.obs[free], cand, zone_features=True)
+            ranked = plan.planner.ranking(scene, cand, rules)  # one set of rollouts for both uses
+            inputs = residual_inputs(plan.planner, self.obs[free], cand, zone_features=True, ranked=ranked)
             risk, rows = rated(self.net, inputs), np.arange(len(cand))
             top = risk[rows, inputs[..., 1].numpy().argmax(1)]
-            poses, index = plan.alternatives(self.obs[free], TEACHER.options)
+            poses, index = plan.alternatives(self.obs[free], TEACHER.options, (cand, ranked[0]))
             option = np.where(index >= 0, np.take_along_axis(risk, index.clip(0), 1), np.inf)
             pick = option.argmin(1)
             change = (top > self.args.threshold) & (option[rows, pick] < top) & (rules.speed > 0)

@@ -59,13 +59,19 @@ class Plan:
             act[held] = self.planner.action(scene, self.pose[held])
         return act
 
-    def alternatives(self, obs: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    def alternatives(
+        self, obs: np.ndarray, count: int, scored: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Sub-goal poses (B, count, 5) for robots ``obs`` (B, O): the planner's candidates in its order
         after its choice, each ``SPACING`` from those before, then the robot's own position (repeated to
-        fill); and their indices (B, count) among ``planner.candidates``, -1 for the robot's position."""
+        fill); and their indices (B, count) among ``planner.candidates``, -1 for the robot's position.
+        ``scored``: those candidates and the planner's score of them, where the caller has them already."""
         scene, rules = self.planner.read_ruled(obs)
-        cand = self.planner.candidates(scene)
-        index = spaced(cand, self.planner.score(scene, cand, rules), count)
+        if scored is None:
+            cand = self.planner.candidates(scene)
+            scored = cand, self.planner.score(scene, cand, rules)
+        cand, score = scored
+        index = spaced(cand, score, count)
         own = (scene.robot_pos @ np.array([1.0, 1j]))[:, None]
         points = np.where(index >= 0, np.take_along_axis(cand, index.clip(0), 1), own)
         out = np.zeros((len(obs), count, 5))

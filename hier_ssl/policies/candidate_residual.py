@@ -115,6 +115,7 @@ def residual_inputs(
     cand: np.ndarray,
     zone_features: bool = False,
     last: np.ndarray | None = None,
+    ranked: tuple[np.ndarray, tuple[np.ndarray, ...], np.ndarray] | None = None,
 ) -> torch.Tensor:
     """What a ``Residual`` reads (B, C, 2 + ``residual_features(zone_features)``) float32 of observations
     ``obs`` (B, O) and their candidates ``cand`` (B, C) complex: the planner's score minus the row's best
@@ -123,9 +124,12 @@ def residual_inputs(
     then the ``RESIDUAL_FEATURES`` and, with ``zone_features``, the ``ZONE_FEATURES``: the first leg's
     (robot -> candidate) and the second leg's (candidate -> ``scene``'s target, where the rules moved it)
     least clearance from the row's zones (``zone_clearances``), m in [-1, 3], 3 without rules; with
-    ``last`` (B,) complex, each robot's last chosen sub-goal (NaN: none), the ``MEMORY_FEATURES``."""
+    ``last`` (B,) complex, each robot's last chosen sub-goal (NaN: none), the ``MEMORY_FEATURES``.
+    ``ranked``: ``planner.ranking`` of these candidates where the caller has it already (its rollouts are
+    what the features cost)."""
     scene, rules = ruled_read(planner, obs)
-    score, (arrival, clearance, hard, near), clear = planner.ranking(scene, cand, rules)
+    ranked = planner.ranking(scene, cand, rules) if ranked is None else ranked
+    score, (arrival, clearance, hard, near), clear = ranked
     best = score.max(1, keepdims=True)
     ranked = np.isfinite(best)
     prior = np.where(ranked, score - np.where(ranked, best, 0.0), 0.0)

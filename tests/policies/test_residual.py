@@ -239,6 +239,17 @@ def test_the_zone_features_are_each_legs_least_clearance_from_the_rows_zones() -
     assert len(far) == ZONE_FEATURES and all((column == 3.0).all() for column in far)
 
 
+def test_the_inputs_read_a_ranking_the_caller_already_has() -> None:
+    planner, obs, scene, rules, cand, zoned = _game_stop_inputs()
+    score, (arrival, clearance, hard, near), clear = planner.ranking(scene, cand, rules)
+    given = (score, (arrival, clearance, hard, near), clear)
+    assert torch.equal(residual_inputs(planner, obs, cand, True, ranked=given), zoned)
+    # The ranking given is the one read, not computed again: a later arrival shows in its column.
+    later = (score, (arrival + 1.0, clearance, hard, near), clear)
+    shifted = residual_inputs(planner, obs, cand, True, ranked=later)[..., 2]
+    assert torch.allclose(shifted, torch.as_tensor(arrival + 1.0, dtype=torch.float32).clip(0.0, 10.0))
+
+
 def test_a_zone_featured_residual_reloads_with_its_runs_config(tmp_path: Path) -> None:
     config = parse_config(ZONED)
     net = _fresh(zone_features=True)

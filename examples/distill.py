@@ -30,7 +30,7 @@ import argparse
 
 import numpy as np
 import torch
-from foresight import Foresight, Plan, summary
+from foresight import LOOK, Foresight, Plan, summary
 from torch import nn
 
 from hier_ssl.envs import task_config
@@ -42,7 +42,7 @@ from hier_ssl.policies.candidate_residual import residual_inputs
 from hier_ssl.policies.networks import mlp
 
 UNSEEN = -1  # a candidate no copy played
-TEACHER = argparse.Namespace(every=5, horizon=60, options=6, hold=15, copies="exact")  # foresight's defaults
+TEACHER = LOOK  # foresight.py's look ahead, exact copies
 
 
 class Labels:

@@ -36,6 +36,8 @@ from hier_ssl.manager.game_observation import RuledPlanner
 SPACING = 0.25  # m between the alternatives offered to a robot
 LOST = 1e4  # the cost of a robot lost in a copy, against its control steps to target
 DICE = 12345  # seeds the copies' own draws with ``--copies unseen-draws`` (docs/results.md's rows used it)
+# The look ahead docs/results.md's rows used: every 5 control steps, 60 ahead, 6 options held 15 steps.
+LOOK = argparse.Namespace(every=5, horizon=60, options=6, hold=15, copies="exact")
 
 
 class Plan:
@@ -214,14 +216,16 @@ def main() -> None:
     parser.add_argument("--scenario", default="configs/game/stop_residual.yaml", help="a game scenario YAML")
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--seed", type=int, default=11)
-    parser.add_argument("--every", type=int, default=5, help="control steps between looks ahead")
-    parser.add_argument("--horizon", type=int, default=60, help="control steps a copy plays ahead")
-    parser.add_argument("--options", type=int, default=6, help="other sub-goals a robot at risk is offered")
-    parser.add_argument("--hold", type=int, default=15, help="control steps an option is held")
+    parser.add_argument("--every", type=int, default=LOOK.every, help="control steps between looks ahead")
+    parser.add_argument("--horizon", type=int, default=LOOK.horizon, help="control steps a copy plays ahead")
+    parser.add_argument(
+        "--options", type=int, default=LOOK.options, help="other sub-goals a robot at risk is offered"
+    )
+    parser.add_argument("--hold", type=int, default=LOOK.hold, help="control steps an option is held")
     parser.add_argument(
         "--copies",
         choices=("exact", "unseen-draws", "steady-opponents"),
-        default="exact",
+        default=LOOK.copies,
         help="what the copies know: everything; all but the dice; our team only, the opponents held at "
         "their velocity",
     )

@@ -211,6 +211,45 @@ def test_distill(tmp_path: Path) -> None:
     assert re.match(r"student: robots 12 success [\d.]+ % .* sub-goals changed \d+$", lines[2])
 
 
+def test_opponent_roles(tmp_path: Path) -> None:
+    config = str(EXAMPLES.parent / "configs" / "game" / "stop_residual.yaml")
+    lines = _run("opponent_roles.py", "--scenario", config, "--episodes", "2", "--seed", "35", cwd=tmp_path)
+    assert re.match(r"sampling: robots 12 success 83.33 % fouls\+collisions 8.33 % \(1\)", lines[0])
+    assert re.match(r"inferred roles: robots 12 success [\d.]+ % .* sub-goals changed \d+$", lines[1])
+    # Better than naming every opponent a marker, the commonest role (2 in 5).
+    right, looks = re.match(r"roles right ([\d.]+) of (\d+) opponent-looks", lines[2]).groups()
+    assert float(right) > 0.5 and int(looks) > 0
+
+
+def test_a_marker_is_told_from_the_robot_it_marks() -> None:
+    spec = importlib.util.spec_from_file_location("opponent_roles", EXAMPLES / "opponent_roles.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(EXAMPLES))
+    # Two of ours standing still, at (0, 1) and (0, -1); the opponents' goal at (3, 0). Opponent 0 drives
+    # at 1 m/s for the point 0.4 m goal-side of our robot 1, opponent 1 stands still on the goal-ball line.
+    frames, m = 10, 2
+    ours = np.array([[0.0, 1.0], [0.0, -1.0]])
+    goal, ball = np.array([3.0, 0.0]), np.array([-1.0, 0.0])
+    mark = ours[1] + 0.4 * (goal - ours[1]) / np.linalg.norm(goal - ours[1])
+    way = (mark - np.array([2.0, -2.0])) / np.linalg.norm(mark - np.array([2.0, -2.0]))
+    start = mark - way * 1.5
+    pos = np.zeros((1, frames, m + 2, 2))
+    vel = np.zeros_like(pos)
+    pos[0, :, :m] = ours
+    pos[0, :, m] = start + way * np.linspace(0.0, 0.5, frames)[:, None]
+    vel[0, :, m] = way
+    pos[0, :, m + 1] = goal + 0.5 * (ball - goal)
+    role, marked, cover, _ = module.infer(
+        pos, vel, np.tile(ball, (1, frames, 1)), goal[None], ("mark", "cover", "ball", "free"), m
+    )
+    assert role.tolist() == [[0, 1]] and marked[0, 0] == 1
+    assert np.isclose(cover[0, 1], 0.5)
+
+
 def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:
     lines = _run("export_onnx.py", "--train-steps", "100", "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert (tmp_path / "out" / "manager.onnx").is_file()

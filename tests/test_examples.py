@@ -213,12 +213,19 @@ def test_distill(tmp_path: Path) -> None:
 
 def test_opponent_roles(tmp_path: Path) -> None:
     config = str(EXAMPLES.parent / "configs" / "game" / "stop_residual.yaml")
-    lines = _run("opponent_roles.py", "--scenario", config, "--episodes", "2", "--seed", "35", cwd=tmp_path)
+    scenario = ("--scenario", config, "--episodes", "2", "--seed", "35")
+    lines = first = _run("opponent_roles.py", *scenario, cwd=tmp_path)
     assert re.match(r"sampling: robots 12 success 83.33 % fouls\+collisions 8.33 % \(1\)", lines[0])
     assert re.match(r"inferred roles: robots 12 success [\d.]+ % .* sub-goals changed \d+$", lines[1])
     # Better than naming every opponent a marker, the commonest role (2 in 5).
     right, looks = re.match(r"roles right ([\d.]+) of (\d+) opponent-looks", lines[2]).groups()
     assert float(right) > 0.5 and int(looks) > 0
+    # The scorer learns the hypotheses of the play it is fitted on better than the rule names them.
+    lines = _run("opponent_roles.py", *scenario, "--fit-seeds", "36", "--fit-episodes", "4", cwd=tmp_path)
+    fitted, rule = map(
+        float, re.match(r"scorer fitted on \d+ .*hypothesis ([\d.]+), the rule's ([\d.]+)", lines[0]).groups()
+    )
+    assert fitted > rule and lines[1] == first[0]
 
 
 def test_a_marker_is_told_from_the_robot_it_marks() -> None:
@@ -243,11 +250,14 @@ def test_a_marker_is_told_from_the_robot_it_marks() -> None:
     pos[0, :, m] = start + way * np.linspace(0.0, 0.5, frames)[:, None]
     vel[0, :, m] = way
     pos[0, :, m + 1] = goal + 0.5 * (ball - goal)
-    role, marked, cover, _ = module.infer(
-        pos, vel, np.tile(ball, (1, frames, 1)), goal[None], ("mark", "cover", "ball", "free"), m
-    )
+    play = (pos, vel, np.tile(ball, (1, frames, 1)), goal[None], ("mark", "cover", "ball", "free"), m)
+    role, marked, cover, _ = module.infer(*play)
     assert role.tolist() == [[0, 1]] and marked[0, 0] == 1
     assert np.isclose(cover[0, 1], 0.5)
+    # The hypotheses: marking robot 0 or 1, cover, ball, free; the truth names the scorer's target column.
+    _, owner, _, _ = module.hypotheses(*play)
+    team = SimpleNamespace(roles=play[4], role=np.array([[0, 1]]), marked=np.array([[1, 0]]))
+    assert module.truth(team, owner).tolist() == [[1, 2]]
 
 
 def test_export_and_run_without_hier_ssl(tmp_path: Path) -> None:

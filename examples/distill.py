@@ -42,7 +42,6 @@ from hier_ssl.policies.candidate_residual import residual_inputs
 from hier_ssl.policies.networks import mlp
 
 UNSEEN = -1  # a candidate no copy played
-TEACHER = LOOK  # foresight.py's look ahead, exact copies
 
 
 class Labels:
@@ -79,7 +78,7 @@ def record(args: argparse.Namespace) -> None:
     inputs, labels = [], []
     for seed in args.seeds:
         core = HierarchicalCore(config, args.episodes, autoreset=False)
-        teacher = Foresight(core, planner, seed, TEACHER)
+        teacher = Foresight(core, planner, seed, LOOK)
         teacher.seen = seen = Labels(teacher, args.calm, np.random.default_rng(seed))
         ends = play(core, teacher, seed)
         print(f"{summary(f'teacher seed {seed}', ends, config.dt)} sub-goals changed {teacher.changed}")
@@ -168,7 +167,7 @@ class Student:
             inputs = residual_inputs(plan.planner, self.obs[free], cand, zone_features=True, ranked=ranked)
             risk, rows = rated(self.net, inputs), np.arange(len(cand))
             top = risk[rows, inputs[..., 1].numpy().argmax(1)]
-            poses, index = plan.alternatives(self.obs[free], TEACHER.options, (cand, ranked[0]))
+            poses, index = plan.alternatives(self.obs[free], LOOK.options, (cand, ranked[0]))
             option = np.where(index >= 0, np.take_along_axis(risk, index.clip(0), 1), np.inf)
             pick = option.argmin(1)
             change = (top > self.args.threshold) & (option[rows, pick] < top) & (rules.speed > 0)
@@ -209,8 +208,8 @@ def main() -> None:
     stu.add_argument("--epochs", type=int, default=30)
     stu.add_argument("--fit-seed", type=int, default=0)
     stu.add_argument("--threshold", type=float, default=0.2, help="the rated chance of a loss that acts")
-    stu.add_argument("--every", type=int, default=TEACHER.every, help="control steps between ratings")
-    stu.add_argument("--hold", type=int, default=TEACHER.hold, help="control steps a change is held")
+    stu.add_argument("--every", type=int, default=LOOK.every, help="control steps between ratings")
+    stu.add_argument("--hold", type=int, default=LOOK.hold, help="control steps a change is held")
     for sub in (rec, stu):
         sub.add_argument("--scenario", default="configs/game/ball_placement_residual.yaml")
     args = parser.parse_args()

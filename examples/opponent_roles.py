@@ -43,8 +43,6 @@ STILL = 0.5  # 1/s: a robot standing still, m from a hypothesis' target, costs t
 FREE_PRIOR = 0.3  # m/s added to ``free``'s mismatch: a straight drive fits a spot of its own anywhere
 SPOT_AHEAD = 1.5  # s along its velocity where a free opponent's spot is guessed
 FRAMES = 10  # frames of the window compared
-
-
 WINDOWS = (3, 5, FRAMES)  # the last frames each mismatch is taken over, for the learned scorer
 
 

@@ -28,7 +28,9 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[BinaryIO], objec
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
-        os.unlink(tmp)
+        # An interrupt can land once the rename is done: the file is then whole and the temporary gone,
+        # and the interrupt, not a missing temporary file, is what the caller must see.
+        Path(tmp).unlink(missing_ok=True)
         raise
 
 

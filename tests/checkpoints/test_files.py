@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import BinaryIO
 
@@ -33,6 +34,23 @@ def test_a_failed_first_write_leaves_no_file(tmp_path: Path) -> None:
     with pytest.raises(KeyboardInterrupt):
         atomic_write(tmp_path / "config.yaml", fail)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupt_just_after_the_rename_is_raised_as_itself(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Ctrl-C handled as the rename returns: `hier-ssl train` must see the interrupt (its resume hint, exit
+    # 130), not "no such file" for the temporary file the rename already moved.
+    path, replace = tmp_path / "model.pt", os.replace
+
+    def replace_then_interrupt(src: str, dst: Path) -> None:
+        replace(src, dst)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "replace", replace_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        write_text("new", path)
+    assert path.read_text() == "new" and [p.name for p in tmp_path.iterdir()] == ["model.pt"]
 
 
 def test_a_write_replaces_the_content_and_has_the_mode_of_a_new_file(tmp_path: Path) -> None:

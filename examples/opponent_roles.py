@@ -161,7 +161,7 @@ class Frames:
         self.kept = [*self.kept, (world.state.pos.copy(), world.state.vel.copy(), world.ball.pos[:, 0])]
         self.kept = self.kept[-FRAMES * self.stride :]
 
-    def play(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[str, ...], int]:
+    def stacked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[str, ...], int]:
         """``hypotheses``' arguments for these frames."""
         team: OpponentTeam = self.core.scenario.team
         pos, vel, ball = (np.stack(x, 1) for x in zip(*self.kept[:: -self.stride][::-1], strict=True))
@@ -183,7 +183,7 @@ class Watch:
         self.frames.add()
         live = self.core.active.any(1)
         if self.core.steps.max() % LOOK.every == 0 and live.any():
-            features, owner, _, _ = hypotheses(*self.frames.play())
+            features, owner, _, _ = hypotheses(*self.frames.stacked())
             self.features.append(features[live].reshape((-1,) + features.shape[2:]))
             self.labels.append(truth(self.core.scenario.team, owner)[live].ravel())
         return self.planner(obs)
@@ -216,7 +216,7 @@ class Inferred(Foresight):
         if self.guessed is not None and self.guessed[0] == step:
             return self.guessed[1]
         team: OpponentTeam = self.core.scenario.team
-        guessed = infer(*self.frames.play(), scorer=self.scorer)
+        guessed = infer(*self.frames.stacked(), scorer=self.scorer)
         live = self.core.active.any(1)
         right = guessed[0][live] == team.role[live]
         marking = right & (np.array(team.roles)[team.role[live]] == "mark")

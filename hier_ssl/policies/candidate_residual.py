@@ -131,8 +131,8 @@ def residual_inputs(
     ranked = planner.ranking(scene, cand, rules) if ranked is None else ranked
     score, (arrival, clearance, hard, near), clear = ranked
     best = score.max(1, keepdims=True)
-    ranked = np.isfinite(best)
-    prior = np.where(ranked, score - np.where(ranked, best, 0.0), 0.0)
+    any_ranked = np.isfinite(best)
+    prior = np.where(any_ranked, score - np.where(any_ranked, best, 0.0), 0.0)
     robot = scene.robot_pos @ np.array([1.0, 1j])
     target = scene.target[:, 0:2] @ np.array([1.0, 1j])
     speed = np.hypot(*scene.robot_vel.T)[:, None]

@@ -64,6 +64,9 @@ from hier_ssl.envs.core import HierarchicalCore
 
 STEP = 0.025  # s
 COMMAND_TIMEOUT = 0.1  # s
+# How long the controller may take to answer the targets (s): a loaded machine can hold its loop for a
+# second or more, a controller that never answers must not hang the field.
+ANSWER_WAIT = 10.0
 
 
 class FieldServer:
@@ -120,6 +123,7 @@ class FieldServer:
         self.commanded = np.full(self.m, -np.inf)
         self.dropped = self.frames_sent = 0
         self.capture_time = time.time()
+        self.stopping = threading.Event()  # ``run``'s stop
         self.referee = FieldReferee(self.core, self.labels, team, referee, referee_port, self.out, STEP)
         self.ball = (0.0, 0.0) if ball is None and referee is not None else ball
 
@@ -142,9 +146,10 @@ class FieldServer:
         self.selector = selectors.DefaultSelector()
         self.selector.register(self.grsim, selectors.EVENT_READ, self._read_grsim)
         self.selector.register(self.simulation, selectors.EVENT_READ, self._read_simulation)
-        control = None
+        control, self.stopping = None, stop
         if self.control_port is not None:
             control = socket.create_connection((LOOPBACK, self.control_port), timeout=1.0)
+            control.settimeout(COMMAND_TIMEOUT)  # the answers' wait checks ``stop`` this often
         records: list[dict[str, Any]] = []
 
         def ended(episode: int) -> None:
@@ -322,19 +327,28 @@ class FieldServer:
             self._send_targets(control)
 
     def _send_targets(self, control: socket.socket | None) -> None:
-        """Each controlled robot's target to the controller; RuntimeError with its answer if refused."""
+        """Each controlled robot's target to the controller; RuntimeError with its answer if refused or if
+        it closed the socket, TimeoutError if it did not answer within ``ANSWER_WAIT`` s. Once ``run``'s
+        ``stop`` is set the answers are not waited for: the controller may be stopping too."""
         self.targets_sent = self.core.target.copy()
         if control is None:
             return
         for i in range(self.m):
             target = [round(float(v), 6) for v in self.core.target[0, i]]
             control.sendall(json.dumps({"robot": i, "target": target}).encode() + b"\n")
-        answers = b""
+        answers, until = b"", time.monotonic() + ANSWER_WAIT
         while answers.count(b"\n") < self.m:
-            data = control.recv(4096)
-            if not data:
+            try:
+                data = control.recv(4096)
+            except TimeoutError:
+                data = None
+            if self.stopping.is_set():
+                return
+            if data == b"":
                 raise RuntimeError("the controller closed its control socket")
-            answers += data
+            if data is None and time.monotonic() > until:
+                raise TimeoutError(f"the controller did not answer the targets within {ANSWER_WAIT} s")
+            answers += data or b""
         refused = [a for a in answers.decode().splitlines() if "error" in json.loads(a)]
         if refused:
             raise RuntimeError(f"the controller refused a target: {refused[0]}")

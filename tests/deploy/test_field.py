@@ -192,3 +192,75 @@ def test_lockstep_refuses_cameras_that_miss_world_steps_or_lag() -> None:
         FieldServer(task_config("proposed"), 9, cameras=Cameras(rate=30.0), lockstep=True)
     with pytest.raises(ValueError, match="latency 0.02 s"):
         FieldServer(task_config("proposed"), 9, cameras=Cameras(latency=0.02), lockstep=True)
+
+
+class MuteController:
+    """A control socket on 127.0.0.1 that takes the field server's targets and never answers them."""
+
+    def __init__(self) -> None:
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.port = self.listener.getsockname()[1]
+        self.vision = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.vision.bind(("127.0.0.1", 0))
+        self.heard = threading.Event()  # the targets came
+        self.thread = threading.Thread(target=self._take, daemon=True)
+        self.thread.start()
+
+    def _take(self) -> None:
+        conn, _ = self.listener.accept()
+        with conn:
+            while conn.recv(4096):
+                self.heard.set()
+
+    def close(self) -> None:
+        self.listener.close()
+        self.vision.close()
+
+
+def _run(server: FieldServer, stop: threading.Event) -> tuple[list[Exception], threading.Thread]:
+    """``server.run`` of one episode, started in a thread, and the list that gets what it raised."""
+    raised: list[Exception] = []
+
+    def run() -> None:
+        try:
+            server.run(1, stop)
+        except Exception as error:  # noqa: BLE001 - the test reads what the thread raised
+            raised.append(error)
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    return raised, thread
+
+
+def test_a_field_server_stopped_while_its_controller_is_silent_ends_quietly() -> None:
+    # A controller stopping (or held up on a loaded machine) as the run ends left the field server's
+    # thread raising a TimeoutError from the answers' wait.
+    controller, stop = MuteController(), threading.Event()
+    server = FieldServer(
+        task_config("proposed"), controller.vision.getsockname()[1], control_port=controller.port
+    )
+    raised, thread = _run(server, stop)
+    assert controller.heard.wait(10.0)
+    time.sleep(0.3)  # the field server waits for the answers
+    stop.set()
+    thread.join(timeout=2.0)
+    server.close()
+    controller.close()
+    assert not thread.is_alive() and raised == []
+
+
+def test_a_controller_that_never_answers_the_targets_is_told_after_the_wait(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr("hier_ssl.deploy.field.ANSWER_WAIT", 0.3)
+    controller, stop = MuteController(), threading.Event()
+    server = FieldServer(
+        task_config("proposed"), controller.vision.getsockname()[1], control_port=controller.port
+    )
+    raised, thread = _run(server, stop)
+    thread.join(timeout=5.0)
+    stop.set()
+    server.close()
+    controller.close()
+    assert len(raised) == 1 and isinstance(raised[0], TimeoutError)
+    assert "did not answer the targets within 0.3 s" in str(raised[0])

@@ -22,7 +22,10 @@ def add_eval(subparsers: argparse._SubParsersAction) -> None:
         help="evaluate managers (run directories or planners) on the same seeded episodes: tables, Fig. 3",
     )
     ev.add_argument(
-        "managers", nargs="+", metavar="RUN_DIR_OR_PLANNER", help=f"a run directory or a planner {PLANNERS}"
+        "managers",
+        nargs="+",
+        metavar="RUN_DIR_OR_PLANNER",
+        help=f"a run directory or a planner {PLANNERS}, optionally with settings: sampling+trapped=brake",
     )
     ev.add_argument("--task", choices=TASKS, default=None, help="task (default: a run's own, else proposed)")
     ev.add_argument(

@@ -188,6 +188,9 @@ class CandidatesConfig(Strict):
     so far, none for a residual (it starts as the planner); phase 2 is ``ppo``."""
 
     network: Literal["classifier", "scorer", "residual"] = "classifier"
+    # The planner whose candidates (and, for a residual, whose ranking) the network chooses among: `sampling`,
+    # with settings of its own where given (`sampling+trapped=brake`, ``hier-ssl eval``'s spelling).
+    planner: str = Field("sampling", pattern=r"^sampling(\+.*)?$")
     hidden: LayerSizes = (256, 256)
     rounds: int = Field(30, ge=0)
     episodes: int = Field(500, ge=1)

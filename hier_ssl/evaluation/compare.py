@@ -1,7 +1,8 @@
 """Managers by name and their comparison on the same seeded episodes.
 
-A manager is a scripted planner ("direct", "sampling") or a training run directory, loaded as a numpy policy
-``obs (B, O) -> actions (B, A)`` for ``hier_ssl.evaluation.evaluate``. A run directory
+A manager is a scripted planner ("direct", "sampling", "trajectory", with settings of its own where given:
+``sampling+trapped=brake``, ``hier_ssl.envs.planners.planner_spec``) or a training run directory, loaded
+as a numpy policy ``obs (B, O) -> actions (B, A)`` for ``hier_ssl.evaluation.evaluate``. A run directory
 (``hier_ssl.runs.train``) holds ``config.yaml`` and ``best_actor.pt``, the policy that scored best on the
 selection episodes (SAC always; PPO runs before model selection existed only have rsl-rl's
 ``model_<iteration>.pt`` files, and the latest is used). ``compare`` evaluates several managers on one task's
@@ -27,7 +28,8 @@ from hier_ssl.worker import worker_name
 
 
 def is_planner(spec: str | Path) -> bool:
-    return str(spec) in PLANNERS
+    """Whether ``spec`` names a planner, alone or with settings (``sampling+trapped=brake``)."""
+    return str(spec).split("+", 1)[0] in PLANNERS
 
 
 def manager_name(spec: str | Path) -> str:

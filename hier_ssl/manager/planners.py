@@ -49,6 +49,7 @@ if TYPE_CHECKING:
     from hier_ssl.config import TaskSettings
 
 PLANNERS = ("direct", "sampling", "trajectory")
+TRAPPED = ("evade", "brake")  # what ``SamplingPlanner`` does where no candidate keeps clear
 # m beyond a zone's clearance where the planners move a target inside it: a path may then reach it from the
 # side without grazing the zone (a target on a ball's circle is reachable only from outside its tangent).
 ZONE_MARGIN = 0.05
@@ -105,7 +106,11 @@ class SamplingPlanner:
     Choice: the soonest arrival among candidates clear of the growing safety distance (ties to the earlier
     candidate: the target first, so an empty field gives ``direct`` unless a sub-goal is faster); if none
     is, the soonest among those clear of collision_distance + margin (e.g. a target next to an obstacle);
-    if none is, the candidate farthest from the obstacles over the prediction window (evasion).
+    if none is, the candidate farthest from the obstacles over the prediction window (evasion). With
+    ``trapped="brake"``, a robot whose every candidate meets a predicted obstacle within the prediction
+    window (the evasion's best too) stops where it is instead: where the robots that trap it brake as
+    well (teammates planning alike), that keeps more of them than the evasion does (their ball placement;
+    on STOP and the match, where opponents come at our robots, it keeps fewer).
 
     Candidates, per field: the target; the robot's own position (stop); two rings of ``ring_points``
     around each obstacle; ``num_samples`` points drawn once (seeded) in the frame of the robot-target line
@@ -144,9 +149,12 @@ class SamplingPlanner:
     observation: str = "paper"  # as DirectPlanner's
     action_frame: str = "field"
     zone_margin: float = ZONE_MARGIN  # as DirectPlanner's
+    trapped: str = "evade"  # or "brake" (above)
 
     def __post_init__(self) -> None:
         action_dim(self.action_form)
+        if self.trapped not in TRAPPED:
+            raise ValueError(f"SamplingPlanner.trapped must be one of {TRAPPED}, got {self.trapped!r}")
         for name in ("horizon", "dt", "collision_distance", "switch_radius", "arrive_radius"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"SamplingPlanner.{name} must be > 0, got {getattr(self, name)!r}")
@@ -245,9 +253,16 @@ class SamplingPlanner:
             score = np.where(clear, score, -np.inf)
         score = np.where(close.any(1, keepdims=True), np.where(close, -arrival, -np.inf), score)
         score = np.where(safe.any(1, keepdims=True), np.where(safe, -arrival, -np.inf), score)
-        if clear is None:
-            return score, rolled, np.ones(cand.shape, bool)
-        return np.where(clear.any(1, keepdims=True), score, detour), rolled, clear
+        if clear is not None:
+            score = np.where(clear.any(1, keepdims=True), score, detour)
+        if self.trapped == "brake":
+            # The choice meets an obstacle over the whole rollout and within the prediction window (where
+            # it is the evasion's, every candidate does): the robot's own position (column 1) ranks first,
+            # the rest keep their order behind it.
+            best = score.argmax(1)[:, None]
+            stuck = (np.take_along_axis(hard, best, 1) < 0.0) & (np.take_along_axis(near, best, 1) < 0.0)
+            score[stuck[:, 0], 1] = score[stuck[:, 0]].max(1) + 1.0
+        return score, rolled, np.ones(cand.shape, bool) if clear is None else clear
 
     @staticmethod
     def zone_detour(scene: Scene, cand: np.ndarray, rules: RowRules) -> tuple[np.ndarray, np.ndarray]:

@@ -1,11 +1,9 @@
 """A manager that chooses one of the ``sampling`` planner's candidate sub-goals: fitted to the planner by
 DAgger, then improved on the task's own outcomes by PPO.
 
-The planner's choice is discontinuous (pass an obstacle left or right); a Gaussian actor fitted to it
-lands between the branches. Here the action is a class: one of the planner's candidates
-(``SamplingPlanner.candidates``, geometry from the observation alone), one logit each, from a classifier
-over the observation, a scorer over each candidate's features or a residual over the planner's own
-ranking (``candidate_nets``).
+A Gaussian actor fitted to the planner's discontinuous choice (pass an obstacle left or right) lands
+between the branches; here the action is a class, one of the planner's candidates, one logit each, from a
+classifier over the observation, a scorer over each candidate's features or a residual over its ranking.
 
 1. DAgger (Ross et al., 2011): round 0 plays the planner, later rounds the network; each state met labelled
    with the planner's soft choice (``soft_choice``), the network refitted on all (a residual: none).
@@ -63,8 +61,11 @@ from hier_ssl.policies.sac_runner import MODEL_FILE
 
 
 def candidate_planner(config: TrainConfig) -> SamplingPlanner | RuledPlanner:
-    """The run's ``sampling`` planner (a game's: ``RuledPlanner``): its candidates are the classes."""
-    return make_planner("sampling", config.task_config)
+    """``candidates.planner`` (a game's: ``RuledPlanner``): its candidates are the classes."""
+    try:
+        return make_planner(config.candidates.planner, config.task_config)
+    except ValueError as error:  # a setting ``sampling`` lacks, a word for a number: named with the key
+        raise ConfigError(f"candidates.planner: {error}") from None
 
 
 def candidate_manager(config: TrainConfig, net: nn.Module) -> CandidateManager:

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from hier_ssl.envs import env_config
-from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.planners import make_planner, planner_spec
+from hier_ssl.evaluation.compare import is_planner, manager_name
 from hier_ssl.evaluation.evaluate import evaluate
 from hier_ssl.manager import decode_subgoal, manager_observation
 from hier_ssl.manager.planners import SamplingPlanner, read_scene
@@ -117,3 +118,51 @@ def test_make_planner_checks_names_and_options() -> None:
     planner = make_planner("sampling", env_config(worker="paper"), margin=0.2)
     assert planner.margin == 0.2 and planner.speed == 2.2  # the paper worker's cap
     assert make_planner("sampling", env_config(worker="bangbang")).speed == 2.5
+
+
+def test_a_trapped_robot_brakes_where_told_and_evades_by_default() -> None:
+    # Eight robots 0.35 m round ours, each coming at it at 1 m/s: every candidate meets one.
+    turns = np.exp(2j * np.pi * np.arange(8) / 8)
+    ring = np.stack([0.35 * turns.real, 0.35 * turns.imag], 1)
+    obs = _obs((0.0, 0.0), (2.0, 0.0), obstacles=ring, robot_vel=(1.0, 0.0), obstacle_vel=-ring / 0.35)
+    config = env_config(task="obstacle")
+    evade, brake = make_planner("sampling", config), make_planner("sampling+trapped=brake", config)
+    scene = read_scene(obs, FIELD.max_pos, 2.5)
+    _, _, hard, near = evade.rollout(scene, evade.candidates(scene))
+    assert (hard < 0).all() and (near < 0).all()
+    np.testing.assert_allclose(_subgoal(brake(obs))[0, 0:2], [0.0, 0.0], atol=1e-6)  # stops where it is
+    assert np.hypot(*_subgoal(evade(obs))[0, 0:2]) > 0.3  # evades: the farthest from them
+    score = brake.score(scene, brake.candidates(scene))
+    assert score[0].argmax() == 1 and np.isfinite(score[0]).sum() > 2  # the others ranked behind
+    # Not trapped, the same choice either way.
+    rng = np.random.default_rng(2)
+    free = np.concatenate(
+        [_obs(rng.uniform(-2, 2, 2), rng.uniform(-2, 2, 2), [rng.uniform(-1, 1, 2)]) for _ in range(6)]
+    )
+    np.testing.assert_array_equal(brake(free), evade(free))
+
+
+def test_a_planner_spec_names_its_settings_and_the_bad_ones() -> None:
+    assert planner_spec("sampling+trapped=brake+margin=0.1+ring_points=4") == (
+        "sampling",
+        {"trapped": "brake", "margin": 0.1, "ring_points": 4},
+    )
+    assert planner_spec("trajectory+num_sub_destinations=8") == ("trajectory", {"num_sub_destinations": 8})
+    planner = make_planner("sampling+margin=0.2", env_config(worker="paper"), trapped="brake")
+    assert (planner.margin, planner.trapped) == (0.2, "brake")
+    assert (
+        is_planner("sampling+trapped=brake")
+        and manager_name("sampling+trapped=brake") == "sampling+trapped=brake"
+    )
+    for spec, error in [
+        ("sampling+foo=1", "sampling has no setting 'foo'"),
+        ("sampling+margin", "expected key=value after '\\+', got 'margin'"),
+        ("sampling+margin=wide", "margin must be a number, got 'wide'"),
+        ("sampling+ring_points=2.5", "ring_points must be a whole number"),
+        ("sampling+margin=0.1+margin=0.2", "margin given twice"),
+        ("direct+max_v=1", "direct has no setting 'max_v'"),
+    ]:
+        with pytest.raises(ValueError, match=error):
+            planner_spec(spec)
+    with pytest.raises(ValueError, match="trapped must be one of \\('evade', 'brake'\\), got 'stop'"):
+        make_planner("sampling+trapped=stop", env_config())

@@ -51,12 +51,16 @@ def _fresh(hidden: tuple[int, ...] = (16, 16), zone_features: bool = False) -> R
     return net
 
 
-@pytest.mark.parametrize("zone_features", [False, True])
+@pytest.mark.parametrize(
+    ("zone_features", "spec"), [(False, "sampling"), (True, "sampling"), (False, "sampling+trapped=brake")]
+)
 def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_states(
-    zone_features: bool,
+    zone_features: bool, spec: str
 ) -> None:
-    config = parse_config(ZONED if zone_features else SHIPPED)
+    shipped = ZONED if zone_features else SHIPPED
+    config = parse_config({**shipped, "candidates": {**shipped["candidates"], "planner": spec}})
     planner = candidate_planner(config)
+    assert planner.trapped == ("brake" if "brake" in spec else "evade")
     manager = candidate_manager(config, _fresh(zone_features=zone_features))
     assert manager.zone_features == zone_features
     # Its correction starts at zero: the logits are the planner's score / tau, nothing else.
@@ -90,6 +94,18 @@ def test_the_untrained_residual_chooses_as_the_sampling_planner_on_game_stop_sta
     assert (gaps < 1e-6).all(), (
         f"{(gaps >= 1e-6).sum()} of {len(gaps)} differ, {(gaps[moved] >= 1e-6).sum()} moved"
     )
+
+
+def test_the_candidates_planner_is_sampling_with_the_settings_it_names() -> None:
+    def config(spec: str) -> dict:
+        return {**SHIPPED, "candidates": {**SHIPPED["candidates"], "planner": spec}}
+
+    with pytest.raises(
+        ValueError, match="candidates.planner: planner 'sampling.brake=1': sampling has no setting"
+    ):
+        candidate_planner(parse_config(config("sampling+brake=1")))
+    with pytest.raises(ConfigError, match="candidates.planner"):
+        parse_config(config("trajectory"))  # its candidates are not a fixed set to choose among
 
 
 def test_a_nonzero_last_layer_is_no_longer_the_planner() -> None:

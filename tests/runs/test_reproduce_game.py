@@ -63,7 +63,7 @@ def test_reproduce_game_trains_evaluates_and_writes_the_table(
     text = (results / "game-table.md").read_text()
     assert "the same 1 episodes (seed 7)" in text
     for rate in (1, 16):
-        for planner in ("direct", "sampling", "trajectory"):
+        for planner in ("direct", "sampling", "trajectory", "sampling+trapped=brake"):
             assert f"| `{planner}` | {rate} | - | - |" in text
     assert (
         "| `game/stop_residual` | 1 | best | 1 |" in text
@@ -74,9 +74,9 @@ def test_reproduce_game_trains_evaluates_and_writes_the_table(
     assert len(checks) == 2 and all(": met (" in c or ": not met (" in c for c in checks)
     assert "(median seed game_stop-residual-s0 of 1)" in checks[0]
     csv_lines = (results / "game-table.csv").read_text().splitlines()
-    assert len(csv_lines) == 1 + 6 + 2 and csv_lines[-1].startswith("game_stop,game/stop_residual,1,final,1,")
+    assert len(csv_lines) == 1 + 8 + 2 and csv_lines[-1].startswith("game_stop,game/stop_residual,1,final,1,")
     cached = sorted(p.name for p in (out / "evals").iterdir())
-    assert len(cached) == 8 and any(n.startswith("game_stop-residual-s0-best-fs1-e1-s7-") for n in cached)
+    assert len(cached) == 10 and any(n.startswith("game_stop-residual-s0-best-fs1-e1-s7-") for n in cached)
 
     # Again without training: everything comes from the cache; a removed record alone is evaluated again.
     calls = []

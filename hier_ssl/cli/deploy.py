@@ -48,7 +48,11 @@ def add_deploy(subparsers: argparse._SubParsersAction) -> None:
     deploy = subparsers.add_parser(
         "deploy", help="drive SSL robots: SSL-Vision packets in, grSim / simulation-protocol commands out"
     )
-    deploy.add_argument("manager", help="a run directory, an exported .pt / .onnx file, or direct|sampling")
+    deploy.add_argument(
+        "manager",
+        help="a run directory, an exported .pt / .onnx file, or a planner: direct, sampling, trajectory, "
+        "with settings where given (sampling+trapped=brake)",
+    )
     deploy.add_argument(
         "--vision", required=True, help="HOST:PORT to receive SSL-Vision on (127.0.0.1:10006)"
     )

@@ -31,7 +31,7 @@ from hier_ssl.deploy.tracker import follow
 from hier_ssl.envs import make_scenario, task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.game import GameScenario
-from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.planners import is_planner, make_planner
 from hier_ssl.game.legal import RowRules, cap_speed, nearest_legal
 from hier_ssl.game.referee import RefereeState
 from hier_ssl.manager.planners import PLANNERS
@@ -112,7 +112,7 @@ def manager_task(
         overrides["worker"] = worker
     if frame_skip is not None:
         overrides["frame_skip"] = frame_skip
-    if manager in PLANNERS:
+    if is_planner(manager):
         overrides.setdefault("frame_skip", PLANNER_FRAME_SKIP)
         return task_config(task or "obstacle", **overrides)
     if Path(manager).suffix in EXPORTED:
@@ -156,7 +156,7 @@ class DeployView:
             k = layout["obstacles"] + layout["teammates"] + 1 - m
             for _ in range(2):  # TorchScript optimises its graph on the first calls (0.1 s): not in a period
                 self.exported(np.zeros((n * m, layout["input_shape"][1]), dtype=np.float32))
-        elif manager in PLANNERS:
+        elif is_planner(manager):
             self.policy = make_planner(manager, config)
         else:
             from hier_ssl.policies.actor import load_policy
@@ -173,7 +173,7 @@ class DeployView:
         self.robot, self.dt = RobotSpec(), config.dt
         self.field = get_field(config.field)
         self.reach = np.array(self.field.wall_half_extent) - self.robot.radius
-        self.planner = manager in PLANNERS
+        self.planner = is_planner(manager)
         # A game scenario observes the referee's state and the ball (its planner reads its rules there).
         self.game = isinstance(scenario, GameScenario)
         # The core's arrays: its decoding writes sub-goals there, the observation reads targets there.

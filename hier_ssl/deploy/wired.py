@@ -11,7 +11,7 @@ from typing import Any
 
 from hier_ssl.deploy.assemble import DeploySettings, build_loop
 from hier_ssl.deploy.loop import PRIORITY, LoopStats
-from hier_ssl.manager.planners import PLANNERS
+from hier_ssl.envs.planners import is_planner
 
 
 class WiredRun:
@@ -90,4 +90,4 @@ class WiredRun:
 
 def takes_task(manager: str) -> bool:
     """Whether the manager takes its task from the command line (a planner) rather than its own files."""
-    return manager in PLANNERS
+    return is_planner(manager)

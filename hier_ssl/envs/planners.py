@@ -41,6 +41,11 @@ def _settings(name: str) -> dict[str, object]:
     }
 
 
+def is_planner(spec: object) -> bool:
+    """Whether ``spec`` (a string or a path) names a planner, alone or with settings (``planner_spec``)."""
+    return str(spec).split("+", 1)[0] in PLANNERS
+
+
 def planner_spec(spec: str) -> tuple[str, dict[str, object]]:
     """Split ``"sampling+trapped=brake+margin=0.1"`` into the planner's name and its settings, each a number
     where its default is one. ValueError naming the bad part: an unknown planner or setting, a part that is
@@ -87,4 +92,4 @@ def make_planner(
     return RuledPlanner(planner, planner.max_pos or planner.field.max_pos, RobotSpec().max_speed)
 
 
-__all__ = ["make_planner", "planner_spec"]
+__all__ = ["is_planner", "make_planner", "planner_spec"]

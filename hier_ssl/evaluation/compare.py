@@ -19,17 +19,12 @@ from typing import Any
 
 from hier_ssl.config import ScenarioConfig, TaskConfig, TrainConfig
 from hier_ssl.envs import env_config, make_scenario, task_config
-from hier_ssl.envs.planners import make_planner
+from hier_ssl.envs.planners import is_planner, make_planner
 from hier_ssl.evaluation.evaluate import Policy, evaluate
 from hier_ssl.evaluation.figures import label_outcomes
 from hier_ssl.evaluation.report import make_record
 from hier_ssl.manager.planners import PLANNERS
 from hier_ssl.worker import worker_name
-
-
-def is_planner(spec: str | Path) -> bool:
-    """Whether ``spec`` names a planner, alone or with settings (``sampling+trapped=brake``)."""
-    return str(spec).split("+", 1)[0] in PLANNERS
 
 
 def manager_name(spec: str | Path) -> str:

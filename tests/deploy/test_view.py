@@ -182,3 +182,10 @@ def test_a_game_scenario_observes_the_referee_received_and_the_ball_tracked() ->
     assert not np.array_equal(view.core.observe(), before)  # the game's columns read them
     view.set_game(referee_state(HALT, field, keeper=(2, 0)), None)  # no ball seen: it stays where it was
     np.testing.assert_allclose(view.core.world.ball.pos[0, 0], (1.0, -0.5))
+
+
+def test_a_planner_with_settings_deploys_as_its_name_says() -> None:
+    config = manager_task("sampling+trapped=brake", "obstacle")
+    assert config.frame_skip == manager_task("sampling", "obstacle").frame_skip  # a planner's task
+    view = DeployView("sampling+trapped=brake", 1, config)
+    assert view.planner and view.policy.trapped == "brake"

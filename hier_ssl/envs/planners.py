@@ -7,6 +7,7 @@ never builds a worker itself. A planner is named alone ("sampling") or with sett
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from hier_ssl.config import ScenarioConfig, TaskSettings
 from hier_ssl.envs.scenarios import SCENARIOS
@@ -49,7 +50,7 @@ def is_planner(spec: object) -> bool:
 def planner_spec(spec: str) -> tuple[str, dict[str, object]]:
     """Split ``"sampling+trapped=brake+margin=0.1"`` into the planner's name and its settings, each a number
     where its default is one. ValueError naming the bad part: an unknown planner or setting, a part that is
-    not key=value, a setting given twice, a word for a number."""
+    not key=value, a setting given twice, a word or NaN for a number."""
     name, *parts = str(spec).split("+")
     if name not in PLANNERS:
         raise ValueError(f"unknown planner {name!r} in {spec!r}; known: {list(PLANNERS)}")
@@ -62,12 +63,14 @@ def planner_spec(spec: str) -> tuple[str, dict[str, object]]:
             raise ValueError(f"planner {spec!r}: {name} has no setting {key!r}; known: {sorted(known)}")
         if key in options:
             raise ValueError(f"planner {spec!r}: {key} given twice")
-        default = known[key]
+        kind = str if isinstance(known[key], str) else float if known[key] is None else type(known[key])
         try:
-            options[key] = value if isinstance(default, str) else type(default or 0.0)(value)
+            options[key] = kind(value)
         except ValueError:
-            kind = "a whole number" if type(default) is int else "a number"
-            raise ValueError(f"planner {spec!r}: {key} must be {kind}, got {value!r}") from None
+            options[key] = None
+        if options[key] is None or kind is not str and not math.isfinite(options[key]):
+            what = "a whole number" if kind is int else "a finite number"
+            raise ValueError(f"planner {spec!r}: {key} must be {what}, got {value!r}")
     return name, options
 
 

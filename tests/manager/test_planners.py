@@ -148,6 +148,8 @@ def test_a_planner_spec_names_its_settings_and_the_bad_ones() -> None:
         {"trapped": "brake", "margin": 0.1, "ring_points": 4},
     )
     assert planner_spec("trajectory+num_sub_destinations=8") == ("trajectory", {"num_sub_destinations": 8})
+    assert planner_spec("sampling+seed=3+max_speed=1.5") == ("sampling", {"seed": 3, "max_speed": 1.5})
+    assert type(planner_spec("sampling+seed=3")[1]["seed"]) is int  # its default, 0, is an int too
     planner = make_planner("sampling+margin=0.2", env_config(worker="paper"), trapped="brake")
     assert (planner.margin, planner.trapped) == (0.2, "brake")
     assert (
@@ -157,7 +159,8 @@ def test_a_planner_spec_names_its_settings_and_the_bad_ones() -> None:
     for spec, error in [
         ("sampling+foo=1", "sampling has no setting 'foo'"),
         ("sampling+margin", "expected key=value after '\\+', got 'margin'"),
-        ("sampling+margin=wide", "margin must be a number, got 'wide'"),
+        ("sampling+margin=wide", "margin must be a finite number, got 'wide'"),
+        ("sampling+margin=nan", "margin must be a finite number, got 'nan'"),
         ("sampling+ring_points=2.5", "ring_points must be a whole number"),
         ("sampling+margin=0.1+margin=0.2", "margin given twice"),
         ("direct+max_v=1", "direct has no setting 'max_v'"),

@@ -84,12 +84,19 @@ def test_manager_env_keeps_a_runs_settings_unless_overridden(tmp_path: Path) -> 
     assert policy(torch.zeros(5, 13).numpy()).shape == (5, 4)
 
 
+def test_eval_takes_a_planner_with_settings(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ["eval", "sampling+trapped=brake", "--task", "obstacle", "--episodes", "4", "--no-progress"]
+    assert cli.main([*argv, "--out", str(tmp_path / "out")]) == 0
+    assert "| sampling+trapped=brake | paper |" in capsys.readouterr().out
+
+
 def test_eval_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     run = _sac_run(tmp_path / "run", task="proposed")
     cases = [
         (["eval", "astar"], "neither a planner (direct, sampling, trajectory) nor a run directory"),
         (["eval", str(run), "--task", "obstacle"], "trained with observations/actions of size (13, 4)"),
         (["eval", str(tmp_path)], "no config.yaml"),
+        (["eval", "sampling+brake=1"], "planner 'sampling+brake=1': sampling has no setting 'brake'"),
     ]
     for argv, message in cases:
         assert cli.main([*argv, "--episodes", "2", "--out", str(tmp_path / "out")]) == 1

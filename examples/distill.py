@@ -78,7 +78,7 @@ def record(args: argparse.Namespace) -> None:
     inputs, labels = [], []
     for seed in args.seeds:
         core = HierarchicalCore(config, args.episodes, autoreset=False)
-        teacher = Foresight(core, planner, seed, LOOK)
+        teacher = Foresight(core, planner, LOOK)
         teacher.seen = seen = Labels(teacher, args.calm, np.random.default_rng(seed))
         ends = play(core, teacher, seed)
         print(f"{summary(f'teacher seed {seed}', ends, config.dt)} sub-goals changed {teacher.changed}")

@@ -133,7 +133,6 @@ class Foresight:
         self,
         core: HierarchicalCore,
         planner: RuledPlanner,
-        seed: int,
         args: argparse.Namespace,
         seen: Seen | None = None,
     ) -> None:
@@ -241,7 +240,7 @@ def main() -> None:
     alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
     print(summary("sampling", alone, config.dt), flush=True)
     core = HierarchicalCore(config, args.episodes, autoreset=False)
-    foresight = Foresight(core, planner, args.seed, args)
+    foresight = Foresight(core, planner, args)
     ends = play(core, foresight, args.seed)
     print(f"{summary('foresight', ends, config.dt)} sub-goals changed {foresight.changed}")
 

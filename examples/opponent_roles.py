@@ -197,11 +197,10 @@ class Inferred(Foresight):
         self,
         core: HierarchicalCore,
         planner: RuledPlanner,
-        seed: int,
         args: argparse.Namespace,
         scorer: nn.Module | None = None,
     ) -> None:
-        super().__init__(core, planner, seed, args)
+        super().__init__(core, planner, args)
         self.frames, self.scorer = Frames(core, args.window), scorer
         self.guessed: tuple[int, tuple[np.ndarray, ...]] | None = None
         self.right = self.marker_right = self.looks = self.markers = 0
@@ -289,7 +288,7 @@ def main() -> None:
     alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
     print(summary("sampling", alone, config.dt), flush=True)
     core = HierarchicalCore(config, args.episodes, autoreset=False)
-    policy = Inferred(core, planner, args.seed, argparse.Namespace(**vars(LOOK), **vars(args)), scorer)
+    policy = Inferred(core, planner, argparse.Namespace(**vars(LOOK), **vars(args)), scorer)
     ends = play(core, policy, args.seed)
     print(f"{summary('inferred roles', ends, config.dt)} sub-goals changed {policy.changed}")
     print(

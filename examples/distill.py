@@ -22,6 +22,10 @@ sub-goals the teacher would have offered, where that one rates lower, held ``--h
 observation a robot, as a manager does. ``--val`` labels (other seeds) say how well the network sorts
 states (the area under the ROC curve of the planner's choice) and, at states the planner's choice loses,
 how often its pick keeps the robot against a random option.
+
+``--planner`` names the planner the teacher and the student play over (``sampling+trapped=brake``: the
+one that brakes where it is trapped); with ``--way-out brake`` a robot at risk brakes where it stands
+instead, held as long, where it is faster than ``--brake-speed`` and its planner does not already brake.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from hier_ssl.policies.candidate_residual import residual_inputs
 from hier_ssl.policies.networks import mlp
 
 UNSEEN = -1  # a candidate no copy played
+STOP = 1  # the candidate that is the robot's own position (``SamplingPlanner.candidates``' order)
 
 
 class Labels:
@@ -74,7 +79,7 @@ class Labels:
 
 def record(args: argparse.Namespace) -> None:
     config = task_config(args.scenario)
-    planner = load_manager("sampling", config)
+    planner = load_manager(args.planner, config)
     inputs, labels = [], []
     for seed in args.seeds:
         core = HierarchicalCore(config, args.episodes, autoreset=False)
@@ -166,25 +171,33 @@ class Student:
             ranked = plan.planner.ranking(scene, cand, rules)  # one set of rollouts for both uses
             inputs = residual_inputs(plan.planner, self.obs[free], cand, zone_features=True, ranked=ranked)
             risk, rows = rated(self.net, inputs), np.arange(len(cand))
-            top = risk[rows, inputs[..., 1].numpy().argmax(1)]
-            poses, index = plan.alternatives(self.obs[free], LOOK.options, (cand, ranked[0]))
-            option = np.where(index >= 0, np.take_along_axis(risk, index.clip(0), 1), np.inf)
-            pick = option.argmin(1)
-            change = (top > self.args.threshold) & (option[rows, pick] < top) & (rules.speed > 0)
+            chosen = inputs[..., 1].numpy().argmax(1)
+            top = risk[rows, chosen]
+            if self.args.way_out == "brake":  # where it stands, unless it already brakes or barely moves
+                pose = np.zeros((len(cand), 5))
+                pose[:, 0:2], pose[:, 2] = scene.robot_pos, scene.target[:, 2]
+                fast = np.linalg.norm(scene.robot_vel, axis=-1) > self.args.brake_speed
+                better = fast & (chosen != STOP)
+            else:
+                poses, index = plan.alternatives(self.obs[free], LOOK.options, (cand, ranked[0]))
+                option = np.where(index >= 0, np.take_along_axis(risk, index.clip(0), 1), np.inf)
+                pick = option.argmin(1)
+                pose, better = poses[rows, pick], option[rows, pick] < top
+            change = (top > self.args.threshold) & better & (rules.speed > 0)
             at = tuple(np.argwhere(free)[change].T)
-            plan.pose[at], plan.until[at] = poses[change, pick[change]], core.steps[at[0]] + self.args.hold
+            plan.pose[at], plan.until[at] = pose[change], core.steps[at[0]] + self.args.hold
             self.changed += int(change.sum())
         return plan.actions(core, self.obs, self.act)[live]
 
 
 def student(args: argparse.Namespace) -> None:
     config = task_config(args.scenario)
-    planner = load_manager("sampling", config)
+    planner = load_manager(args.planner, config)
     net = fit(*load(args.labels), args.epochs, args.fit_seed)
     if args.val:
         print(validate(net, *load(args.val)))
     ends = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
-    print(summary("sampling", ends, config.dt))
+    print(summary(args.planner, ends, config.dt))
     core = HierarchicalCore(config, args.episodes, autoreset=False)
     policy = Student(core, planner, net, args)
     print(
@@ -210,15 +223,33 @@ def main() -> None:
     stu.add_argument("--threshold", type=float, default=0.2, help="the rated chance of a loss that acts")
     stu.add_argument("--every", type=int, default=LOOK.every, help="control steps between ratings")
     stu.add_argument("--hold", type=int, default=LOOK.hold, help="control steps a change is held")
+    stu.add_argument(
+        "--way-out",
+        choices=("option", "brake"),
+        default="option",
+        help="a robot at risk takes the teacher's lowest-rated option, or brakes where it is",
+    )
+    stu.add_argument(
+        "--brake-speed", type=float, default=0.0, help="m/s: brake only a robot faster than this"
+    )
     for sub in (rec, stu):
         sub.add_argument("--scenario", default="configs/game/ball_placement_residual.yaml")
+        sub.add_argument(
+            "--planner", default="sampling", help="the teacher's and student's planner, with settings"
+        )
     args = parser.parse_args()
     for name in ("episodes", "epochs", "every", "hold"):
         if getattr(args, name, 1) < 1:
             parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
     if not 0.0 <= getattr(args, "calm", 0.0) <= 1.0 or not 0.0 <= getattr(args, "threshold", 0.0) <= 1.0:
         parser.error("--calm and --threshold are shares in [0, 1]")
-    if not isinstance(load_manager("sampling", task_config(args.scenario)), RuledPlanner):
+    if not 0.0 <= getattr(args, "brake_speed", 0.0) < np.inf:
+        parser.error(f"--brake-speed must be a speed of at least 0 m/s, got {args.brake_speed}")
+    try:
+        planner = load_manager(args.planner, task_config(args.scenario))
+    except ValueError as err:
+        parser.error(f"--planner {args.planner}: {err}")
+    if not isinstance(planner, RuledPlanner):
         parser.error(f"--scenario {args.scenario}: a game scenario, whose copies play its rules")
     (record if args.command == "record" else student)(args)
 

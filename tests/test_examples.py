@@ -209,6 +209,15 @@ def test_distill(tmp_path: Path) -> None:
     robots = re.match(r"sampling: robots 12 success ([\d.]+) %", lines[1])
     assert float(robots[1]) == round(100 * ends["success"].mean(), 2)
     assert re.match(r"student: robots 12 success [\d.]+ % .* sub-goals changed \d+$", lines[2])
+    # Over the braking planner, a student that brakes every robot at any risk never lets one move on; one
+    # that acts on no risk plays the planner's own figures.
+    brake = ("--planner", "sampling+trapped=brake", "--way-out", "brake", "--episodes", "2", "--seed", "35")
+    common = (*scenario, "--labels", labels, "--epochs", "30", *brake)
+    always = _run("distill.py", "play", *common, "--threshold", "0", cwd=tmp_path)
+    never = _run("distill.py", "play", *common, "--threshold", "1", cwd=tmp_path)
+    assert always[0].startswith("sampling+trapped=brake: robots 12 success")
+    assert re.match(r"student: robots 12 success 0.00 % .* sub-goals changed [1-9]\d*$", always[1])
+    assert never[1] == never[0].replace("sampling+trapped=brake", "student") + " sub-goals changed 0"
 
 
 def test_opponent_roles(tmp_path: Path) -> None:

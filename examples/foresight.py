@@ -16,7 +16,9 @@ left at 1.5 m/s), and holds it for real. A manager that reads one observation do
 copies show. ``--copies`` says what they know: everything (``exact``); all but the dice
 (``unseen-draws``: the opponents' free spots and sub-destinations drawn afresh); or our team alone
 (``steady-opponents``: the opponents hold the velocity they have, as ``sampling`` predicts them).
-``--options 0`` plays the planner alone.
+``--options 0`` plays the planner alone. ``--way-out brake`` offers a robot at risk one way out, braking
+where it stands, to measure what a perfect warning is worth to a manager that can only brake;
+``--planner`` names the planner played (``sampling+trapped=brake``).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ SPACING = 0.25  # m between the alternatives offered to a robot
 LOST = 1e4  # the cost of a robot lost in a copy, against its control steps to target
 DICE = 12345  # seeds the copies' own draws with ``--copies unseen-draws`` (docs/results.md's rows used it)
 # The look ahead docs/results.md's rows used: every 5 control steps, 60 ahead, 6 options held 15 steps.
-LOOK = argparse.Namespace(every=5, horizon=60, options=6, hold=15, copies="exact")
+LOOK = argparse.Namespace(every=5, horizon=60, options=6, hold=15, copies="exact", way_out="option")
 
 
 class Plan:
@@ -62,21 +64,28 @@ class Plan:
         return act
 
     def alternatives(
-        self, obs: np.ndarray, count: int, scored: tuple[np.ndarray, np.ndarray] | None = None
+        self,
+        obs: np.ndarray,
+        count: int,
+        scored: tuple[np.ndarray, np.ndarray] | None = None,
+        wait: bool = False,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Sub-goal poses (B, count, 5) for robots ``obs`` (B, O): the planner's candidates in its order
         after its choice, each ``SPACING`` from those before, then the robot's own position (repeated to
         fill); and their indices (B, count) among ``planner.candidates``, -1 for the robot's position.
-        ``scored``: those candidates and the planner's score of them, where the caller has them already."""
+        ``scored``: those candidates and the planner's score of them, where the caller has them already.
+        ``wait``: the robot's own position alone (B, 1)."""
         scene, rules = self.planner.read_ruled(obs)
-        if scored is None:
+        if wait:
+            scored = np.zeros((len(obs), 1), complex), np.zeros((len(obs), 1))
+        elif scored is None:
             cand = self.planner.candidates(scene)
             scored = cand, self.planner.score(scene, cand, rules)
         cand, score = scored
-        index = spaced(cand, score, count)
+        index = np.full((len(obs), 1), -1) if wait else spaced(cand, score, count)
         own = (scene.robot_pos @ np.array([1.0, 1j]))[:, None]
         points = np.where(index >= 0, np.take_along_axis(cand, index.clip(0), 1), own)
-        out = np.zeros((len(obs), count, 5))
+        out = np.zeros(index.shape + (5,))
         out[..., 0], out[..., 1], out[..., 2] = points.real, points.imag, scene.target[:, 2, None]
         halted = rules.speed <= 0  # HALT: the robot holds where it is, whatever the option
         out[halted, :, 0:2], out[halted, :, 3:5] = scene.robot_pos[halted, None], 0.0
@@ -182,10 +191,10 @@ def choose(
     own copy, each field choosing for its robots together; returns how many robots changed sub-goal.
     ``seen``, where given, is told what the copies showed before the plan changes."""
     best, risk = ahead(copied(), obs, plan.copy(), args.horizon)
-    options, index = plan.alternatives(obs[risk], args.options)
+    options, index = plan.alternatives(obs[risk], args.options, wait=args.way_out == "brake")
     field, lost = np.nonzero(risk)[0], np.zeros(index.shape, bool)
     pick = np.full(len(best), -1)
-    for j in range(args.options if risk.any() else 0):
+    for j in range(index.shape[1] if risk.any() else 0):
         trial = plan.copy()
         trial.pose[risk], trial.until[risk] = options[:, j], steps[field] + args.hold
         cost, lost_j = ahead(copied(), obs, trial, args.horizon)
@@ -228,17 +237,27 @@ def main() -> None:
         help="what the copies know: everything; all but the dice; our team only, the opponents held at "
         "their velocity",
     )
+    parser.add_argument(
+        "--way-out",
+        choices=("option", "brake"),
+        default=LOOK.way_out,
+        help="a robot a copy loses is offered --options other sub-goals, or braking where it stands alone",
+    )
+    parser.add_argument("--planner", default="sampling", help="the planner played, with its settings")
     args = parser.parse_args()
     for name in ("episodes", "every", "horizon", "hold", "options"):
         least = 0 if name == "options" else 1
         if getattr(args, name) < least:
             parser.error(f"--{name} must be at least {least}, got {getattr(args, name)}")
     config = task_config(args.scenario)
-    planner = load_manager("sampling", config)
+    try:
+        planner = load_manager(args.planner, config)
+    except ValueError as err:
+        parser.error(f"--planner {args.planner}: {err}")
     if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:
         parser.error("a game scenario at frame skip 1, where a decision is a control step")
     alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
-    print(summary("sampling", alone, config.dt), flush=True)
+    print(summary(args.planner, alone, config.dt), flush=True)
     core = HierarchicalCore(config, args.episodes, autoreset=False)
     foresight = Foresight(core, planner, args)
     ends = play(core, foresight, args.seed)

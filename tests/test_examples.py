@@ -162,8 +162,22 @@ def test_foresight(tmp_path: Path) -> None:
         == (round(100 * ends["success"].mean(), 2), lost.sum())
         == (83.33, 1)
     )
-    # The copies foresee the collision and a changed sub-goal avoids it.
+    # The copies foresee the collision and a changed sub-goal avoids it; braking alone does too.
     assert int(figures[1][3]) == 0 and int(lines[1].split()[-1]) >= 1
+    braked = _run("foresight.py", "--scenario", str(config), *("--episodes", "2", "--seed", "35"),
+                  *("--every", "10", "--way-out", "brake"), cwd=tmp_path)  # fmt: skip
+    assert braked[0] == lines[0] and re.search(r"\(0\) .* sub-goals changed [1-9]\d*$", braked[1])
+    # Braking offers the robot's own position alone, where the options are the planner's other candidates.
+    spec = importlib.util.spec_from_file_location("foresight", EXAMPLES / "foresight.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    planner = load_manager("sampling", task_config(config))
+    obs = HierarchicalCore(task_config(config), 2, autoreset=False).reset(35).reshape(12, -1)
+    plan = module.Plan(planner, (2, 6))
+    poses, index = plan.alternatives(obs, 6, wait=True)
+    assert poses.shape == (12, 1, 5) and (index == -1).all()
+    assert np.allclose(poses[:, 0, 0:2], planner.read_ruled(obs)[0].robot_pos)
+    assert (plan.alternatives(obs, 6)[1] >= 0).any()
 
 
 def test_distill(tmp_path: Path) -> None:

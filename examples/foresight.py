@@ -76,13 +76,14 @@ class Plan:
         ``scored``: those candidates and the planner's score of them, where the caller has them already.
         ``wait``: the robot's own position alone (B, 1)."""
         scene, rules = self.planner.read_ruled(obs)
-        if wait:
-            scored = np.zeros((len(obs), 1), complex), np.zeros((len(obs), 1))
-        elif scored is None:
-            cand = self.planner.candidates(scene)
-            scored = cand, self.planner.score(scene, cand, rules)
-        cand, score = scored
-        index = np.full((len(obs), 1), -1) if wait else spaced(cand, score, count)
+        if wait:  # no candidate scored: their rollouts are what this costs
+            cand, index = np.zeros((len(obs), 1), complex), np.full((len(obs), 1), -1)
+        else:
+            if scored is None:
+                cand = self.planner.candidates(scene)
+                scored = cand, self.planner.score(scene, cand, rules)
+            cand, score = scored
+            index = spaced(cand, score, count)
         own = (scene.robot_pos @ np.array([1.0, 1j]))[:, None]
         points = np.where(index >= 0, np.take_along_axis(cand, index.clip(0), 1), own)
         out = np.zeros(index.shape + (5,))
@@ -134,7 +135,7 @@ robot in its copy (R, options) bool."""
 
 
 class Foresight:
-    """``sampling`` with the copies' changes (module docstring), a policy of ``hier_ssl.envs.play.play``
+    """The planner with the copies' changes (module docstring), a policy of ``hier_ssl.envs.play.play``
     for the episodes of ``core``, which it copies; ``changed`` counts the times it handed a robot another
     sub-goal than the planner's."""
 

@@ -34,13 +34,12 @@ import argparse
 
 import numpy as np
 import torch
-from foresight import LOOK, Foresight, Plan, summary
+from foresight import LOOK, Foresight, Plan, game_planner, summary
 from torch import nn
 
-from hier_ssl.envs import task_config
+from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import play
-from hier_ssl.evaluation.compare import load_manager
 from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.policies.candidate_residual import residual_inputs
 from hier_ssl.policies.networks import mlp
@@ -77,9 +76,7 @@ class Labels:
         self.labels.append(labels[keep])
 
 
-def record(args: argparse.Namespace) -> None:
-    config = task_config(args.scenario)
-    planner = load_manager(args.planner, config)
+def record(args: argparse.Namespace, config: TaskConfig, planner: RuledPlanner) -> None:
     inputs, labels = [], []
     for seed in args.seeds:
         core = HierarchicalCore(config, args.episodes, autoreset=False)
@@ -190,9 +187,7 @@ class Student:
         return plan.actions(core, self.obs, self.act)[live]
 
 
-def student(args: argparse.Namespace) -> None:
-    config = task_config(args.scenario)
-    planner = load_manager(args.planner, config)
+def student(args: argparse.Namespace, config: TaskConfig, planner: RuledPlanner) -> None:
     net = fit(*load(args.labels), args.epochs, args.fit_seed)
     if args.val:
         print(validate(net, *load(args.val)))
@@ -245,13 +240,8 @@ def main() -> None:
         parser.error("--calm and --threshold are shares in [0, 1]")
     if not 0.0 <= getattr(args, "brake_speed", 0.0) < np.inf:
         parser.error(f"--brake-speed must be a speed of at least 0 m/s, got {args.brake_speed}")
-    try:
-        planner = load_manager(args.planner, task_config(args.scenario))
-    except ValueError as err:
-        parser.error(f"--planner {args.planner}: {err}")
-    if not isinstance(planner, RuledPlanner):
-        parser.error(f"--scenario {args.scenario}: a game scenario, whose copies play its rules")
-    (record if args.command == "record" else student)(args)
+    config, planner = game_planner(parser, args.scenario, args.planner)
+    (record if args.command == "record" else student)(args, config, planner)
 
 
 if __name__ == "__main__":

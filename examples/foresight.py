@@ -29,6 +29,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from hier_ssl.config import TaskConfig
 from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import play
@@ -220,6 +221,21 @@ def summary(name: str, ends: dict, dt: float) -> str:
     )
 
 
+def game_planner(
+    parser: argparse.ArgumentParser, scenario: str, spec: str = "sampling"
+) -> tuple[TaskConfig, RuledPlanner]:
+    """The ``scenario`` file's task and the planner ``spec`` (with its settings) in it, where the copies can
+    play it: a game scenario at frame skip 1; else the parser's error, naming what is wrong."""
+    config = task_config(scenario)
+    try:
+        planner = load_manager(spec, config)
+    except ValueError as err:
+        parser.error(f"--planner {spec}: {err}")
+    if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:
+        parser.error(f"--scenario {scenario}: a game scenario at frame skip 1 (a decision a control step)")
+    return config, planner
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="configs/game/stop_residual.yaml", help="a game scenario YAML")
@@ -250,13 +266,7 @@ def main() -> None:
         least = 0 if name == "options" else 1
         if getattr(args, name) < least:
             parser.error(f"--{name} must be at least {least}, got {getattr(args, name)}")
-    config = task_config(args.scenario)
-    try:
-        planner = load_manager(args.planner, config)
-    except ValueError as err:
-        parser.error(f"--planner {args.planner}: {err}")
-    if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:
-        parser.error("a game scenario at frame skip 1, where a decision is a control step")
+    config, planner = game_planner(parser, args.scenario, args.planner)
     alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
     print(summary(args.planner, alone, config.dt), flush=True)
     core = HierarchicalCore(config, args.episodes, autoreset=False)

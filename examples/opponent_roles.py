@@ -25,14 +25,12 @@ import copy
 
 import numpy as np
 import torch
-from foresight import LOOK, Foresight, summary
+from foresight import LOOK, Foresight, game_planner, summary
 from torch import nn
 
-from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.opponents import COVER_SPAN, MARK_DISTANCE, OpponentTeam
 from hier_ssl.envs.play import play
-from hier_ssl.evaluation.compare import load_manager
 from hier_ssl.manager.game_observation import RuledPlanner
 from hier_ssl.policies.networks import mlp
 
@@ -280,10 +278,7 @@ def main() -> None:
         parser.error(f"--episodes and --fit-episodes at least 1, --window above 0; got {vars(args)}")
     if args.seed in args.fit_seeds:
         parser.error(f"--seed {args.seed} is among --fit-seeds: the roles are inferred on play not fitted on")
-    config = task_config(args.scenario)
-    planner = load_manager("sampling", config)
-    if not isinstance(planner, RuledPlanner) or config.frame_skip != 1:
-        parser.error("a game scenario at frame skip 1, where a decision is a control step")
+    config, planner = game_planner(parser, args.scenario)
     scorer = learned(config, planner, args)
     alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
     print(summary("sampling", alone, config.dt), flush=True)

@@ -102,10 +102,15 @@ def load(paths: list[str]) -> tuple[np.ndarray, np.ndarray]:
 
 def fit(inputs: np.ndarray, labels: np.ndarray, epochs: int, seed: int) -> nn.Module:
     """The chance a candidate loses its robot, as a logit, of its features (the inputs after the planner's
-    score and choice): a (64, 64) network, logistic loss over the labelled candidates."""
-    torch.manual_seed(seed)
+    score and choice), fitted on the labelled candidates."""
     seen = labels != UNSEEN
-    x, y = torch.as_tensor(inputs[seen][:, 2:]), torch.as_tensor(labels[seen], dtype=torch.float32)
+    return fit_rows(inputs[seen][:, 2:], labels[seen] == 1, epochs, seed)
+
+
+def fit_rows(x: np.ndarray, y: np.ndarray, epochs: int, seed: int) -> nn.Module:
+    """A (64, 64) network's logit of the chance of ``y`` (R,) bool given ``x`` (R, F), logistic loss."""
+    torch.manual_seed(seed)
+    x, y = torch.as_tensor(x), torch.as_tensor(y, dtype=torch.float32)
     net = mlp(x.shape[1], (64, 64), 1)
     optimizer = torch.optim.Adam(net.parameters(), lr=1e-3, weight_decay=1e-4)
     for _ in range(epochs):

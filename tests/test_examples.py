@@ -319,3 +319,72 @@ def test_the_exported_manager_example_runs_a_manager_that_sees_obstacles(tmp_pat
     lines = _run("export_onnx.py", str(tmp_path / "run"), "--out", str(tmp_path / "out"), cwd=tmp_path)
     tail = lines[lines.index(next(x for x in lines if x.startswith("exported "))) + 1 :]
     assert tail[0] == "task obstacle, frame skip 16, input columns 16" and len(tail) == 4
+
+
+def _example(name: str) -> object:
+    """The module of examples/``name``.py, imported as the scripts import each other (from examples/)."""
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(EXAMPLES))
+    return module
+
+
+def test_a_warning_reads_where_its_neighbours_meet_it() -> None:
+    warning = _example("warning")
+    # Two robots 2 m apart driving at each other at 1 m/s meet after 1 s; moving apart, they are nearest now.
+    meet = warning.approach(np.array([[2.0, 0.0], [2.0, 0.0]]), np.array([[-2.0, 0.0], [2.0, 0.0]]))
+    np.testing.assert_allclose(meet, [[1.0, 0.0], [0.0, 2.0]])
+    # Robot 0 at the origin heads along +y for (0, 2); robot 1 at (1, 1) drives along -x; robot 2 is gone.
+    pos = np.array([[[0.0, 0.0], [1.0, 1.0], [5.0, 5.0]]])
+    vel = np.array([[[0.0, 1.0], [-1.0, 0.0], [0.0, 0.0]]])
+    axis = np.array([[[0.0, 1.0], [-1.0, 0.0], [1.0, 0.0]]])
+    seen = np.array([[True, True, False]])[:, None] & ~np.eye(3, dtype=bool)
+    rel, rel_vel, cpa = (c[0, 0] for c in warning.neighbours(pos, vel, axis, (pos, vel, seen)))
+    # In robot 0's frame (along its way, +y; across to its left, -x) robot 1 is 1 m ahead and 1 m to its
+    # right, coming at it at (-1, -1) m/s in the field: they meet after 1 s. The missing ones are far ahead
+    # and still.
+    np.testing.assert_allclose(rel[:2], [1.0, -1.0])
+    np.testing.assert_allclose(rel_vel[:2], [-1.0, 1.0])
+    np.testing.assert_allclose(cpa[:2], [1.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(rel[2:], [warning.FAR, 0.0] * 2, atol=1e-9)
+    assert (rel_vel[2:] == 0).all() and (cpa[2:] == [0.0, warning.FAR] * 2).all()
+
+
+def test_warning(tmp_path: Path) -> None:
+    # Seed 100's four ball placement fields over `sampling`: the copies see robots lost and brakes that keep
+    # some; recording does not change the play.
+    config = str(EXAMPLES.parent / "configs" / "game" / "ball_placement_residual.yaml")
+    common = ("--scenario", config, "--planner", "sampling", "--calm", "0.2")
+    labels = str(tmp_path / "w.npz")
+    rec = _run(
+        "warning.py", "record", *common, "--seeds", "100", "--episodes", "4", "--out", labels, cwd=tmp_path
+    )
+    ends = play(
+        HierarchicalCore(task_config(config), 4, autoreset=False),
+        load_manager("sampling", task_config(config)),
+        100,
+    )
+    assert (
+        rec[0]
+        == f"seed 100: robots 24 success {100 * ends['success'].mean():.2f} %" + rec[0].split("%", 1)[1]
+    )
+    assert rec[0].endswith(" braked 0")
+    saved = np.load(labels)
+    risk, keeps = (int(x) for x in re.search(r"at risk (\d+), kept by braking (\d+)", rec[1]).groups())
+    assert (saved["risk"].sum(), saved["keeps"].sum()) == (risk, keeps) and risk > keeps > 0
+    assert not (saved["keeps"] & ~saved["risk"]).any()
+    play_ = ("--labels", labels, "--episodes", "2", "--seed", "35")
+    fitted = _run("warning.py", "play", *common, *play_, "--val", labels, "--epochs", "300", cwd=tmp_path)
+    # Fitted long enough, the warning sorts the rows it was fitted on.
+    assert float(re.search(r"AUC ([\d.]+)", fitted[0])[1]) >= 0.9
+    # A warning heeded at no rating plays the planner's own figures; one heeded at any rating brakes.
+    never = _run("warning.py", "play", *common, *play_, "--threshold", "1", cwd=tmp_path)
+    always = _run(
+        "warning.py", "play", *common, *play_, "--threshold", "0", "--brake-speed", "0", cwd=tmp_path
+    )
+    assert never[1] == never[0].replace("sampling", "warned") + " braked 0"
+    assert always[0] == never[0] and re.search(r" braked [1-9]\d*$", always[1]) and always[1] != never[1]

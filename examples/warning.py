@@ -118,7 +118,7 @@ def features(
     return np.concatenate([own, along, length, *team, *foes], -1).astype(np.float32), braking
 
 
-class Warning:
+class BrakeWarning:
     """The network's chance (M,) that braking keeps a robot the plan loses, of the features (M, S) it reads,
     standardised as those it was fitted on."""
 
@@ -140,7 +140,7 @@ class Warned(Foresight):
         core: HierarchicalCore,
         planner: RuledPlanner,
         warn: argparse.Namespace,
-        warning: Warning | None = None,
+        warning: BrakeWarning | None = None,
         calm: float | None = None,
     ) -> None:
         super().__init__(core, planner, BRAKE)
@@ -194,7 +194,7 @@ def load(paths: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     return x, risk, keeps, calm.pop()
 
 
-def validate(warning: Warning, x: np.ndarray, risk: np.ndarray, keeps: np.ndarray, calm: float) -> str:
+def validate(warning: BrakeWarning, x: np.ndarray, risk: np.ndarray, keeps: np.ndarray, calm: float) -> str:
     """How the warning sorts held-out rows by whether braking keeps the robot: its AUC and, at a few
     thresholds, the share of those robots it catches and its alarms for each one caught (a calm row, of
     which ``record`` kept a share ``calm``, counted 1 / ``calm`` times)."""
@@ -224,9 +224,9 @@ def record(args: argparse.Namespace, config: TaskConfig, planner: RuledPlanner) 
     print(f"rows {len(x)}: at risk {risk.sum()}, kept by braking {keeps.sum()}")
 
 
-def fitted(args: argparse.Namespace) -> Warning:
+def fitted(args: argparse.Namespace) -> BrakeWarning:
     x, risk, keeps, _ = load(args.labels)
-    return Warning(x, keeps if args.label == "keeps" else risk, args.epochs, args.fit_seed)
+    return BrakeWarning(x, keeps if args.label == "keeps" else risk, args.epochs, args.fit_seed)
 
 
 def student(args: argparse.Namespace, config: TaskConfig, planner: RuledPlanner) -> None:

@@ -31,6 +31,18 @@ def _run(script: str, *args: str, cwd: Path) -> list[str]:
     return done.stdout.splitlines()
 
 
+def _example(name: str) -> object:
+    """The module of examples/``name``.py, imported as the scripts import each other (from examples/)."""
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(EXAMPLES))
+    return module
+
+
 def test_every_example_is_tested_and_shown_in_the_docs() -> None:
     scripts = sorted(path.name for path in EXAMPLES.glob("*.py"))
     tested = set(re.findall(r'_run\(\s*"(\w+\.py)"', Path(__file__).read_text()))
@@ -113,9 +125,7 @@ def test_stuck_robots(tmp_path: Path) -> None:
 
 
 def test_stuck_robots_counts_jumps_in_the_window_only() -> None:
-    spec = importlib.util.spec_from_file_location("stuck_robots", EXAMPLES / "stuck_robots.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _example("stuck_robots")
     # One field of two robots: robot 0's sub-goal flips between two points 0.9 m apart, robot 1's stays.
     # An opponent (index 2) stands next to robot 1, robot 0 is nearest robot 1 and closes on it at 1 m/s.
     state = SimpleNamespace(pos=np.array([[[0.0, 0.0], [1.0, 0.0], [1.2, 0.0]]]), vel=np.zeros((1, 3, 2)))
@@ -168,9 +178,7 @@ def test_foresight(tmp_path: Path) -> None:
                   *("--every", "10", "--way-out", "brake"), cwd=tmp_path)  # fmt: skip
     assert braked[0] == lines[0] and re.search(r"\(0\) .* sub-goals changed [1-9]\d*$", braked[1])
     # Braking offers the robot's own position alone, where the options are the planner's other candidates.
-    spec = importlib.util.spec_from_file_location("foresight", EXAMPLES / "foresight.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _example("foresight")
     planner = load_manager("sampling", task_config(config))
     obs = HierarchicalCore(task_config(config), 2, autoreset=False).reset(35).reshape(12, -1)
     plan = module.Plan(planner, (2, 6))
@@ -252,13 +260,7 @@ def test_opponent_roles(tmp_path: Path) -> None:
 
 
 def test_a_marker_is_told_from_the_robot_it_marks() -> None:
-    spec = importlib.util.spec_from_file_location("opponent_roles", EXAMPLES / "opponent_roles.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(EXAMPLES))
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(EXAMPLES))
+    module = _example("opponent_roles")
     # Two of ours standing still, at (0, 1) and (0, -1); the opponents' goal at (3, 0). Opponent 0 drives
     # at 1 m/s for the point 0.4 m goal-side of our robot 1, opponent 1 stands still on the goal-ball line.
     frames, m = 10, 2
@@ -319,18 +321,6 @@ def test_the_exported_manager_example_runs_a_manager_that_sees_obstacles(tmp_pat
     lines = _run("export_onnx.py", str(tmp_path / "run"), "--out", str(tmp_path / "out"), cwd=tmp_path)
     tail = lines[lines.index(next(x for x in lines if x.startswith("exported "))) + 1 :]
     assert tail[0] == "task obstacle, frame skip 16, input columns 16" and len(tail) == 4
-
-
-def _example(name: str) -> object:
-    """The module of examples/``name``.py, imported as the scripts import each other (from examples/)."""
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(EXAMPLES))
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(EXAMPLES))
-    return module
 
 
 def test_a_warning_reads_where_its_neighbours_meet_it() -> None:

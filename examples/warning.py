@@ -18,9 +18,9 @@ frame of the robot's way to its sub-goal, with each pair's closest approach over
 goes, as DAgger gathers them) and every 5 control steps asks exact copies (``foresight.py``'s, braking
 its only way out): does the plan lose the robot within 1.5 s, and does braking, held 15 steps, keep it?
 It keeps every robot at risk and a share ``--calm`` of the others. ``play`` fits a (64, 64) network to
-the chance that braking keeps a robot the plan loses, and brakes a robot it rates above ``--threshold``
-that moves faster than ``--brake-speed``, held ``--hold`` steps; a robot whose planner already brakes
-is left alone.
+the chance that braking keeps a robot the plan loses (``--label risk``: that the plan loses it), and
+brakes a robot it rates above ``--threshold`` that moves faster than ``--brake-speed``, held ``--hold``
+steps; a robot whose planner already brakes is left alone.
 """
 
 from __future__ import annotations
@@ -259,6 +259,9 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=20)
     parser.add_argument("--fit-seed", type=int, default=0)
     args = parser.parse_args()
+    for name in ("episodes", "hold", "epochs"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
     if not 0.0 < args.calm <= 1.0:
         parser.error(f"--calm must be in (0, 1], got {args.calm}")
     if not args.brake_speed >= 0.0:

@@ -378,3 +378,16 @@ def test_warning(tmp_path: Path) -> None:
     )
     assert never[1] == never[0].replace("sampling", "warned") + " braked 0"
     assert always[0] == never[0] and re.search(r" braked [1-9]\d*$", always[1]) and always[1] != never[1]
+
+
+def test_warning_names_a_bad_option(tmp_path: Path) -> None:
+    for bad, named in (
+        (("record", "--calm", "0"), "--calm must be in (0, 1], got 0.0"),
+        (("record", "--brake-speed", "nan"), "--brake-speed must be a speed of at least 0, got nan"),
+        (("record", "--hold", "0"), "--hold must be at least 1, got 0"),
+        (("play",), "play needs --labels"),
+    ):
+        done = subprocess.run(
+            [sys.executable, str(EXAMPLES / "warning.py"), *bad], cwd=tmp_path, capture_output=True, text=True
+        )
+        assert done.returncode == 2 and named in done.stderr.splitlines()[-1], done.stderr

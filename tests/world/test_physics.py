@@ -12,7 +12,7 @@ from hier_ssl.worker.scripted import PaperGoToPoint
 from hier_ssl.world.frames import as_complex, heading, to_field_frame, to_robot_frame, wrap_angle
 from hier_ssl.world.obstacles import make_obstacle
 from hier_ssl.world.physics import RobotSpec, RobotState, World
-from hier_ssl.world.space import joint_impulses
+from hier_ssl.world.space import joint_impulses, set_joint_impulses
 
 SPEC = RobotSpec()
 DT = 0.025
@@ -352,3 +352,19 @@ def test_a_copied_world_steps_bit_for_bit_as_its_original(copy_world) -> None:
         np.testing.assert_array_equal(copied.robot_contacts, world.robot_contacts)
         np.testing.assert_array_equal(copied.wall_contacts, world.wall_contacts)
     assert not np.shares_memory(copied.state.pos, world.state.pos)
+
+
+@pytest.mark.parametrize("impulse", [[-4.300478754062833e-298, 0.0], [3e-170, -2e-171], [1e-160, 3e-161]])
+def test_a_joint_impulse_too_small_to_square_is_read_and_copied(impulse) -> None:
+    # A robot's joints come to rest with impulses as small as a gear's 4.3e-298 (seen in a copied game):
+    # its square underflows, and reading it as the vector's length once stopped every copy of the world.
+    world = _world(1, 2)
+    world.step(np.zeros((1, 2, 3)))
+    impulses = joint_impulses(world._joints)
+    gear = np.array([isinstance(joint, pymunk.GearJoint) for joint in world._joints])
+    impulses[gear, 0], impulses[~gear] = impulse[0], impulse
+    set_joint_impulses(world._joints, impulses)
+    np.testing.assert_array_equal(
+        joint_impulses(world._joints), np.where(gear[:, None], [[impulse[0], 0]], impulse)
+    )
+    np.testing.assert_array_equal(joint_impulses(copy.deepcopy(world)._joints), joint_impulses(world._joints))

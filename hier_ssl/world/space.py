@@ -99,9 +99,9 @@ def _impulse_memory(joint: pymunk.Constraint) -> np.ndarray:
     at = _PIVOT_IMPULSE if isinstance(joint, pymunk.PivotJoint) else slice(_GEAR_IMPULSE, _GEAR_IMPULSE + 1)
     buffer = pb.ffi.buffer(doubles + at.start, 8 * (at.stop - at.start))
     view = np.frombuffer(buffer, dtype=np.float64)
-    # pymunk's impulse is Chipmunk's length of it: |j| of a gear's, sqrt(x x + y y) of a pivot's (whose
-    # squares underflow to 0 below 1e-154, as numpy's do). Equal within an ulp or two; below 1e-150 N s,
-    # where a robot's joints end up at rest (a gear's at 4e-298 was seen), the ulps of subnormal squares.
+    # pymunk's impulse is Chipmunk's length of it, |j| of a gear's and sqrt(x x + y y) of a pivot's: equal
+    # to numpy's within an ulp or two. A joint at rest can hold one too small to square (a gear's 4e-298
+    # was seen), whose subnormal square rounds coarsely: a difference below 1e-150 N s is not a misread.
     length = abs(view[0]) if len(view) == 1 else np.sqrt(view[0] * view[0] + view[1] * view[1])
     if not abs(length - joint.impulse) <= 1e-12 * joint.impulse + 1e-150:
         raise RuntimeError(f"pymunk {pymunk.version} keeps a joint's impulse elsewhere than this World reads")

@@ -34,7 +34,7 @@ import argparse
 
 import numpy as np
 import torch
-from foresight import LOOK, Foresight, Plan, game_planner, summary
+from foresight import LOOK, Foresight, Plan, game_planner, standing, summary
 from torch import nn
 
 from hier_ssl.config import TaskConfig
@@ -176,8 +176,7 @@ class Student:
             chosen = inputs[..., 1].numpy().argmax(1)
             top = risk[rows, chosen]
             if self.args.way_out == "brake":  # where it stands, unless it already brakes or barely moves
-                pose = np.zeros((len(cand), 5))
-                pose[:, 0:2], pose[:, 2] = scene.robot_pos, scene.target[:, 2]
+                pose = standing(scene.robot_pos, scene.target[:, 2])
                 fast = np.linalg.norm(scene.robot_vel, axis=-1) > self.args.brake_speed
                 better = fast & (chosen != STOP)
             else:

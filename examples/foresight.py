@@ -94,6 +94,14 @@ class Plan:
         return out, np.where(halted[:, None], -1, index)
 
 
+def standing(pos: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Sub-goal poses (B, 5) that hold robots where they stand, at ``pos`` (B, 2), facing ``heading`` (B,):
+    the worker brakes to them."""
+    out = np.zeros((len(pos), 5))
+    out[:, 0:2], out[:, 2] = pos, heading
+    return out
+
+
 def spaced(cand: np.ndarray, score: np.ndarray, count: int) -> np.ndarray:
     """Indices (B, count) of the candidates ``cand`` (B, C) ranked ``score`` (B, C) after the best, in its
     order, each ``SPACING`` from those before it and the best, -1 past the last one ranked."""

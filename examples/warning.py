@@ -30,14 +30,14 @@ import argparse
 import numpy as np
 import torch
 from distill import STOP, auc, fit_rows
-from foresight import LOOK, Foresight, choose, game_planner, summary
+from foresight import LOOK, Foresight, choose, game_planner, standing, summary
 from torch import nn
 
 from hier_ssl.config import TaskConfig
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import play
 from hier_ssl.manager.game_observation import RuledPlanner
-from hier_ssl.policies.candidate_residual import residual_inputs
+from hier_ssl.policies.candidate_residual import residual_features, residual_inputs
 
 NEAREST = 3  # teammates, and opponents, a robot's warning reads, nearest first
 APPROACH = 1.5  # s over which a pair's closest approach is predicted
@@ -88,23 +88,23 @@ def neighbours(
 def features(
     core: HierarchicalCore, planner: RuledPlanner, obs: np.ndarray, pose: np.ndarray, held: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """What the warning reads (N, M, S) of every field's robots (module docstring), and whether each
-    robot's planner chooses to brake where it stands (N, M) bool. ``pose`` (N, M, 5): the sub-goals
-    ``held`` robots hold; the others' are the planner's choice."""
-    live = core.active
-    scene, _ = planner.read_ruled(obs[live])
-    cand = planner.candidates(scene)
-    inputs = residual_inputs(planner, obs[live], cand, zone_features=True).numpy()
-    rows, chosen = np.arange(len(cand)), inputs[..., 1].argmax(1)
-    own = np.zeros(live.shape + (inputs.shape[-1] - 2,))
-    own[live] = inputs[rows, chosen, 2:]
-    braking = np.zeros(live.shape, bool)
-    braking[live] = chosen == STOP
+    """What the warning reads (N, M, S) of every field's robots (module docstring; zero for ``held`` ones,
+    which it does not rate), and whether each robot's planner chooses to brake where it stands (N, M)
+    bool. ``pose`` (N, M, 5): the sub-goals ``held`` robots hold; the others' are the planner's choice."""
     m, state = core.num_agents, core.state
+    live, free = core.active, core.active & ~held
     pos, vel = state.pos[:, :m], state.vel[:, :m]
     goal = pos.copy()
-    goal[live] = np.stack([cand[rows, chosen].real, cand[rows, chosen].imag], -1)
     goal[held] = pose[held, 0:2]
+    own = np.zeros(live.shape + (residual_features(True),))
+    braking = np.zeros(live.shape, bool)
+    if free.any():  # the planner's rollouts of the free robots' candidates: what the features cost
+        scene, _ = planner.read_ruled(obs[free])
+        cand = planner.candidates(scene)
+        inputs = residual_inputs(planner, obs[free], cand, zone_features=True).numpy()
+        rows, chosen = np.arange(len(cand)), inputs[..., 1].argmax(1)
+        own[free], braking[free] = inputs[rows, chosen, 2:], chosen == STOP
+        goal[free] = np.stack([cand[rows, chosen].real, cand[rows, chosen].imag], -1)
     way, speed = goal - pos, np.linalg.norm(vel, axis=-1, keepdims=True)
     length = np.linalg.norm(way, axis=-1, keepdims=True)
     toward = way / np.maximum(length, 1e-6)
@@ -177,9 +177,7 @@ class Warned(Foresight):
         at = at & fast
         change = self.warning(x[at]) > self.warn.threshold
         rows = tuple(np.argwhere(at)[change].T)
-        plan.pose[rows] = 0.0
-        plan.pose[rows + (slice(0, 2),)] = core.state.pos[rows]
-        plan.pose[rows + (2,)] = core.target[rows + (2,)]
+        plan.pose[rows] = standing(core.state.pos[rows], core.target[rows][:, 2])
         plan.until[rows] = core.steps[rows[0]] + self.warn.hold
         self.braked += int(change.sum())
 
@@ -264,7 +262,7 @@ def main() -> None:
             parser.error(f"--{name} must be at least 1, got {getattr(args, name)}")
     if not 0.0 < args.calm <= 1.0:
         parser.error(f"--calm must be in (0, 1], got {args.calm}")
-    if not args.brake_speed >= 0.0:
+    if not 0.0 <= args.brake_speed < np.inf:
         parser.error(f"--brake-speed must be a speed of at least 0, got {args.brake_speed}")
     if args.command == "play" and not args.labels:
         parser.error("play needs --labels to fit the warning on")

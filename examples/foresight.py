@@ -18,7 +18,9 @@ copies show. ``--copies`` says what they know: everything (``exact``); all but t
 (``steady-opponents``: the opponents hold the velocity they have, as ``sampling`` predicts them).
 ``--options 0`` plays the planner alone. ``--way-out brake`` offers a robot at risk one way out, braking
 where it stands, to measure what a perfect warning is worth to a manager that can only brake;
-``--planner`` names the planner played (``sampling+trapped=brake``).
+``--planner`` names the planner played (``sampling+trapped=brake``); ``--manager RUN`` plays a trained run
+(its ``--policy`` checkpoint) in its place, here and in the copies, the planner still reading the scene for
+the options and the held sub-goals.
 """
 
 from __future__ import annotations
@@ -44,21 +46,23 @@ LOOK = argparse.Namespace(every=5, horizon=60, options=6, hold=15, copies="exact
 
 
 class Plan:
-    """The planner's actions, with held sub-goals (field frame) for some robots until a control step."""
+    """The actions of ``decide`` (the planner unless given: a manager's numpy policy), with held sub-goals
+    (field frame) for some robots until a control step, which ``planner`` turns into actions."""
 
-    def __init__(self, planner: RuledPlanner, shape: tuple[int, int]) -> None:
+    def __init__(self, planner: RuledPlanner, shape: tuple[int, int], decide: Callable | None = None) -> None:
         self.planner, self.pose, self.until = planner, np.zeros(shape + (5,)), np.full(shape, -1)
+        self.decide = planner if decide is None else decide
 
     def copy(self) -> Plan:
-        out = Plan(self.planner, self.until.shape)
+        out = Plan(self.planner, self.until.shape, self.decide)
         out.pose[...], out.until[...] = self.pose, self.until
         return out
 
     def actions(self, core: HierarchicalCore, obs: np.ndarray, act: np.ndarray) -> np.ndarray:
         held = core.active & (self.until > core.steps[:, None])
         planned = core.active & ~held
-        if planned.any():  # the planner keeps nothing between calls: the held robots' calls are not needed
-            act[planned] = self.planner(obs[planned])
+        if planned.any():  # the managers keep nothing between calls: the held robots' calls are not needed
+            act[planned] = self.decide(obs[planned])
         if held.any():
             scene = self.planner.read(self.planner.rules(obs[held])[0])
             act[held] = self.planner.action(scene, self.pose[held])
@@ -144,9 +148,9 @@ robot in its copy (R, options) bool."""
 
 
 class Foresight:
-    """The planner with the copies' changes (module docstring), a policy of ``hier_ssl.envs.play.play``
-    for the episodes of ``core``, which it copies; ``changed`` counts the times it handed a robot another
-    sub-goal than the planner's."""
+    """The planner (or ``decide``, a manager's numpy policy) with the copies' changes (module docstring), a
+    policy of ``hier_ssl.envs.play.play`` for the episodes of ``core``, which it copies; ``changed`` counts
+    the times it handed a robot another sub-goal than its manager's."""
 
     def __init__(
         self,
@@ -154,9 +158,10 @@ class Foresight:
         planner: RuledPlanner,
         args: argparse.Namespace,
         seen: Seen | None = None,
+        decide: Callable | None = None,
     ) -> None:
         self.core, self.args, self.changed, self.seen = core, args, 0, seen
-        self.plan, self.dice = Plan(planner, core.active.shape), np.random.default_rng(DICE)
+        self.plan, self.dice = Plan(planner, core.active.shape, decide), np.random.default_rng(DICE)
         self.obs = np.zeros(core.active.shape + (core.obs_dim,), np.float32)
         self.act = np.zeros(core.active.shape + (core.act_dim,))
 
@@ -269,16 +274,24 @@ def main() -> None:
         help="a robot a copy loses is offered --options other sub-goals, or braking where it stands alone",
     )
     parser.add_argument("--planner", default="sampling", help="the planner played, with its settings")
+    parser.add_argument("--manager", help="a run directory: its manager is played in the planner's place")
+    parser.add_argument("--policy", choices=("best", "final"), default="final", help="the run's checkpoint")
     args = parser.parse_args()
     for name in ("episodes", "every", "horizon", "hold", "options"):
         least = 0 if name == "options" else 1
         if getattr(args, name) < least:
             parser.error(f"--{name} must be at least {least}, got {getattr(args, name)}")
     config, planner = game_planner(parser, args.scenario, args.planner)
-    alone = play(HierarchicalCore(config, args.episodes, autoreset=False), planner, args.seed)
-    print(summary(args.planner, alone, config.dt), flush=True)
+    decide, name = planner, args.planner
+    if args.manager is not None:
+        try:
+            decide, name = load_manager(args.manager, config, args.policy), f"{args.manager} ({args.policy})"
+        except ValueError as err:
+            parser.error(f"--manager {args.manager}: {err}")
+    alone = play(HierarchicalCore(config, args.episodes, autoreset=False), decide, args.seed)
+    print(summary(name, alone, config.dt), flush=True)
     core = HierarchicalCore(config, args.episodes, autoreset=False)
-    foresight = Foresight(core, planner, args)
+    foresight = Foresight(core, planner, args, decide=decide)
     ends = play(core, foresight, args.seed)
     print(f"{summary('foresight', ends, config.dt)} sub-goals changed {foresight.changed}")
 

@@ -11,11 +11,17 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import torch
 
-from hier_ssl.envs import task_config
+from hier_ssl.checkpoints.actor import BEST_ACTOR_FILE, CONFIG_FILE
+from hier_ssl.checkpoints.tensors import save_checkpoint
+from hier_ssl.config import dump_config
+from hier_ssl.config.files import load_yaml
+from hier_ssl.envs import parse_config, task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import play
 from hier_ssl.evaluation.compare import load_manager
+from hier_ssl.policies.candidate_nets import build_chooser
 
 EXAMPLES = Path(__file__).parents[1] / "examples"
 
@@ -186,6 +192,39 @@ def test_foresight(tmp_path: Path) -> None:
     assert poses.shape == (12, 1, 5) and (index == -1).all()
     assert np.allclose(poses[:, 0, 0:2], planner.read_ruled(obs)[0].robot_pos)
     assert (plan.alternatives(obs, 6)[1] >= 0).any()
+
+
+def test_foresight_plays_a_trained_manager(tmp_path: Path) -> None:
+    # A STOP residual with a random correction chooses otherwise than `sampling`: the script plays it, alone
+    # as `play` does and in its copies, the planner only reading the scene for the ways out.
+    config = parse_config(load_yaml(EXAMPLES.parent / "configs" / "game" / "stop_residual.yaml"))
+    torch.manual_seed(0)
+    net = build_chooser("residual", (16, 16), None, 0, config.candidates.tau, 0.0, False)
+    torch.nn.init.normal_(net.body[-1].weight, std=10.0)
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / CONFIG_FILE).write_text(dump_config(config))
+    save_checkpoint({"net": net.state_dict(), "step": 1}, run / BEST_ACTOR_FILE)
+    scenario = ("--scenario", str(EXAMPLES.parent / "configs" / "game" / "stop_residual.yaml"))
+    look = (*scenario, "--episodes", "2", "--seed", "35", "--every", "10", "--way-out", "brake")
+    lines = _run("foresight.py", *look, "--manager", str(run), "--policy", "best", cwd=tmp_path)
+    ends = play(
+        HierarchicalCore(config.task_config, 2, autoreset=False),
+        load_manager(run, config.task_config, "best"),
+        35,
+    )
+    module = _example("foresight")
+    assert lines[0] == module.summary(f"{run} (best)", ends, config.task_config.dt)
+    planner_line = _run("foresight.py", *look, cwd=tmp_path)[0]
+    assert lines[0].split(": ", 1)[1] != planner_line.split(": ", 1)[1]
+    assert re.match(r"foresight: robots 12 .* sub-goals changed \d+$", lines[1])
+    bad = subprocess.run(
+        [sys.executable, str(EXAMPLES / "foresight.py"), *look, "--manager", str(run), "--policy", "final"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
+    assert bad.returncode == 2 and f"--manager {run}: {run}: no final checkpoint" in bad.stderr
 
 
 def test_distill(tmp_path: Path) -> None:

@@ -215,8 +215,12 @@ def test_foresight_plays_a_trained_manager(tmp_path: Path) -> None:
     )
     module = _example("foresight")
     assert lines[0] == module.summary(f"{run} (best)", ends, config.task_config.dt)
-    planner_line = _run("foresight.py", *look, cwd=tmp_path)[0]
-    assert lines[0].split(": ", 1)[1] != planner_line.split(": ", 1)[1]
+    planner = load_manager("sampling", config.task_config)
+    alone = play(HierarchicalCore(config.task_config, 2, autoreset=False), planner, 35)
+    assert lines[0].split(": ", 1)[1] != module.summary("", alone, config.task_config.dt).split(": ", 1)[1]
+    # The copies play it too: a plan copied for a copy of the world keeps the manager.
+    decide = load_manager(run, config.task_config, "best")
+    assert module.Plan(planner, (2, 6), decide).copy().decide is decide
     assert re.match(r"foresight: robots 12 .* sub-goals changed \d+$", lines[1])
     bad = subprocess.run(
         [sys.executable, str(EXAMPLES / "foresight.py"), *look, "--manager", str(run), "--policy", "final"],

@@ -19,8 +19,8 @@ copies show. ``--copies`` says what they know: everything (``exact``); all but t
 ``--options 0`` plays the planner alone. ``--way-out brake`` offers a robot at risk one way out, braking
 where it stands, to measure what a perfect warning is worth to a manager that can only brake;
 ``--planner`` names the planner played (``sampling+trapped=brake``); ``--manager RUN`` plays a trained run
-(its ``--policy`` checkpoint) in its place, here and in the copies, the planner still reading the scene for
-the options and the held sub-goals.
+(its ``--policy`` checkpoint) in its place, here and in the copies, the planner (the run's own unless
+``--planner`` names one) still reading the scene for the options and the held sub-goals.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from hier_ssl.config import TaskConfig
 from hier_ssl.envs import task_config
 from hier_ssl.envs.core import HierarchicalCore
 from hier_ssl.envs.play import play
-from hier_ssl.evaluation.compare import load_manager
+from hier_ssl.evaluation.compare import load_manager, run_config
 from hier_ssl.manager.game_observation import RuledPlanner
 
 SPACING = 0.25  # m between the alternatives offered to a robot
@@ -273,7 +273,9 @@ def main() -> None:
         default=LOOK.way_out,
         help="a robot a copy loses is offered --options other sub-goals, or braking where it stands alone",
     )
-    parser.add_argument("--planner", default="sampling", help="the planner played, with its settings")
+    parser.add_argument(
+        "--planner", help="the planner played, with its settings (sampling; with --manager, the run's own)"
+    )
     parser.add_argument("--manager", help="a run directory: its manager is played in the planner's place")
     parser.add_argument("--policy", choices=("best", "final"), default="final", help="the run's checkpoint")
     args = parser.parse_args()
@@ -281,6 +283,11 @@ def main() -> None:
         least = 0 if name == "options" else 1
         if getattr(args, name) < least:
             parser.error(f"--{name} must be at least {least}, got {getattr(args, name)}")
+    if args.planner is None:  # a run's ways out read the scene as its own planner does
+        try:
+            args.planner = "sampling" if args.manager is None else run_config(args.manager).candidates.planner
+        except ValueError as err:
+            parser.error(f"--manager {args.manager}: {err}")
     config, planner = game_planner(parser, args.scenario, args.planner)
     decide, name = planner, args.planner
     if args.manager is not None:

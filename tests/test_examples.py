@@ -222,13 +222,29 @@ def test_foresight_plays_a_trained_manager(tmp_path: Path) -> None:
     decide = load_manager(run, config.task_config, "best")
     assert module.Plan(planner, (2, 6), decide).copy().decide is decide
     assert re.match(r"foresight: robots 12 .* sub-goals changed \d+$", lines[1])
-    bad = subprocess.run(
-        [sys.executable, str(EXAMPLES / "foresight.py"), *look, "--manager", str(run), "--policy", "final"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-    )
-    assert bad.returncode == 2 and f"--manager {run}: {run}: no final checkpoint" in bad.stderr
+    for manager, policy, message in [
+        (run, "final", f"--manager {run}: {run}: no final checkpoint"),
+        (
+            tmp_path / "none",
+            "best",
+            f"--manager {tmp_path / 'none'}: manager '{tmp_path / 'none'}' is neither",
+        ),
+    ]:
+        bad = subprocess.run(
+            [
+                sys.executable,
+                str(EXAMPLES / "foresight.py"),
+                *look,
+                "--manager",
+                str(manager),
+                "--policy",
+                policy,
+            ],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+        )
+        assert bad.returncode == 2 and message in bad.stderr
 
 
 def test_distill(tmp_path: Path) -> None:
